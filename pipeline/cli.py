@@ -1,0 +1,93 @@
+"""The `flashbrdf` command line: argument parsing and error-to-exit-status mapping.
+
+Exit status (contract): 0 success, 2 bad input (one line on stderr naming the file or field),
+1 anything else. Each sub-command lives in pipeline/commands.py.
+"""
+
+import argparse
+import sys
+
+from brdf.errors import InputError
+
+
+def _parser():
+    p = argparse.ArgumentParser(
+        prog="flashbrdf",
+        description="Flash photograph + known geometry -> full measured BRDF "
+                    "(Georgoulis et al., ICCV 2015).")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    s = sub.add_parser("merl-slice", help="write the theta_d = 0 slice of a MERL table")
+    s.add_argument("brdf", metavar="BRDF.binary")
+    s.add_argument("--out", required=True, metavar="SLICE.csv")
+
+    s = sub.add_parser("train", help="train a DS-GPLVM model on MERL tables")
+    s.add_argument("--merl-dir", required=True, metavar="DIR")
+    s.add_argument("--out", required=True, metavar="MODEL.npz")
+    s.add_argument("--views", default="1d,2d", choices=["1d,2d", "1d,2d,3d"])
+    s.add_argument("--seed", type=int, default=0)
+
+    s = sub.add_parser("infer", help="infer a full BRDF from a slice")
+    s.add_argument("--model", metavar="MODEL.npz")
+    s.add_argument("--slice", required=True, metavar="SLICE.csv")
+    s.add_argument("--out", required=True, metavar="BRDF.binary")
+    s.add_argument("--method", default="dsgplvm",
+                   choices=["dsgplvm", "pca", "noll", "chandraker", "ashikhmin"])
+    s.add_argument("--merl-dir", metavar="DIR")
+
+    s = sub.add_parser("extract", help="extract the flash slice from a capture folder")
+    s.add_argument("scene_dir", metavar="SCENE_DIR")
+    s.add_argument("--out", required=True, metavar="SLICE.csv")
+
+    s = sub.add_parser("render", help="render every reference photo's lighting")
+    s.add_argument("scene_dir", metavar="SCENE_DIR")
+    s.add_argument("--brdf", required=True, metavar="BRDF.binary")
+    s.add_argument("--out", required=True, metavar="OUT_DIR")
+    s.add_argument("--spp", type=int, default=64)
+
+    s = sub.add_parser("compare", help="log-CIELAB Delta E between two images")
+    s.add_argument("pred", metavar="PRED.exr")
+    s.add_argument("ref", metavar="REF.exr")
+    s.add_argument("--mask", metavar="MASK.png")
+    s.add_argument("--out", required=True, metavar="OUT_DIR")
+
+    s = sub.add_parser("run", help="extract, infer, render and compare in one go")
+    s.add_argument("scene_dir", metavar="SCENE_DIR")
+    s.add_argument("--out", required=True, metavar="OUT_DIR")
+    s.add_argument("--model", metavar="MODEL.npz")
+    s.add_argument("--methods", default="dsgplvm")
+
+    s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
+    s.add_argument("--merl-dir", required=True, metavar="DIR")
+    s.add_argument("--out", required=True, metavar="OUT_DIR")
+    s.add_argument("--render", action="store_true")
+    s.add_argument("--quick", action="store_true")
+
+    s = sub.add_parser("import-diligent", help="turn a DiLiGenT object folder into a scene folder")
+    s.add_argument("obj_dir", metavar="OBJ_DIR")
+    s.add_argument("--flash", required=True, type=int, metavar="INDEX")
+    s.add_argument("--out", required=True, metavar="SCENE_DIR")
+    return p
+
+
+def main(argv=None):
+    args = _parser().parse_args(argv)
+    from pipeline import commands
+    handler = getattr(commands, args.command.replace("-", "_"), None)
+    try:
+        if handler is None:
+            raise NotImplementedError(args.command)
+        return handler(args) or 0
+    except InputError as err:
+        print(f"flashbrdf {args.command}: error: {err}", file=sys.stderr)
+        return 2
+    except NotImplementedError:
+        print(f"flashbrdf {args.command}: not implemented yet", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        return 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
