@@ -74,10 +74,8 @@ def _parser():
 def main(argv=None):
     args = _parser().parse_args(argv)
     from pipeline import commands
-    handler = getattr(commands, args.command.replace("-", "_"), None)
+    handler = getattr(commands, args.command.replace("-", "_"))
     try:
-        if handler is None:
-            raise NotImplementedError(args.command)
         return handler(args) or 0
     except InputError as err:
         print(f"flashbrdf {args.command}: error: {err}", file=sys.stderr)
