@@ -17,6 +17,8 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   occluded(mesh_or_intersector, points, directions, max_dist=None) -> (...) bool
   is_convex(mesh_or_intersector) -> bool
   surface_from_mesh(mesh_or_intersector, camera, pixel_mask=None) -> Surface
+  surface_at_pixels(mesh_or_intersector, camera, rows, cols) -> Surface (hits only)
+  pixel_box(camera, bounds) -> (row0, row1, col0, col1): pixels that can see a world box
   surface_from_normal_map(geometry, camera, pixel_mask=None) -> Surface (points None)
   load_normal_map(geometry, camera) -> normals_camera (H, W, 3), mask (H, W)
   load_photo(path, encoding=None, saturation=None, shape=None) -> rgb (H, W, 3) f32, usable (H, W)
@@ -27,10 +29,10 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   srgb_to_linear(values) -> linear
 """
 
-from capture.camera import camera_rays, pixel_rays, project_points, view_directions
+from capture.camera import camera_rays, pixel_box, pixel_rays, project_points, view_directions
 from capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex,
-                              load_mesh, load_normal_map, occluded, surface_from_mesh,
-                              surface_from_normal_map)
+                              load_mesh, load_normal_map, occluded, surface_at_pixels,
+                              surface_from_mesh, surface_from_normal_map)
 from capture.load import FlashImage, load_flash_images, load_photo_entry
 from capture.photo import load_brackets, load_photo, read_float_image, srgb_to_linear
 from capture.scene import Camera, Geometry, Light, Photo, Scene, load_scene
@@ -49,6 +51,6 @@ __all__ = [
     "Camera", "FlashImage", "Geometry", "Hits", "Light", "MeshIntersector", "Photo", "Scene",
     "Surface", "camera_rays", "intersect", "is_convex", "load_brackets", "load_flash_images",
     "load_mesh", "load_normal_map", "load_photo", "load_photo_entry", "load_scene", "occluded",
-    "pixel_rays", "project_points", "read_float_image", "scene_intersector", "srgb_to_linear",
-    "surface_from_mesh", "surface_from_normal_map", "view_directions",
+    "pixel_box", "pixel_rays", "project_points", "read_float_image", "scene_intersector", "srgb_to_linear",
+    "surface_at_pixels", "surface_from_mesh", "surface_from_normal_map", "view_directions",
 ]

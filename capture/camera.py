@@ -97,3 +97,29 @@ def project_points(camera, points):
     uv, _ = cv2.projectPoints(local.reshape(-1, 1, 3), np.zeros(3), np.zeros(3),
                               camera.intrinsics, camera.distortion)
     return uv.reshape(-1, 2), z
+
+
+def pixel_box(camera, bounds, margin=2):
+    """Pixel rectangle that can see an axis-aligned WORLD box: rays outside it cannot hit.
+
+    bounds: (2, 3) [min, max] corners. Returns (row0, row1, col0, col1), half-open, clipped to
+    the image; the whole image when the box straddles a pinhole camera's z = 0 plane or the lens
+    is distorted (the projected corners then no longer bound the projection). The projection of
+    a box is the convex hull of its projected corners (perspective and affine maps keep convexity).
+    """
+    whole = (0, camera.height, 0, camera.width)
+    if camera.model == "pinhole" and camera.distortion is not None:
+        return whole
+    lo, hi = np.asarray(bounds, dtype=np.float64)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
+    uv, z = project_points(camera, corners)
+    if camera.model == "pinhole" and np.any(z <= 1e-9):
+        return whole
+    if camera.model == "orthographic" and np.all(z < 0):
+        return (0, 0, 0, 0)
+    c0, r0 = np.floor(uv.min(0)) - margin
+    c1, r1 = np.ceil(uv.max(0)) + margin + 1
+    clip = lambda v, top: int(min(max(v, 0), top))  # noqa: E731
+    return (clip(r0, camera.height), clip(r1, camera.height), clip(c0, camera.width),
+            clip(c1, camera.width))

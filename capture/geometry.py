@@ -200,11 +200,16 @@ def surface_from_mesh(target, camera, pixel_mask=None):
 
     Returns a Surface holding only the pixels whose ray hits.
     """
-    from capture.camera import pixel_rays, view_directions
-    mi = _as_intersector(target)
     if pixel_mask is None:
         pixel_mask = np.ones(camera.shape, dtype=bool)
     rows, cols = np.nonzero(pixel_mask)
+    return surface_at_pixels(target, camera, rows, cols)
+
+
+def surface_at_pixels(target, camera, rows, cols):
+    """Trace the rays of pixels (rows, cols) (N,) int against the mesh; a Surface of the hits."""
+    from capture.camera import pixel_rays, view_directions
+    mi = _as_intersector(target)
     origins, directions = pixel_rays(camera, rows, cols)
     hits = intersect(mi, origins, directions)
     keep = hits.hit
