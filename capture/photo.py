@@ -70,13 +70,16 @@ def read_float_image(path):
     return _to_rgb(data, path)
 
 
-def _float_usable(rgb, saturation):
-    finite = np.all(np.isfinite(rgb), axis=-1)
+def _float_masks(rgb, saturation):
+    """(usable, clipped) of a float image: +Inf or >= saturation is clipped, NaN is invalid."""
     with np.errstate(invalid="ignore"):
-        usable = finite & np.all(rgb >= 0, axis=-1) & np.any(rgb > 0, axis=-1)
+        clipped = np.any(rgb == np.inf, axis=-1)
         if saturation is not None:
-            usable &= np.all(rgb < saturation, axis=-1)
-    return usable
+            clipped |= np.any(rgb >= saturation, axis=-1)
+        usable = (np.all(np.isfinite(rgb), axis=-1) & np.all(rgb >= 0, axis=-1)
+                  & np.any(rgb > 0, axis=-1) & ~clipped)
+        clipped &= ~np.any(np.isnan(rgb), axis=-1)
+    return usable, clipped
 
 
 def _read_cv(path, encoding):
@@ -89,25 +92,28 @@ def _read_cv(path, encoding):
     img = _to_rgb(img, path)
     if img.dtype in (np.uint8, np.uint16):
         top = float(np.iinfo(img.dtype).max)
-        usable = np.all(img > 0, axis=-1) & np.all(img < SATURATION_FRACTION * top, axis=-1)
+        clipped = np.any(img >= SATURATION_FRACTION * top, axis=-1)
+        usable = np.all(img > 0, axis=-1) & ~clipped
         rgb = img.astype(np.float32) / np.float32(top)
         if encoding is None:
             encoding = "srgb" if img.dtype == np.uint8 else "linear"
         if encoding == "srgb":
             rgb = srgb_to_linear(rgb)
-        return rgb, usable
+        return rgb, usable, clipped
     if img.dtype in (np.float32, np.float64):
-        return img.astype(np.float32), None
+        return img.astype(np.float32), None, None
     raise InputError(path, f"unsupported pixel type {img.dtype} (expected 8/16-bit or float)")
 
 
-def load_photo(path, encoding=None, saturation=None, shape=None):
+def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=False):
     """Load one photo as linear RGB.
 
     path: image file; encoding: "linear" | "srgb" | None (by format: 8-bit -> srgb, else linear);
     saturation: clipping level for float images (linear units), None = no ceiling;
     shape: expected (height, width), InputError naming the file when different.
-    Returns rgb (H, W, 3) float32 linear (unusable pixels keep their values), usable (H, W) bool.
+    Returns rgb (H, W, 3) float32 linear (unusable pixels keep their values), usable (H, W) bool,
+    and with return_clipped also clipped (H, W) bool: the unusable pixels that are unusable
+    because they are too bright (their true value is above the stored one: right-censored).
     """
     path = Path(path)
     if not path.is_file():
@@ -115,30 +121,32 @@ def load_photo(path, encoding=None, saturation=None, shape=None):
     ext = path.suffix.lower()
     if ext in RAW_EXTENSIONS:
         from capture.raw import load_raw
-        rgb, usable = load_raw(path)
+        rgb, usable, clipped = load_raw(path)
     elif ext in CV_EXTENSIONS:
-        rgb, usable = _read_cv(path, encoding)
+        rgb, usable, clipped = _read_cv(path, encoding)
         if usable is None:
-            usable = _float_usable(rgb, saturation)
+            usable, clipped = _float_masks(rgb, saturation)
     else:
         rgb = read_float_image(path)
         if encoding == "srgb":
             rgb = srgb_to_linear(rgb)
-        usable = _float_usable(rgb, saturation)
+        usable, clipped = _float_masks(rgb, saturation)
     if shape is not None and rgb.shape[:2] != tuple(shape):
         raise InputError(path, f"image is {rgb.shape[1]}x{rgb.shape[0]} but the camera is "
                                f"{shape[1]}x{shape[0]}")
-    return rgb, usable
+    return (rgb, usable, clipped) if return_clipped else (rgb, usable)
 
 
-def load_brackets(brackets, encoding=None, saturation=None, shape=None):
+def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_clipped=False):
     """Merge an exposure bracket [(path, exposure_s), ...] into one HDR photo.
 
     8-bit brackets: OpenCV's Debevec camera-response calibration and merge (relative radiance,
     response normalised by OpenCV). Other (linear) brackets: per pixel, the maximum-likelihood
     radiance for Poisson counts, sum(value) / sum(exposure) over the brackets where the pixel is
-    usable. A merged pixel is usable when at least one bracket saw it usable.
-    Returns rgb (H, W, 3) float32 in units per second of exposure, usable (H, W) bool.
+    usable. A merged pixel is usable when at least one bracket saw it usable, clipped when every
+    bracket saw it clipped.
+    Returns rgb (H, W, 3) float32 in units per second of exposure, usable (H, W) bool (and
+    clipped (H, W) bool with return_clipped).
     """
     paths = [Path(p) for p, _ in brackets]
     times = np.array([t for _, t in brackets], dtype=np.float32)
@@ -149,21 +157,24 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None):
             if img is None:
                 raise InputError(p, "file not found" if not p.is_file() else "cannot read image")
         if all(img.dtype == np.uint8 for img in raw):
-            return _merge_debevec(paths, raw, times, shape)
-    loaded = [load_photo(p, encoding, saturation, shape) for p in paths]
+            out = _merge_debevec(paths, raw, times, shape)
+            return out if return_clipped else out[:2]
+    loaded = [load_photo(p, encoding, saturation, shape, return_clipped=True) for p in paths]
     total = np.zeros(loaded[0][0].shape, dtype=np.float64)
     exposure = np.zeros(loaded[0][1].shape, dtype=np.float64)
-    for (rgb, usable), t in zip(loaded, times):
+    clipped = np.ones(loaded[0][1].shape, dtype=bool)
+    for (rgb, usable, clip), t in zip(loaded, times):
         if rgb.shape != total.shape:
             raise InputError(paths[0], "bracket images differ in size")
         total += np.where(usable[..., None], rgb, 0)
         exposure += usable * float(t)
+        clipped &= clip
     usable = exposure > 0
     rgb = total / np.where(usable, exposure, 1)[..., None]
     # pixels unusable in every bracket keep the shortest exposure's value, flagged unusable
     shortest = loaded[int(np.argmin(times))][0] / times.min()
-    rgb = np.where(usable[..., None], rgb, shortest)
-    return rgb.astype(np.float32), usable
+    rgb = np.where(usable[..., None], rgb, shortest).astype(np.float32)
+    return (rgb, usable, clipped) if return_clipped else (rgb, usable)
 
 
 def _merge_debevec(paths, images, times, shape):
@@ -183,4 +194,5 @@ def _merge_debevec(paths, images, times, shape):
     # usable if some bracket has the pixel unclipped at both ends
     usable = np.any(np.all(stack > 0, axis=-1) & np.all(stack < top, axis=-1), axis=0)
     usable &= np.all(np.isfinite(hdr), axis=-1)
-    return np.ascontiguousarray(hdr, dtype=np.float32), usable
+    clipped = np.all(np.any(stack >= top, axis=-1), axis=0)
+    return np.ascontiguousarray(hdr, dtype=np.float32), usable, clipped
