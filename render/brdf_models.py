@@ -151,6 +151,36 @@ class GGX(BRDFModel):
         return self.cosine_fraction * cos_pdf + (1.0 - self.cosine_fraction) * spec_pdf
 
 
+def merl_flat_index_local(wi, wo, three_d=True):
+    """Flat MERL bin index (...) of local-frame pairs: ((i * 90) + j) * 180 + k, or i * 90 + j.
+
+    The Rusinkiewicz angles of brdf.angles (same half-vector frame, phi_d folded into [0, pi),
+    fixed tangent at theta_h = 0) with MERL's clamped indexing, in fewer array passes.
+    """
+    # np.clip and np.mod are several times slower than minimum/maximum/where here.
+    h = wi + wo
+    h = h / np.maximum(np.sqrt(np.einsum("...k,...k->...", h, h)), 1e-300)[..., None]
+    hx, hy, hz = h[..., 0], h[..., 1], h[..., 2]
+    sin_h = np.sqrt(hx * hx + hy * hy)
+    theta_h = np.arctan2(sin_h, hz)
+    i = np.minimum(np.sqrt(theta_h * (180.0 / np.pi)) * (90.0 / np.sqrt(90.0)), 89.0)
+    cos_d = np.minimum(np.maximum(np.einsum("...k,...k->...", wi, h), -1.0), 1.0)
+    j = np.minimum(np.arccos(cos_d) * (180.0 / np.pi), 89.0)
+    if not three_d:
+        return i.astype(np.intp) * 90 + j.astype(np.intp)
+    safe = sin_h > 1e-12
+    inv = 1.0 / np.where(safe, sin_h, 1.0)
+    px = np.where(safe, hx * inv, 1.0)
+    py = np.where(safe, hy * inv, 0.0)
+    wx, wy, wz = wi[..., 0], wi[..., 1], wi[..., 2]
+    along_t = hz * (wx * px + wy * py) - sin_h * wz
+    along_b = wy * px - wx * py
+    phi_d = np.arctan2(along_b, along_t)
+    phi_d = np.where(phi_d < 0.0, phi_d + np.pi, phi_d)   # fold into [0, pi)
+    k = np.minimum(phi_d * (180.0 / np.pi), 179.0)
+    return (i.astype(np.intp) * 90 + j.astype(np.intp)) * 180 + k.astype(np.intp)
+
+
 def _theta_h_edges():
     """MERL theta_h bin edges (91,) in radians: (pi/2) (i/90)^2."""
     return (np.pi / 2) * (np.arange(91) / 90.0) ** 2
@@ -174,6 +204,9 @@ class TabulatedBRDF(BRDFModel):
         table = np.where(np.isfinite(table) & (table >= 0), table, np.nan)
         self.table = table
         self.interpolate = bool(interpolate)
+        # Nearest-bin fast path: a flat (bins, 3) copy with no-data as 0 (same indexing as
+        # brdf.angles.merl_bin_index, checked against brdf.lookup.evaluate_table in the tests).
+        self._flat = np.ascontiguousarray(np.nan_to_num(table, nan=0.0).reshape(-1, 3))
         self.cosine_fraction = float(cosine_fraction)
         lum = table @ np.array([0.2126, 0.7152, 0.0722])
         axes = tuple(range(1, lum.ndim))
@@ -194,13 +227,16 @@ class TabulatedBRDF(BRDFModel):
         self._h_density = prob / bin_solid_angle             # solid-angle density of h per bin
 
     def evaluate_local(self, wi, wo):
-        from brdf.angles import half_diff_from_local
-        from brdf.lookup import evaluate_table
         wi, wo = np.broadcast_arrays(wi, wo)
         above = (wi[..., 2] > 0) & (wo[..., 2] > 0)
-        theta_h, theta_d, phi_d = half_diff_from_local(wi, wo)
-        value = evaluate_table(self.table, theta_h, theta_d, phi_d, interpolate=self.interpolate)
-        value = np.where(np.isfinite(value) & (value > 0), value, 0.0)
+        if self.interpolate:
+            from brdf.angles import half_diff_from_local
+            from brdf.lookup import evaluate_table
+            theta_h, theta_d, phi_d = half_diff_from_local(wi, wo)
+            value = evaluate_table(self.table, theta_h, theta_d, phi_d, interpolate=True)
+            value = np.where(np.isfinite(value) & (value > 0), value, 0.0)
+        else:
+            value = self._flat[merl_flat_index_local(wi, wo, self.table.ndim == 4)]
         return np.where(above[..., None], value, 0.0)
 
     def _h_bin(self, cos_h):

@@ -71,7 +71,7 @@ def envmap_direction(i, j, height, width):
 def envmap_uv(d):
     """(u, v) in [0,1] for envmap-frame directions d (..., 3) (contract formula)."""
     u = 0.5 + np.arctan2(d[..., 0], -d[..., 2]) / (2.0 * np.pi)
-    v = np.arccos(np.clip(d[..., 1], -1.0, 1.0)) / np.pi
+    v = np.arccos(np.minimum(np.maximum(d[..., 1], -1.0), 1.0)) / np.pi
     return u, v
 
 
@@ -113,6 +113,12 @@ class EnvMap:
         rot = np.eye(3) if world_from_envmap is None else np.asarray(world_from_envmap, float)
         self.world_from_envmap = rot
         self.compensate = bool(compensate)
+        self._identity = bool(np.array_equal(rot, np.eye(3)))
+        if self.height < 2:
+            raise ValueError("envmap needs at least 2 rows")
+        # Flat (H * (W + 2), 3) copy with one wrapped column on each side for bilinear lookups.
+        wrapped = np.concatenate([self.pixels[:, -1:], self.pixels, self.pixels[:, :1]], axis=1)
+        self._padded = np.ascontiguousarray(wrapped.reshape(-1, 3))
         self._build_sampler()
 
     @classmethod
@@ -122,22 +128,26 @@ class EnvMap:
     # -- radiance ---------------------------------------------------------------------------
     def radiance(self, world_dirs):
         """L(w) (..., 3) for unit world directions (..., 3): bilinear between pixel centres."""
-        d = np.asarray(world_dirs, dtype=np.float64) @ self.world_from_envmap  # = R^T w
+        d = self._to_envmap(world_dirs)
         u, v = envmap_uv(d)
-        x = u * self.width - 0.5
-        y = np.clip(v * self.height - 0.5, 0.0, self.height - 1.0)  # clamp at the poles
-        x0 = np.floor(x)
-        y0 = np.minimum(np.floor(y), self.height - 2) if self.height > 1 else np.floor(y)
+        h, w = self.height, self.width
+        x = u * w + 0.5                      # column coordinate in the wrap-padded map
+        y = np.minimum(np.maximum(v * h - 0.5, 0.0), h - 1.0)  # clamp at the poles
+        x0 = np.minimum(np.maximum(np.floor(x), 0.0), w)
+        y0 = np.minimum(np.floor(y), h - 2.0)
         fx = (x - x0)[..., None]
         fy = (y - y0)[..., None]
-        j0 = x0.astype(np.int64) % self.width
-        j1 = (j0 + 1) % self.width
-        i0 = y0.astype(np.int64)
-        i1 = np.minimum(i0 + 1, self.height - 1)
-        p = self.pixels
-        top = p[i0, j0] * (1 - fx) + p[i0, j1] * fx
-        bottom = p[i1, j0] * (1 - fx) + p[i1, j1] * fx
-        return top * (1 - fy) + bottom * fy
+        flat = y0.astype(np.intp) * (w + 2) + x0.astype(np.intp)
+        p = self._padded
+        top = np.take(p, flat, axis=0)
+        top += (np.take(p, flat + 1, axis=0) - top) * fx
+        bottom = np.take(p, flat + (w + 2), axis=0)
+        bottom += (np.take(p, flat + (w + 3), axis=0) - bottom) * fx
+        return top + (bottom - top) * fy
+
+    def _to_envmap(self, world_dirs):
+        d = np.asarray(world_dirs, dtype=np.float64)
+        return d if self._identity else d @ self.world_from_envmap  # = R^T w
 
     # -- importance sampling ----------------------------------------------------------------
     def _build_sampler(self):
@@ -166,8 +176,9 @@ class EnvMap:
             col = col / col[:, -1:]
         col[~np.isfinite(col)] = (np.arange(1, w + 1) / w)[None].repeat(h, 0)[~np.isfinite(col)]
         self._col_cdf = np.concatenate([np.zeros((h, 1)), col], axis=1)  # (H, W+1)
+        self._col_cdf_flat = self._col_cdf.ravel()
         self._col_edges_flat = (np.arange(h)[:, None] + self._col_cdf[:, 1:]).ravel()
-        self._pdf_table = self._pixel_prob / self._row_solid_angle[:, None]  # solid-angle pdf
+        self._pdf_table = (self._pixel_prob / self._row_solid_angle[:, None]).ravel()  # 1/sr
 
     def sample(self, u):
         """Directions by luminance. u: (..., 2) uniforms in [0,1).
@@ -176,29 +187,31 @@ class EnvMap:
         of u inside the chosen row/column are reused, so stratified u stay stratified.
         """
         u = np.asarray(u, dtype=np.float64)
-        u1 = np.clip(u[..., 0], 0.0, np.nextafter(1.0, 0))
-        u2 = np.clip(u[..., 1], 0.0, np.nextafter(1.0, 0))
-        row = np.clip(np.searchsorted(self._row_cdf, u1, side="right") - 1, 0, self.height - 1)
+        top = np.nextafter(1.0, 0)
+        u1 = np.minimum(np.maximum(u[..., 0], 0.0), top)
+        u2 = np.minimum(np.maximum(u[..., 1], 0.0), top)
+        row = np.minimum(np.searchsorted(self._row_cdf, u1, side="right") - 1, self.height - 1)
+        row = np.maximum(row, 0)
         lo, hi = self._row_cdf[row], self._row_cdf[row + 1]
-        fy = np.clip((u1 - lo) / np.maximum(hi - lo, 1e-300), 0.0, 1.0)
+        fy = np.minimum(np.maximum((u1 - lo) / np.maximum(hi - lo, 1e-300), 0.0), 1.0)
         # Column within the row: one searchsorted over all rows, row r's CDF shifted by r.
         idx = np.searchsorted(self._col_edges_flat, row + u2, side="right")
-        col = np.clip(idx - row * self.width, 0, self.width - 1)
-        clo = self._col_cdf[row, col]
-        chi = self._col_cdf[row, col + 1]
-        fx = np.clip((u2 - clo) / np.maximum(chi - clo, 1e-300), 0.0, 1.0)
+        col = np.maximum(np.minimum(idx - row * self.width, self.width - 1), 0)
+        flat = row * (self.width + 1) + col
+        clo = np.take(self._col_cdf_flat, flat)
+        chi = np.take(self._col_cdf_flat, flat + 1)
+        fx = np.minimum(np.maximum((u2 - clo) / np.maximum(chi - clo, 1e-300), 0.0), 1.0)
         # Uniform in solid angle within the pixel: cos theta linear, phi linear.
         cos_t = self._cos_edges[row] + fy * (self._cos_edges[row + 1] - self._cos_edges[row])
         sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t ** 2))
         phi = 2.0 * np.pi * (col + fx) / self.width - np.pi
         d = np.stack([np.sin(phi) * sin_t, cos_t, -np.cos(phi) * sin_t], axis=-1)
-        pdf = self._pdf_table[row, col]
-        return d @ self.world_from_envmap.T, pdf
+        pdf = np.take(self._pdf_table, row * self.width + col)
+        return (d if self._identity else d @ self.world_from_envmap.T), pdf
 
     def pdf(self, world_dirs):
         """Solid-angle pdf (...) of `sample` for unit world directions (..., 3)."""
-        d = np.asarray(world_dirs, dtype=np.float64) @ self.world_from_envmap
-        u, v = envmap_uv(d)
-        col = np.clip(np.floor(u * self.width).astype(np.int64), 0, self.width - 1)
-        row = np.clip(np.floor(v * self.height).astype(np.int64), 0, self.height - 1)
-        return self._pdf_table[row, col]
+        u, v = envmap_uv(self._to_envmap(world_dirs))
+        col = np.minimum(np.maximum(u * self.width, 0.0), self.width - 1.0).astype(np.intp)
+        row = np.minimum(np.maximum(v * self.height, 0.0), self.height - 1.0).astype(np.intp)
+        return np.take(self._pdf_table, row * self.width + col)
