@@ -9,8 +9,9 @@ Outputs are (P, 3) pixel values under the contract's pixel model (direct light o
     envmap:      integral of V(w) rho L(w) cos(theta_i) dw, by Monte Carlo with multiple
                  importance sampling (luminance-sampled envmap + BRDF sampling, balance or power
                  heuristic), randomised QMC (Sobol net + per-pixel Cranley-Patterson shift).
-`occluded(origins (N,3), directions (N,3), max_distance (N,)) -> (N,) bool` casts shadow rays
-(None: convex geometry, nothing is occluded).
+`occluded(points (N,3), directions (N,3), max_distance (N,) or None) -> (N,) bool` casts shadow
+rays from the surface points (it owns the self-intersection offset, as capture.occluded does;
+max_distance None = unbounded). occluded=None: convex geometry, nothing is occluded.
 """
 
 import concurrent.futures
@@ -23,7 +24,6 @@ from render.brdf_models import shading_frame, to_local, to_world
 
 # Pixel-samples per work item: keeps each thread's temporaries around 100-200 MB.
 SAMPLES_PER_CHUNK = 1 << 17
-SHADOW_EPSILON = 1e-4  # metres; offset along the normal against self-intersection
 
 
 def _dot(a, b):
@@ -50,8 +50,7 @@ def render_directional_light(points, normals, view, brdf, direction, irradiance_
     d = np.asarray(direction, float)
     wi = np.broadcast_to(d / np.linalg.norm(d), points.shape)
     irradiance = np.broadcast_to(np.asarray(irradiance_rgb, float), points.shape)
-    return _direct(points, normals, view, brdf, wi, irradiance, np.full(len(points), np.inf),
-                   occluded)
+    return _direct(points, normals, view, brdf, wi, irradiance, None, occluded)
 
 
 def _direct(points, normals, view, brdf, wi, irradiance, distance, occluded):
@@ -63,8 +62,7 @@ def _direct(points, normals, view, brdf, wi, irradiance, distance, occluded):
         lit = np.any(value > 0, axis=1)
         idx = np.nonzero(lit)[0]
         if idx.size:
-            origins = points[idx] + SHADOW_EPSILON * normals[idx]
-            blocked = occluded(origins, wi[idx], distance[idx] - 2 * SHADOW_EPSILON)
+            blocked = occluded(points[idx], wi[idx], None if distance is None else distance[idx])
             value[idx[blocked]] = 0.0
     return value
 
@@ -179,8 +177,7 @@ def _envmap_chunk(points, normals, view, brdf, envmap, u, occluded, heuristic, s
         idx = tuple(a[nonzero] for a in idx)
         contrib = contrib[nonzero] * envmap.radiance(wi_w[idx])
         if occluded is not None and contrib.shape[0]:
-            origins = points[idx[0]] + SHADOW_EPSILON * normals[idx[0]]
-            blocked = occluded(origins, wi_w[idx], np.full(len(origins), np.inf))
+            blocked = occluded(points[idx[0]], wi_w[idx], None)
             contrib[blocked] = 0.0
         total += np.stack([np.bincount(idx[0], contrib[:, c], minlength=pc) for c in range(3)],
                           axis=1)
