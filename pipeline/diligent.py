@@ -188,18 +188,18 @@ def write_exr(path, image):
 
 
 @contextlib.contextmanager
-def atomic_folder(target):
+def atomic_folder(target, marker="scene.json"):
     """Yield a temporary folder beside `target`; on success it replaces `target` in one rename.
 
-    A previous scene folder (one holding scene.json) at `target` is replaced; any other non-empty
-    folder or a file there is refused, so that nothing unrelated is ever deleted.
+    A previous output folder (one holding the file `marker`) at `target` is replaced; any other
+    non-empty folder or a file there is refused, so that nothing unrelated is ever deleted.
     """
     target = Path(target).absolute()
     if target.exists():
         if not target.is_dir():
             raise InputError(target, "exists and is not a folder")
-        if any(target.iterdir()) and not (target / "scene.json").is_file():
-            raise InputError(target, "exists, is not empty and is not a scene folder; refusing to "
+        if any(target.iterdir()) and not (target / marker).is_file():
+            raise InputError(target, f"exists, is not empty and has no {marker}; refusing to "
                                      "overwrite it")
     target.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent))
