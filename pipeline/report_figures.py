@@ -112,6 +112,11 @@ def reference_figure(path, photo, reference, renders, delta_e_maps, delta_e_mean
     delta_e_means: {method: float}.
     """
     plt = _pyplot()
+    crop = _object_box([m for m in delta_e_maps.values() if m is not None and np.ndim(m) == 2])
+    if crop is not None:  # show the object, not a mostly empty frame
+        reference = None if reference is None else reference[crop]
+        renders = {k: (None if r is None else r[crop]) for k, r in renders.items()}
+        delta_e_maps = {k: (None if m is None else m[crop]) for k, m in delta_e_maps.items()}
     methods = list(renders)
     cols = 1 + 2 * len(methods)
     fig, axes = plt.subplots(1, cols, figsize=(2.6 * cols, 2.9))
@@ -139,6 +144,19 @@ def reference_figure(path, photo, reference, renders, delta_e_maps, delta_e_mean
     if image is not None:
         fig.colorbar(image, ax=axes.tolist(), shrink=0.75, label="ΔE log (CIE76)")
     _save(fig, path)
+
+
+def _object_box(maps, margin=0.1):
+    """Slices of the bounding box (plus a margin) of the pixels measured in any Delta E map."""
+    if not maps or any(m.shape != maps[0].shape for m in maps):
+        return None
+    measured = np.any([np.isfinite(m) for m in maps], axis=0)
+    if not measured.any() or measured.mean() > 0.5:
+        return None
+    rows, cols = np.nonzero(measured.any(1))[0], np.nonzero(measured.any(0))[0]
+    pad = int(margin * max(rows[-1] - rows[0], cols[-1] - cols[0])) + 2
+    return (slice(max(rows[0] - pad, 0), rows[-1] + pad + 1),
+            slice(max(cols[0] - pad, 0), cols[-1] + pad + 1))
 
 
 def _show(ax, image, title):
