@@ -36,10 +36,23 @@ def run_cli(argv):
     return rc, err.getvalue().strip(), time.perf_counter() - start
 
 
-def default_model(work):
-    """The committed default model if there is one, else None (the caller may train one)."""
+def resolve_model(model, merl_dir, work, log=print):
+    """The model to infer with: --model, else the committed default (sample_data/models/*.npz),
+    else one trained now with `flashbrdf train --merl-dir` into WORK/model.npz, else None."""
+    if model:
+        return Path(model)
     models = sorted((REPO / "sample_data" / "models").glob("*.npz"))
-    return models[0] if models else None
+    if models:
+        return models[0]
+    if not merl_dir:
+        return None
+    path = Path(work) / "model.npz"
+    if not path.is_file():
+        rc, err, seconds = run_cli(["train", "--merl-dir", merl_dir, "--out", path])
+        log(f"train on {merl_dir}: exit {rc} in {seconds:.0f} s {err.splitlines()[-1] if err else ''}")
+        if rc != 0:
+            return None
+    return path
 
 
 def infer_all(slice_csv, out_dir, methods, model=None, merl_dir=None, log=print):

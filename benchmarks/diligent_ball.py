@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._real_common import (RESULTS, SHARED, direct_extract, direct_render,  # noqa: E402
-                                     infer_all, run_cli, theta_h_deg, write_json)
+                                     infer_all, resolve_model, run_cli, theta_h_deg, write_json)
 
 METHODS = "dsgplvm,pca,noll,chandraker,ashikhmin"
 ANGLE_BINS = (0, 15, 25, 35, 45, 60)
@@ -103,11 +103,13 @@ def main(argv=None):
     scene, mask, normals, view = _load_scene(scene_dir)
     observed, extractor, stages["extract"] = _slice(scene_dir, scene, mask, normals, view, work, log)
     start = time.perf_counter()
-    brdfs = infer_all(work / "slice.csv", work, args.methods.split(","), args.model, args.merl_dir, log)
+    model = resolve_model(args.model, args.merl_dir, work, log)
+    brdfs = infer_all(work / "slice.csv", work, args.methods.split(","), model, args.merl_dir, log)
     stages["infer"] = time.perf_counter() - start
     result = {"command": "python benchmarks/diligent_ball.py " + " ".join(argv or sys.argv[1:]),
               "flash_photo": f"{args.flash:03d}", "extractor": extractor,
-              "model": args.model, "slice_bins_observed": int((observed["n"] > 0).sum()),
+              "model": None if model is None else str(model),
+              "slice_bins_observed": int((observed["n"] > 0).sum()),
               "slice_theta_h_max_deg": float(theta_h_deg()[observed["n"] > 0].max()),
               "methods": {}, "per_light": []}
     if not brdfs:

@@ -23,7 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._real_common import (RESULTS, SHARED, direct_extract, direct_render,  # noqa: E402
-                                     infer_all, run_cli, theta_h_deg, write_json)
+                                     infer_all, resolve_model, run_cli, theta_h_deg, write_json)
 
 METHODS = "dsgplvm,pca,noll,chandraker,ashikhmin"
 N_CLUSTERS = 3
@@ -103,9 +103,11 @@ def main(argv=None):
                                      normal[labels == c], factor[labels == c])
                       for c in range(N_CLUSTERS)]
     start = time.perf_counter()
-    brdfs = infer_all(work / "slice.csv", work, args.methods.split(","), args.model, args.merl_dir, log)
+    model = resolve_model(args.model, args.merl_dir, work, log)
+    brdfs = infer_all(work / "slice.csv", work, args.methods.split(","), model, args.merl_dir, log)
     result = {"command": "python benchmarks/planar_cards.py " + " ".join(argv or sys.argv[1:]),
               "flash_view": flash_view.name, "extractor": extractor,
+              "model": None if model is None else str(model),
               "slice_bins_observed": int((n > 0).sum()),
               "slice_theta_h_range_deg": [float(theta_h_deg()[n > 0].min()),
                                           float(theta_h_deg()[n > 0].max())],
