@@ -45,11 +45,11 @@ def slice_plot(path, theta_h_deg, observed, predictions):
                         capsize=1.5, label="observed (flash photo)")
         for m, (method, curve) in enumerate(predictions.items()):
             y = np.where(curve[:, c] > 0, curve[:, c], np.nan)
-            ax.plot(theta_h_deg, y, _METHOD_STYLES[m % 4], color=CHANNEL_COLOURS[c],
-                    alpha=1.0 - 0.15 * (m % 4), label=f"{method}: predicted θd = 0")
+            ax.plot(theta_h_deg, y, _METHOD_STYLES[m % 4], color=f"C{m % 10}", lw=1.3,
+                    label=f"{method}: predicted θd = 0")
         ax.set_yscale("log")
         ax.set_xlabel("θh (degrees)")
-        ax.set_title(f"{CHANNELS[c]} channel")
+        ax.set_title(f"{CHANNELS[c]} channel", color=CHANNEL_COLOURS[c])
         ax.grid(True, which="both", alpha=0.3)
     axes[0].set_ylabel("ρ (1/sr)")
     axes[0].legend(fontsize=7, loc="best")
