@@ -1,7 +1,8 @@
 """Photo loading: every photo becomes float32 linear RGB (H, W, 3) plus a "usable" mask (H, W).
 
 Formats (chosen by extension, then by the stored bit depth):
-- .exr .hdr .pfm (and float TIFF): OpenImageIO, values as stored.
+- .exr .hdr (and float TIFF): OpenImageIO, values as stored; .pfm: parsed here (rows flipped to
+  top-first, which OpenImageIO does not do).
 - 16-bit .png/.tif: OpenCV IMREAD_UNCHANGED (imageio/Pillow silently drop to 8 bits), BGR->RGB,
   code / 65535, linear unless encoding == "srgb".
 - 8-bit .png/.jpg/.tif: code / 255 through the inverse sRGB EOTF unless encoding == "linear".
@@ -70,6 +71,31 @@ def read_float_image(path):
     return _to_rgb(data, path)
 
 
+def read_pfm(path):
+    """Read a PFM (Portable Float Map) as float32 (H, W, 3), top row first.
+
+    Parsed here rather than through OpenImageIO, whose reader returns PFM rows in stored order
+    (the format stores them bottom to top). The scale's sign gives the byte order.
+    """
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            kind = f.readline().strip()
+            dims = f.readline().split()
+            while dims and dims[0].startswith(b"#"):
+                dims = f.readline().split()
+            width, height = int(dims[0]), int(dims[1])
+            scale = float(f.readline().strip())
+            data = np.fromfile(f, dtype="<f4" if scale < 0 else ">f4")
+    except (OSError, ValueError, IndexError) as err:
+        raise InputError(path, f"cannot read PFM image: {err}") from None
+    channels = {b"PF": 3, b"Pf": 1}.get(kind)
+    if channels is None or data.size < width * height * channels:
+        raise InputError(path, "cannot read PFM image: bad header or truncated data")
+    image = data[:width * height * channels].reshape(height, width, channels)[::-1]
+    return _to_rgb(np.ascontiguousarray(image, dtype=np.float32), path)
+
+
 def _float_masks(rgb, saturation):
     """(usable, clipped) of a float image: +Inf or >= saturation is clipped, NaN is invalid."""
     with np.errstate(invalid="ignore"):
@@ -127,7 +153,7 @@ def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=
         if usable is None:
             usable, clipped = _float_masks(rgb, saturation)
     else:
-        rgb = read_float_image(path)
+        rgb = read_pfm(path) if ext == ".pfm" else read_float_image(path)
         if encoding == "srgb":
             rgb = srgb_to_linear(rgb)
         usable, clipped = _float_masks(rgb, saturation)
@@ -140,8 +166,8 @@ def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=
 def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_clipped=False):
     """Merge an exposure bracket [(path, exposure_s), ...] into one HDR photo.
 
-    8-bit brackets: OpenCV's Debevec camera-response calibration and merge (relative radiance,
-    response normalised by OpenCV). Other (linear) brackets: per pixel, the maximum-likelihood
+    8-bit brackets: OpenCV's Debevec camera-response calibration and a Debevec log-domain merge
+    (relative radiance: OpenCV normalises the response to 1 at code 128). Other (linear) brackets: per pixel, the maximum-likelihood
     radiance for Poisson counts, sum(value) / sum(exposure) over the brackets where the pixel is
     usable. A merged pixel is usable when at least one bracket saw it usable, clipped when every
     bracket saw it clipped.
@@ -187,12 +213,24 @@ def _merge_debevec(paths, images, times, shape):
         if shape is not None and img.shape[:2] != tuple(shape):
             raise InputError(p, f"image is {img.shape[1]}x{img.shape[0]} but the camera is "
                                 f"{shape[1]}x{shape[0]}")
-    response = cv2.createCalibrateDebevec().process(images, times)
-    hdr = cv2.createMergeDebevec().process(images, times, response)[..., ::-1]
-    stack = np.stack(images)
+    # OpenCV's camera-response calibration (Debevec & Malik 1997), then the same log-domain
+    # weighted merge as cv2.MergeDebevec but with zero weight at and above the clipping code:
+    # MergeDebevec gives code 255 a weight of 1, which biases bright pixels low by up to ~15%.
+    response = cv2.createCalibrateDebevec(samples=300).process(images, times)[:, 0, ::-1]
+    log_response = np.log(np.maximum(response, 1e-30)).astype(np.float32)  # (256, 3) RGB
     top = SATURATION_FRACTION * 255
-    # usable if some bracket has the pixel unclipped at both ends
-    usable = np.any(np.all(stack > 0, axis=-1) & np.all(stack < top, axis=-1), axis=0)
-    usable &= np.all(np.isfinite(hdr), axis=-1)
-    clipped = np.all(np.any(stack >= top, axis=-1), axis=0)
-    return np.ascontiguousarray(hdr, dtype=np.float32), usable, clipped
+    codes = np.arange(256, dtype=np.float32)
+    weight_of = np.where((codes > 0) & (codes < top), np.minimum(codes, 255 - codes), 0)
+    total = np.zeros(images[0].shape, dtype=np.float32)
+    weights = np.zeros(images[0].shape, dtype=np.float32)
+    channel = np.arange(3)
+    for img, t in zip(images, times):
+        rgb = img[..., ::-1]
+        w = weight_of[rgb]
+        total += w * (log_response[rgb, channel] - np.log(t))
+        weights += w
+    usable = np.all(weights > 0, axis=-1)
+    hdr = np.exp(total / np.where(weights > 0, weights, 1)).astype(np.float32)
+    stack = np.stack(images)
+    clipped = np.all(np.any(stack >= top, axis=-1), axis=0) & ~usable
+    return np.ascontiguousarray(hdr), usable, clipped
