@@ -63,13 +63,27 @@ def load_mesh(path):
     if not path.is_file():
         raise InputError(path, "mesh file not found")
     try:
-        mesh = trimesh.load(str(path), force="mesh", process=False)
+        loaded = trimesh.load(str(path), process=False)
     except Exception as err:  # trimesh raises many types for bad files
         raise InputError(path, f"cannot read mesh: {err}") from None
-    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+    # loaders hand file normals to the constructor, which caches them (force="mesh" and
+    # Trimesh.copy() drop that cache, so read it before anything else touches the mesh)
+    parts = ([loaded] if isinstance(loaded, trimesh.Trimesh) else
+             [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+             if isinstance(loaded, trimesh.Scene) else [])
+    parts = [g for g in parts if len(g.faces)]
+    if not parts:
         raise InputError(path, "no triangles in the mesh")
-    # loaders hand file normals to the constructor, which caches them; otherwise they are absent
-    has_normals = "vertex_normals" in mesh._cache.cache
+    has_normals = all("vertex_normals" in g._cache.cache for g in parts)
+    if len(parts) == 1:
+        mesh = parts[0]
+    else:
+        offsets = np.cumsum([0] + [len(g.vertices) for g in parts[:-1]])
+        mesh = trimesh.Trimesh(
+            np.concatenate([g.vertices for g in parts]),
+            np.concatenate([g.faces + o for g, o in zip(parts, offsets)]),
+            vertex_normals=(np.concatenate([g.vertex_normals for g in parts])
+                            if has_normals else None), process=False)
     if not np.all(np.isfinite(mesh.vertices)):
         raise InputError(path, "mesh has non-finite vertex coordinates")
     return mesh, has_normals

@@ -18,21 +18,23 @@ from capture.photo import load_brackets, load_photo
 @dataclass(frozen=True, eq=False)
 class FlashImage:
     """A flash photo ready for extraction: radiance (H, W, 3) float32 in pixel-model units,
-    usable (H, W) bool, and its Photo entry (light, camera, where)."""
+    usable (H, W) bool, clipped (H, W) bool (too bright to measure: right-censored, never usable),
+    and its Photo entry (light, camera, where)."""
     photo: object
     radiance: np.ndarray
     usable: np.ndarray
+    clipped: np.ndarray
 
 
-def load_photo_entry(photo):
+def load_photo_entry(photo, return_clipped=False):
     """Load one scene.json photo entry (file or brackets) at its camera's size, without scale.
 
-    Returns rgb (H, W, 3) float32 linear, usable (H, W) bool.
+    Returns rgb (H, W, 3) float32 linear, usable (H, W) bool (and clipped, see load_photo).
     """
     shape = photo.camera.shape
     if photo.file is not None:
-        return load_photo(photo.file, photo.encoding, photo.saturation, shape)
-    return load_brackets(photo.brackets, photo.encoding, photo.saturation, shape)
+        return load_photo(photo.file, photo.encoding, photo.saturation, shape, return_clipped)
+    return load_brackets(photo.brackets, photo.encoding, photo.saturation, shape, return_clipped)
 
 
 def _ambient(scene, camera):
@@ -63,7 +65,7 @@ def load_flash_images(scene):
     out = []
     ambient = None
     for photo in flashes:
-        rgb, usable = load_photo_entry(photo)
+        rgb, usable, clipped = load_photo_entry(photo, return_clipped=True)
         if ambient is None and scene.photos_with_role("ambient"):
             ambient = _ambient(scene, photo.camera)
         if ambient is not None:
@@ -71,6 +73,7 @@ def load_flash_images(scene):
             factor = 1.0 if amb_scale is None else photo.scale / amb_scale
             rgb = rgb - np.float32(factor) * amb
             usable = usable & amb_ok
+            clipped = clipped & amb_ok
         radiance = rgb / np.float32(photo.scale)
-        out.append(FlashImage(photo, radiance.astype(np.float32, copy=False), usable))
+        out.append(FlashImage(photo, radiance.astype(np.float32, copy=False), usable, clipped))
     return out

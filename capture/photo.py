@@ -1,7 +1,8 @@
 """Photo loading: every photo becomes float32 linear RGB (H, W, 3) plus a "usable" mask (H, W).
 
 Formats (chosen by extension, then by the stored bit depth):
-- .exr .hdr .pfm (and float TIFF): OpenImageIO, values as stored.
+- .exr .hdr (and float TIFF): OpenImageIO, values as stored; .pfm: parsed here (rows flipped to
+  top-first, which OpenImageIO does not do).
 - 16-bit .png/.tif: OpenCV IMREAD_UNCHANGED (imageio/Pillow silently drop to 8 bits), BGR->RGB,
   code / 65535, linear unless encoding == "srgb".
 - 8-bit .png/.jpg/.tif: code / 255 through the inverse sRGB EOTF unless encoding == "linear".
@@ -70,13 +71,41 @@ def read_float_image(path):
     return _to_rgb(data, path)
 
 
-def _float_usable(rgb, saturation):
-    finite = np.all(np.isfinite(rgb), axis=-1)
+def read_pfm(path):
+    """Read a PFM (Portable Float Map) as float32 (H, W, 3), top row first.
+
+    Parsed here rather than through OpenImageIO, whose reader returns PFM rows in stored order
+    (the format stores them bottom to top). The scale's sign gives the byte order.
+    """
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            kind = f.readline().strip()
+            dims = f.readline().split()
+            while dims and dims[0].startswith(b"#"):
+                dims = f.readline().split()
+            width, height = int(dims[0]), int(dims[1])
+            scale = float(f.readline().strip())
+            data = np.fromfile(f, dtype="<f4" if scale < 0 else ">f4")
+    except (OSError, ValueError, IndexError) as err:
+        raise InputError(path, f"cannot read PFM image: {err}") from None
+    channels = {b"PF": 3, b"Pf": 1}.get(kind)
+    if channels is None or data.size < width * height * channels:
+        raise InputError(path, "cannot read PFM image: bad header or truncated data")
+    image = data[:width * height * channels].reshape(height, width, channels)[::-1]
+    return _to_rgb(np.ascontiguousarray(image, dtype=np.float32), path)
+
+
+def _float_masks(rgb, saturation):
+    """(usable, clipped) of a float image: +Inf or >= saturation is clipped, NaN is invalid."""
     with np.errstate(invalid="ignore"):
-        usable = finite & np.all(rgb >= 0, axis=-1) & np.any(rgb > 0, axis=-1)
+        clipped = np.any(rgb == np.inf, axis=-1)
         if saturation is not None:
-            usable &= np.all(rgb < saturation, axis=-1)
-    return usable
+            clipped |= np.any(rgb >= saturation, axis=-1)
+        usable = (np.all(np.isfinite(rgb), axis=-1) & np.all(rgb >= 0, axis=-1)
+                  & np.any(rgb > 0, axis=-1) & ~clipped)
+        clipped &= ~np.any(np.isnan(rgb), axis=-1)
+    return usable, clipped
 
 
 def _read_cv(path, encoding):
@@ -89,25 +118,28 @@ def _read_cv(path, encoding):
     img = _to_rgb(img, path)
     if img.dtype in (np.uint8, np.uint16):
         top = float(np.iinfo(img.dtype).max)
-        usable = np.all(img > 0, axis=-1) & np.all(img < SATURATION_FRACTION * top, axis=-1)
+        clipped = np.any(img >= SATURATION_FRACTION * top, axis=-1)
+        usable = np.all(img > 0, axis=-1) & ~clipped
         rgb = img.astype(np.float32) / np.float32(top)
         if encoding is None:
             encoding = "srgb" if img.dtype == np.uint8 else "linear"
         if encoding == "srgb":
             rgb = srgb_to_linear(rgb)
-        return rgb, usable
+        return rgb, usable, clipped
     if img.dtype in (np.float32, np.float64):
-        return img.astype(np.float32), None
+        return img.astype(np.float32), None, None
     raise InputError(path, f"unsupported pixel type {img.dtype} (expected 8/16-bit or float)")
 
 
-def load_photo(path, encoding=None, saturation=None, shape=None):
+def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=False):
     """Load one photo as linear RGB.
 
     path: image file; encoding: "linear" | "srgb" | None (by format: 8-bit -> srgb, else linear);
     saturation: clipping level for float images (linear units), None = no ceiling;
     shape: expected (height, width), InputError naming the file when different.
-    Returns rgb (H, W, 3) float32 linear (unusable pixels keep their values), usable (H, W) bool.
+    Returns rgb (H, W, 3) float32 linear (unusable pixels keep their values), usable (H, W) bool,
+    and with return_clipped also clipped (H, W) bool: the unusable pixels that are unusable
+    because they are too bright (their true value is above the stored one: right-censored).
     """
     path = Path(path)
     if not path.is_file():
@@ -115,30 +147,32 @@ def load_photo(path, encoding=None, saturation=None, shape=None):
     ext = path.suffix.lower()
     if ext in RAW_EXTENSIONS:
         from capture.raw import load_raw
-        rgb, usable = load_raw(path)
+        rgb, usable, clipped = load_raw(path)
     elif ext in CV_EXTENSIONS:
-        rgb, usable = _read_cv(path, encoding)
+        rgb, usable, clipped = _read_cv(path, encoding)
         if usable is None:
-            usable = _float_usable(rgb, saturation)
+            usable, clipped = _float_masks(rgb, saturation)
     else:
-        rgb = read_float_image(path)
+        rgb = read_pfm(path) if ext == ".pfm" else read_float_image(path)
         if encoding == "srgb":
             rgb = srgb_to_linear(rgb)
-        usable = _float_usable(rgb, saturation)
+        usable, clipped = _float_masks(rgb, saturation)
     if shape is not None and rgb.shape[:2] != tuple(shape):
         raise InputError(path, f"image is {rgb.shape[1]}x{rgb.shape[0]} but the camera is "
                                f"{shape[1]}x{shape[0]}")
-    return rgb, usable
+    return (rgb, usable, clipped) if return_clipped else (rgb, usable)
 
 
-def load_brackets(brackets, encoding=None, saturation=None, shape=None):
+def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_clipped=False):
     """Merge an exposure bracket [(path, exposure_s), ...] into one HDR photo.
 
-    8-bit brackets: OpenCV's Debevec camera-response calibration and merge (relative radiance,
-    response normalised by OpenCV). Other (linear) brackets: per pixel, the maximum-likelihood
+    8-bit brackets: OpenCV's Debevec camera-response calibration and a Debevec log-domain merge
+    (relative radiance: OpenCV normalises the response to 1 at code 128). Other (linear) brackets: per pixel, the maximum-likelihood
     radiance for Poisson counts, sum(value) / sum(exposure) over the brackets where the pixel is
-    usable. A merged pixel is usable when at least one bracket saw it usable.
-    Returns rgb (H, W, 3) float32 in units per second of exposure, usable (H, W) bool.
+    usable. A merged pixel is usable when at least one bracket saw it usable, clipped when every
+    bracket saw it clipped.
+    Returns rgb (H, W, 3) float32 in units per second of exposure, usable (H, W) bool (and
+    clipped (H, W) bool with return_clipped).
     """
     paths = [Path(p) for p, _ in brackets]
     times = np.array([t for _, t in brackets], dtype=np.float32)
@@ -149,21 +183,24 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None):
             if img is None:
                 raise InputError(p, "file not found" if not p.is_file() else "cannot read image")
         if all(img.dtype == np.uint8 for img in raw):
-            return _merge_debevec(paths, raw, times, shape)
-    loaded = [load_photo(p, encoding, saturation, shape) for p in paths]
+            out = _merge_debevec(paths, raw, times, shape)
+            return out if return_clipped else out[:2]
+    loaded = [load_photo(p, encoding, saturation, shape, return_clipped=True) for p in paths]
     total = np.zeros(loaded[0][0].shape, dtype=np.float64)
     exposure = np.zeros(loaded[0][1].shape, dtype=np.float64)
-    for (rgb, usable), t in zip(loaded, times):
+    clipped = np.ones(loaded[0][1].shape, dtype=bool)
+    for (rgb, usable, clip), t in zip(loaded, times):
         if rgb.shape != total.shape:
             raise InputError(paths[0], "bracket images differ in size")
         total += np.where(usable[..., None], rgb, 0)
         exposure += usable * float(t)
+        clipped &= clip
     usable = exposure > 0
     rgb = total / np.where(usable, exposure, 1)[..., None]
     # pixels unusable in every bracket keep the shortest exposure's value, flagged unusable
     shortest = loaded[int(np.argmin(times))][0] / times.min()
-    rgb = np.where(usable[..., None], rgb, shortest)
-    return rgb.astype(np.float32), usable
+    rgb = np.where(usable[..., None], rgb, shortest).astype(np.float32)
+    return (rgb, usable, clipped) if return_clipped else (rgb, usable)
 
 
 def _merge_debevec(paths, images, times, shape):
@@ -176,11 +213,24 @@ def _merge_debevec(paths, images, times, shape):
         if shape is not None and img.shape[:2] != tuple(shape):
             raise InputError(p, f"image is {img.shape[1]}x{img.shape[0]} but the camera is "
                                 f"{shape[1]}x{shape[0]}")
-    response = cv2.createCalibrateDebevec().process(images, times)
-    hdr = cv2.createMergeDebevec().process(images, times, response)[..., ::-1]
-    stack = np.stack(images)
+    # OpenCV's camera-response calibration (Debevec & Malik 1997), then the same log-domain
+    # weighted merge as cv2.MergeDebevec but with zero weight at and above the clipping code:
+    # MergeDebevec gives code 255 a weight of 1, which biases bright pixels low by up to ~15%.
+    response = cv2.createCalibrateDebevec(samples=300).process(images, times)[:, 0, ::-1]
+    log_response = np.log(np.maximum(response, 1e-30)).astype(np.float32)  # (256, 3) RGB
     top = SATURATION_FRACTION * 255
-    # usable if some bracket has the pixel unclipped at both ends
-    usable = np.any(np.all(stack > 0, axis=-1) & np.all(stack < top, axis=-1), axis=0)
-    usable &= np.all(np.isfinite(hdr), axis=-1)
-    return np.ascontiguousarray(hdr, dtype=np.float32), usable
+    codes = np.arange(256, dtype=np.float32)
+    weight_of = np.where((codes > 0) & (codes < top), np.minimum(codes, 255 - codes), 0)
+    total = np.zeros(images[0].shape, dtype=np.float32)
+    weights = np.zeros(images[0].shape, dtype=np.float32)
+    channel = np.arange(3)
+    for img, t in zip(images, times):
+        rgb = img[..., ::-1]
+        w = weight_of[rgb]
+        total += w * (log_response[rgb, channel] - np.log(t))
+        weights += w
+    usable = np.all(weights > 0, axis=-1)
+    hdr = np.exp(total / np.where(weights > 0, weights, 1)).astype(np.float32)
+    stack = np.stack(images)
+    clipped = np.all(np.any(stack >= top, axis=-1), axis=0) & ~usable
+    return np.ascontiguousarray(hdr), usable, clipped

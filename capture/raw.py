@@ -36,7 +36,7 @@ def _apply_flip(mask, flip):
 
 def load_raw(path):
     """Decode a RAW file. Returns rgb (H, W, 3) float32 linear sRGB primaries, scaled so that the
-    white level maps to 1 before white balance, and usable (H, W) bool."""
+    white level maps to 1 before white balance, usable (H, W) bool, clipped (H, W) bool."""
     import rawpy
     try:
         raw = rawpy.imread(str(path))
@@ -48,17 +48,24 @@ def load_raw(path):
             colours = raw.raw_colors_visible
             black = np.asarray(raw.black_level_per_channel, dtype=np.float64)[colours]
             white = float(raw.white_level)
-            bad = (sensels >= black + SATURATION_FRACTION * (white - black)) | (sensels <= black)
+            high = sensels >= black + SATURATION_FRACTION * (white - black)
+            low = sensels <= black
             flip = raw.sizes.flip
             img = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=True,
                                   output_bps=16, output_color=rawpy.ColorSpace.sRGB,
                                   user_flip=None)
         except rawpy.LibRawError as err:
             raise InputError(path, f"cannot decode RAW file: {err}") from None
-    bad = _apply_flip(_dilate(bad, _DEMOSAIC_REACH), flip)
-    if bad.shape != img.shape[:2]:  # LibRaw cropped or padded differently: resize nearest
+    high = _to_output(high, flip, img.shape) | np.any(img >= 65535, axis=-1)
+    low = _to_output(low, flip, img.shape) | np.any(img == 0, axis=-1)
+    return img.astype(np.float32) / np.float32(65535), ~(high | low), high & ~low
+
+
+def _to_output(sensel_mask, flip, shape):
+    """A sensel mask, dilated over the demosaic reach, in the output image's orientation."""
+    mask = _apply_flip(_dilate(sensel_mask, _DEMOSAIC_REACH), flip)
+    if mask.shape != shape[:2]:  # LibRaw cropped or padded differently: resize nearest
         import cv2
-        bad = cv2.resize(bad.astype(np.uint8), (img.shape[1], img.shape[0]),
-                         interpolation=cv2.INTER_NEAREST).astype(bool)
-    usable = ~bad & np.all(img > 0, axis=-1) & np.all(img < 65535, axis=-1)
-    return img.astype(np.float32) / np.float32(65535), usable
+        mask = cv2.resize(mask.astype(np.uint8), (shape[1], shape[0]),
+                          interpolation=cv2.INTER_NEAREST).astype(bool)
+    return mask

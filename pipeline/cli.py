@@ -39,6 +39,9 @@ def _parser():
     s = sub.add_parser("extract", help="extract the flash slice from a capture folder")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
     s.add_argument("--out", required=True, metavar="SLICE.csv")
+    s.add_argument("--max-theta-d", type=float, metavar="DEG",
+                   help="reject pixels with theta_d above this (default 5 degrees)")
+    s.add_argument("--min-cos", type=float, help="reject cos(theta_i|o) below this (default 0.1)")
 
     s = sub.add_parser("render", help="render every reference photo's lighting")
     s.add_argument("scene_dir", metavar="SCENE_DIR")

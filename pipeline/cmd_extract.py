@@ -10,14 +10,26 @@ from pathlib import Path
 import numpy as np
 
 from brdf.atomic import write_text
+from brdf.errors import InputError
 from brdf.views import write_slice_csv
 
 
+def _options(args):
+    from slice_extract import ExtractOptions
+    max_theta_d = getattr(args, "max_theta_d", None)
+    min_cos = getattr(args, "min_cos", None)
+    if max_theta_d is not None and not 0 < max_theta_d <= 90:
+        raise InputError("--max-theta-d", f"expected degrees in (0, 90], got {max_theta_d}")
+    if min_cos is not None and not 0 <= min_cos < 1:
+        raise InputError("--min-cos", f"expected a value in [0, 1), got {min_cos}")
+    return ExtractOptions(
+        max_theta_d_deg=ExtractOptions.max_theta_d_deg if max_theta_d is None else max_theta_d,
+        min_cos=ExtractOptions.min_cos if min_cos is None else min_cos)
+
+
 def extract(args):
-    from slice_extract import ExtractOptions, extract_slice
-    options = ExtractOptions(
-        max_theta_d_deg=getattr(args, "max_theta_d", None) or ExtractOptions.max_theta_d_deg,
-        min_cos=getattr(args, "min_cos", None) or ExtractOptions.min_cos)
+    from slice_extract import extract_slice
+    options = _options(args)
     result = extract_slice(args.scene_dir, options)
     out = Path(args.out)
     cov = result.coverage
@@ -33,6 +45,11 @@ def extract(args):
                   spread=[[None if not np.isfinite(v) else float(v) for v in row]
                           for row in result.spread])
     json_path = out.with_suffix(".json")
+    text = json.dumps(report, indent=1) + "\n"
     write_slice_csv(out, result.rho, result.n, comments=comments)
-    write_text(json_path, json.dumps(report, indent=1) + "\n")
+    try:
+        write_text(json_path, text)
+    except BaseException:
+        out.unlink(missing_ok=True)  # never leave half of the output behind
+        raise
     return 0

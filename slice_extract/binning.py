@@ -6,11 +6,22 @@ k sigma from its bin's median (k = 3 by default: 0.3% false rejections for Gauss
 hot pixels, specks of dust and mis-registered edges sit far out). sigma is floored at
 rel_floor x |m| so that noise-free data (MAD = 0) does not reject tiny rounding differences.
 The estimate is the per-channel mean of the inliers ("trimmed mean"), or the median when asked.
+
+Clipped (too bright) pixels are right-censored samples, entered as +inf: the median of a bin is
+still exact while fewer than half of its samples are censored, so such bins use the median, and
+bins that are half or more censored are left empty (a trimmed mean of the unclipped rest would
+be biased low).
+
+Bin-centre correction: the slice is defined at bin centres, but a bin's samples can sit off
+centre (a bin half outside the observed range at grazing angles, or uneven pixel density across
+a bin). The trimmed mean is moved along the local slope, taken from the neighbouring bins'
+estimates (central difference, one-sided at the end of a run), from the samples' mean theta_h to
+the bin centre.
 """
 
 import numpy as np
 
-from brdf.merl import N_THETA_H
+from brdf.merl import N_THETA_H, theta_h_centres
 
 MAD_TO_SIGMA = 1.4826
 
@@ -18,7 +29,8 @@ MAD_TO_SIGMA = 1.4826
 def group_median(groups, values, n_groups):
     """Median of `values` (N,) within each group, groups (N,) int in [0, n_groups). NaN if empty.
 
-    One lexsort, no loop: within the sorted order each group is a contiguous run.
+    One lexsort, no loop: within the sorted order each group is a contiguous run. +inf values
+    sort last, so a group's median is exact while under half of it is +inf.
     """
     order = np.lexsort((values, groups))
     sorted_values = values[order]
@@ -28,35 +40,72 @@ def group_median(groups, values, n_groups):
     filled = counts > 0
     lo = starts[filled] + (counts[filled] - 1) // 2
     hi = starts[filled] + counts[filled] // 2
-    out[filled] = 0.5 * (sorted_values[lo] + sorted_values[hi])
+    with np.errstate(invalid="ignore"):
+        out[filled] = 0.5 * (sorted_values[lo] + sorted_values[hi])
     return out
 
 
-def robust_bins(bin_index, rho, k=3.0, rel_floor=1e-3, estimator="trimmed_mean",
-                n_bins=N_THETA_H):
+def _per_channel(fn, bin_index, values, n_bins):
+    return np.stack([fn(bin_index, values[:, c], n_bins) for c in range(values.shape[1])], 1)
+
+
+def _centre_correction(estimate, theta_mean, centres, usable):
+    """Move each usable bin's estimate (n_bins, 3) along the neighbours' slope to its centre."""
+    idx = np.arange(len(centres))
+    ok = usable & np.all(np.isfinite(estimate), 1)
+    left = np.concatenate([[False], ok[:-1]])
+    right = np.concatenate([ok[1:], [False]])
+    lo = np.where(left, idx - 1, idx)
+    hi = np.where(right, idx + 1, idx)
+    has_slope = ok & (lo != hi)
+    lo, hi = lo[has_slope], hi[has_slope]
+    slope = (estimate[hi] - estimate[lo]) / (theta_mean[hi] - theta_mean[lo])[:, None]
+    out = estimate.copy()
+    out[has_slope] += slope * (centres[has_slope] - theta_mean[has_slope])[:, None]
+    return out
+
+
+def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e-3,
+                estimator="trimmed_mean", n_bins=N_THETA_H):
     """Robust per-bin estimate of samples rho (N, 3) in bins bin_index (N,) int.
 
-    Returns (estimate (n_bins, 3) NaN where empty, n (n_bins,) inlier counts,
-    spread (n_bins, 3) robust sigma of the bin's samples (NaN where empty),
-    inlier (N,) bool).
+    censored (N,) bool: right-censored samples (clipped pixels), whatever their rho;
+    theta_h (N,) radians: the samples' angles, for the bin-centre correction (None = no
+    correction; the MERL theta_h bin centres are used).
+    Returns (estimate (n_bins, 3) NaN where empty, n (n_bins,) inlier counts, spread (n_bins, 3)
+    robust sigma of the bin's samples (NaN where empty), inlier (N,) bool).
     """
     bin_index = np.asarray(bin_index, dtype=np.intp)
-    rho = np.asarray(rho, dtype=np.float64)
-    channels = rho.shape[1]
-    median = np.stack([group_median(bin_index, rho[:, c], n_bins) for c in range(channels)], 1)
-    deviation = np.abs(rho - median[bin_index])
-    mad = np.stack([group_median(bin_index, deviation[:, c], n_bins) for c in range(channels)], 1)
+    rho = np.array(rho, dtype=np.float64)
+    if censored is None:
+        censored = np.zeros(len(rho), dtype=bool)
+    rho[censored] = np.inf
+    total = np.bincount(bin_index, minlength=n_bins)
+    n_censored = np.bincount(bin_index[censored], minlength=n_bins)
+    median = _per_channel(group_median, bin_index, rho, n_bins)
+    with np.errstate(invalid="ignore"):
+        deviation = np.abs(rho - median[bin_index])
+    mad = _per_channel(group_median, bin_index, deviation, n_bins)
     spread = MAD_TO_SIGMA * mad
     limit = k * np.maximum(spread, rel_floor * np.abs(median) + 1e-300)
-    inlier = np.all(deviation <= limit[bin_index], axis=1)
+    with np.errstate(invalid="ignore"):
+        inlier = np.all(deviation <= limit[bin_index], axis=1) & ~censored
     n = np.bincount(bin_index[inlier], minlength=n_bins)
+
+    def bin_mean(values):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.bincount(bin_index[inlier], weights=values[inlier], minlength=n_bins) / n
+
     if estimator == "median":
         estimate = median
     else:
-        sums = np.stack([np.bincount(bin_index[inlier], weights=rho[inlier, c], minlength=n_bins)
-                         for c in range(channels)], 1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            estimate = sums / n[:, None]
-    estimate = np.where(n[:, None] > 0, estimate, np.nan)
-    spread = np.where(n[:, None] > 0, spread, np.nan)
-    return estimate, n, spread, inlier
+        estimate = np.stack([bin_mean(rho[:, c]) for c in range(rho.shape[1])], 1)
+        if theta_h is not None:
+            estimate = _centre_correction(estimate, bin_mean(np.asarray(theta_h, float)),
+                                          theta_h_centres()[:n_bins], n_censored == 0)
+        estimate = np.where(n_censored[:, None] > 0, median, estimate)
+    empty = (n == 0) | (2 * n_censored >= total)
+    n = np.where(empty, 0, n)
+    estimate = np.where(empty[:, None], np.nan, estimate)
+    spread = np.where(empty[:, None] | ~np.isfinite(spread), np.nan, spread)
+    return estimate, n, spread, inlier & ~empty[bin_index]

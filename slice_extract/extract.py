@@ -31,6 +31,7 @@ class ExtractOptions:
     min_cos: float = 0.1
     outlier_k: float = 3.0
     estimator: str = "trimmed_mean"  # or "median"
+    shadow_rays: bool = True  # False only to diagnose (or to show what shadows would cost)
     chunk_pixels: int = 1 << 20  # pixels traced per batch: bounds memory, keeps arrays in cache
 
 
@@ -93,7 +94,9 @@ def _no_sample_error(scene, per_photo):
     photo = scene.photos_with_role("flash")[0]
     if totals["usable"] == 0:
         where = photo.file or photo.brackets[0][0]
-        return InputError(where, "no usable pixel (all black, clipped or non-finite)")
+        clipped = f" ({totals['clipped']} clipped, over-exposed)" if totals["clipped"] else ""
+        return InputError(where, f"no usable pixel: the photo is black, clipped or non-finite"
+                                 f"{clipped}")
     if totals["on_surface"] == 0:
         return InputError(f"{scene.json_path}: geometry", "no usable pixel sees the object: the "
                           "camera does not see the geometry (check world_from_camera and units)")
@@ -131,44 +134,54 @@ def extract_slice(scene, options=None):
         groups.setdefault(id(img.photo.camera), []).append(k)
     for members in groups.values():
         camera = images[members[0]].photo.camera
-        usable_any = np.logical_or.reduce([images[k].usable for k in members])
+        usable_any = np.logical_or.reduce([images[k].usable | images[k].clipped
+                                           for k in members])
         lights = {k: light_setup(images[k].photo) for k in members}
         stats = {k: dict(photo=images[k].photo.stem, usable=int(images[k].usable.sum()),
-                         on_surface=0, **dict.fromkeys(REASONS, 0)) for k in members}
+                         clipped=int(images[k].clipped.sum()), on_surface=0,
+                         **dict.fromkeys(REASONS, 0)) for k in members}
         for surface in _surface_batches(scene, camera, usable_any, intersector,
                                         options.chunk_pixels):
             t = clock.add("trace", t)
             for k in members:
-                shadow = None if (normal_map or convex or lights[k].at_viewpoint) else intersector
-                th, td, rho, rows, cols, rejected, n_usable = photo_samples(
-                    images[k].radiance, images[k].usable, surface, lights[k], options, shadow)
-                stats[k]["on_surface"] += n_usable
-                for reason, count in rejected.items():
+                skip = normal_map or convex or lights[k].at_viewpoint or not options.shadow_rays
+                shadow = None if skip else intersector
+                got = photo_samples(images[k].radiance, images[k].usable, surface, lights[k],
+                                    options, shadow, images[k].clipped)
+                stats[k]["on_surface"] += got.n_usable
+                for reason, count in got.rejected.items():
                     stats[k][reason] += count
-                parts.append((th, td, rho))
+                parts.append(got)
             t = clock.add("samples", t)
         per_photo.extend(stats[k] for k in members)
 
-    theta_h = np.concatenate([p[0] for p in parts]) if parts else np.zeros(0)
-    theta_d = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0)
-    rho = np.concatenate([p[2] for p in parts]) if parts else np.zeros((0, 3))
-    if len(theta_h) == 0:
+    theta_h = np.concatenate([p.theta_h for p in parts]) if parts else np.zeros(0)
+    theta_d = np.concatenate([p.theta_d for p in parts]) if parts else np.zeros(0)
+    rho = np.concatenate([p.rho for p in parts]) if parts else np.zeros((0, 3))
+    censored = np.concatenate([p.censored for p in parts]) if parts else np.zeros(0, bool)
+    if not np.any(~censored):
         raise _no_sample_error(scene, per_photo)
     bins = merl_bin_index(theta_h, np.zeros_like(theta_h), np.zeros_like(theta_h))[0]
-    estimate, n, spread, inlier = robust_bins(bins, rho, k=options.outlier_k,
+    estimate, n, spread, inlier = robust_bins(bins, rho, censored, theta_h, k=options.outlier_k,
                                               estimator=options.estimator)
+    if not np.any(n):
+        raise InputError(f"{scene.json_path}: photos", "every observed theta_h bin is more than "
+                         "half clipped (over-exposed): no bin can be estimated")
     clock.add("binning", t)
     clock.t["total"] = time.perf_counter() - start
-    report = _report(scene, options, per_photo, theta_h, theta_d, inlier, n, clock.t)
+    report = _report(scene, options, per_photo, theta_h, theta_d, inlier, n, clock.t,
+                     np.bincount(bins[censored], minlength=N_THETA_H), censored)
     return SliceResult(estimate, n, spread, report)
 
 
-def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings):
+def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin_clipped,
+            censored):
     total_pixels = sum(p.camera.width * p.camera.height for p in scene.photos_with_role("flash"))
-    rejected = {"unusable": total_pixels - sum(p["usable"] for p in per_photo),
+    rejected = {"unusable": total_pixels - sum(p["usable"] + p["clipped"] for p in per_photo),
+                "clipped": sum(p["clipped"] for p in per_photo),
                 "miss": sum(p["usable"] - p["on_surface"] for p in per_photo)}
     rejected.update({k: sum(p[k] for p in per_photo) for k in REASONS})
-    rejected["outlier"] = int(np.count_nonzero(~inlier))
+    rejected["outlier"] = int(np.count_nonzero(~inlier & ~censored))
     filled = np.flatnonzero(n > 0)
     used = theta_h[inlier]
     centres = np.degrees(theta_h_centres())
@@ -178,6 +191,7 @@ def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings):
         "first_bin": int(filled[0]), "last_bin": int(filled[-1]),
         "theta_h_deg_filled": [float(centres[filled[0]]), float(centres[filled[-1]])],
         "empty_bins": [int(i) for i in np.flatnonzero(n == 0)],
+        "clipped_per_bin": {int(i): int(bin_clipped[i]) for i in np.flatnonzero(bin_clipped)},
         "pixels_total": int(total_pixels), "pixels_used": int(inlier.sum()),
     }
     return {"scene": str(scene.json_path),

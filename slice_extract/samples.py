@@ -81,18 +81,37 @@ def half_diff_thetas(wi, wo, normal):
     return theta_h, theta_d
 
 
-def photo_samples(radiance, usable, surface, light, options, intersector=None):
+@dataclass(frozen=True, eq=False)
+class PhotoSamples:
+    """Samples of one photo over one surface patch.
+
+    theta_h, theta_d (M,) radians; rho (M, 3) 1/sr, +inf where censored; censored (M,) bool:
+    clipped pixels that passed the geometric tests (their true rho is above the stored one);
+    rejected: counts per REASONS among usable pixels; n_usable: usable pixels on the patch.
+    """
+    theta_h: np.ndarray
+    theta_d: np.ndarray
+    rho: np.ndarray
+    censored: np.ndarray
+    rejected: dict
+    n_usable: int
+
+
+def photo_samples(radiance, usable, surface, light, options, intersector=None, clipped=None):
     """BRDF samples from one photo over one Surface patch (pixels that see the object).
 
-    radiance (H, W, 3) pixel-model units; usable (H, W) bool; surface: capture.Surface;
-    light: LightSetup; options: ExtractOptions; intersector: capture.MeshIntersector for shadow
-    rays, or None to skip them (convex mesh, light at the viewpoint, normal-map geometry).
-    Returns (theta_h (M,), theta_d (M,), rho (M, 3) 1/sr, rows (M,), cols (M,), rejected dict,
-    n_usable int: usable pixels of the patch).
+    radiance (H, W, 3) pixel-model units; usable (H, W) bool; clipped (H, W) bool or None:
+    too-bright pixels, kept as censored samples so that bins know where a highlight was lost;
+    surface: capture.Surface; light: LightSetup; options: ExtractOptions; intersector:
+    capture.MeshIntersector for shadow rays, or None to skip them (convex mesh, light at the
+    viewpoint, normal-map geometry). Returns PhotoSamples.
     """
-    keep = usable[surface.rows, surface.cols]
-    n_usable = int(np.count_nonzero(keep))
-    rows, cols = surface.rows[keep], surface.cols[keep]
+    valid = usable[surface.rows, surface.cols]
+    cens = (np.zeros_like(valid) if clipped is None
+            else clipped[surface.rows, surface.cols] & ~valid)
+    keep = valid | cens
+    n_usable = int(np.count_nonzero(valid))
+    rows, cols, cens = surface.rows[keep], surface.cols[keep], cens[keep]
     normals, wo = surface.normals[keep], surface.view_dirs[keep]
     points = None if surface.points is None else surface.points[keep]
     if light.kind == "point":
@@ -108,22 +127,30 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None):
     cos_o = np.einsum("ij,ij->i", normals, wo)
     cos_i = np.einsum("ij,ij->i", normals, wi)
     rejected = dict.fromkeys(REASONS, 0)
+
+    def drop(mask, reason):  # count only usable pixels; censored ones are not "used" anyway
+        rejected[reason] = int(np.count_nonzero(mask & ~cens_now))
+
+    idx = np.arange(len(rows))
+    cens_now = cens
     ok = cos_o > 0
-    rejected["backfacing"] = int(np.count_nonzero(~ok))
+    drop(~ok, "backfacing")
     graze = ok & ((cos_o < options.min_cos) | (cos_i < options.min_cos))
-    rejected["grazing"] = int(np.count_nonzero(graze))
-    ok &= ~graze
-    idx = np.flatnonzero(ok)
+    drop(graze, "grazing")
+    idx = idx[ok & ~graze]
+    cens_now = cens[idx]
     theta_h, theta_d = half_diff_thetas(wi[idx], wo[idx], normals[idx])
     near = theta_d <= np.radians(options.max_theta_d_deg)
-    rejected["theta_d"] = int(np.count_nonzero(~near))
-    idx, theta_h, theta_d = idx[near], theta_h[near], theta_d[near]
+    drop(~near, "theta_d")
+    idx, theta_h, theta_d, cens_now = idx[near], theta_h[near], theta_d[near], cens_now[near]
     if intersector is not None and len(idx):
         from capture import occluded
         blocked = occluded(intersector, points[idx], wi[idx], None if r is None else r[idx])
-        rejected["shadowed"] = int(np.count_nonzero(blocked))
+        drop(blocked, "shadowed")
         idx, theta_h, theta_d = idx[~blocked], theta_h[~blocked], theta_d[~blocked]
+        cens_now = cens_now[~blocked]
     pixel = radiance[rows[idx], cols[idx]].astype(np.float64)
     factor = 1.0 / cos_i[idx] if r is None else r[idx] ** 2 / cos_i[idx]
     rho = pixel * factor[:, None] / light.power
-    return theta_h, theta_d, rho, rows[idx], cols[idx], rejected, n_usable
+    rho[cens_now] = np.inf
+    return PhotoSamples(theta_h, theta_d, rho, cens_now, rejected, n_usable)

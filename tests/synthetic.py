@@ -105,6 +105,27 @@ def torus_mesh(major=0.09, minor=0.035, centre=(0, 0, 1.0), tilt_deg=50.0, secti
     return trimesh.Trimesh(verts, faces, vertex_normals=normal, process=False)
 
 
+def box_mesh(extents=(0.1, 0.1, 0.1), centre=(0, 0, 0.8)):
+    """Axis-aligned box with split corners, so every face shades flat (its vertex normals are
+    the face normal)."""
+    import trimesh
+    box = trimesh.creation.box(extents=extents)
+    verts = box.triangles.reshape(-1, 3) + np.asarray(centre)
+    normals = np.repeat(box.face_normals, 3, axis=0)
+    return trimesh.Trimesh(verts, np.arange(len(verts)).reshape(-1, 3), vertex_normals=normals,
+                           process=False)
+
+
+def combine(*meshes):
+    """One mesh from several, keeping each part's vertex normals."""
+    import trimesh
+    offsets = np.cumsum([0] + [len(m.vertices) for m in meshes[:-1]])
+    return trimesh.Trimesh(np.concatenate([m.vertices for m in meshes]),
+                           np.concatenate([m.faces + o for m, o in zip(meshes, offsets)]),
+                           vertex_normals=np.concatenate([m.vertex_normals for m in meshes]),
+                           process=False)
+
+
 def pinhole_camera(width=256, height=256, focal=1000.0, world_from_camera=None, distortion=None):
     """Contract camera dict: centred pinhole, identity pose unless given."""
     cam = {"model": "pinhole", "width": width, "height": height, "fx": focal, "fy": focal,
