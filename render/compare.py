@@ -65,8 +65,7 @@ def write_delta_e_png(path, delta_e, title="log-CIELAB $\\Delta E^*_{ab}$", vmax
     vmax = max(vmax, 1e-6)
     h, w = delta_e.shape
     fig, ax = plt.subplots(figsize=(5.5, 5.5 * h / max(w, 1) * 0.9 + 0.6), dpi=100)
-    cmap = matplotlib.colormaps["inferno"].copy()
-    cmap.set_bad((0.5, 0.5, 0.5))
+    cmap = matplotlib.colormaps["inferno"].with_extremes(bad=(0.5, 0.5, 0.5))
     im = ax.imshow(np.ma.masked_invalid(delta_e), cmap=cmap, vmin=0.0, vmax=vmax,
                    interpolation="nearest")
     ax.set_axis_off()

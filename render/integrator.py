@@ -16,7 +16,6 @@ max_distance None = unbounded). occluded=None: convex geometry, nothing is occlu
 
 import concurrent.futures
 import os
-import warnings
 
 import numpy as np
 
@@ -68,11 +67,29 @@ def _direct(points, normals, view, brdf, wi, irradiance, distance, occluded):
 
 
 def sample_pattern(spp, dims, seed):
-    """(spp, dims) scrambled Sobol points in [0,1) (deterministic in `seed`)."""
-    from scipy.stats import qmc
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # non-power-of-two balance warning
-        return qmc.Sobol(d=dims, scramble=True, seed=seed).random(spp)
+    """(spp, dims) low-discrepancy points in [0,1), deterministic in `seed`.
+
+    Each pair of dimensions is the first N points of the 2D Sobol (0,2)-sequence in base 2
+    (van der Corput and its Sobol partner), randomised by a digital XOR shift drawn from the seed.
+    Pixels then add their own random Cranley-Patterson shift, which keeps every estimate
+    unbiased. (Built here because importing scipy.stats costs seconds per process.)
+    """
+    index = np.arange(spp, dtype=np.uint64)
+    van_der_corput = np.zeros(spp, dtype=np.uint64)
+    partner = np.zeros(spp, dtype=np.uint64)
+    v = np.uint64(1 << 31)
+    for bit in range(32):
+        on = ((index >> np.uint64(bit)) & np.uint64(1)).astype(bool)
+        van_der_corput[on] ^= np.uint64(1 << (31 - bit))
+        partner[on] ^= v
+        v = v ^ (v >> np.uint64(1))               # direction numbers of the polynomial x + 1
+    rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, 0x50B01])
+    out = np.empty((spp, dims))
+    for d in range(dims):
+        base = van_der_corput if d % 2 == 0 else partner
+        shift = np.uint64(rng.integers(0, 1 << 32))
+        out[:, d] = (base ^ shift).astype(np.float64) / 2.0 ** 32
+    return out
 
 
 def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=None,
@@ -92,6 +109,10 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
     if n_points == 0:
         return out
     strategies = tuple(strategies)
+    if strategies == ("envmap",) and getattr(envmap, "compensate", False):
+        # Compensated sampling skips the map's dim part, which only BRDF samples may cover.
+        from render.envmap import EnvMap
+        envmap = EnvMap(envmap.pixels, envmap.world_from_envmap, 1.0, compensate=False)
     if "envmap" in strategies and not getattr(envmap, "can_sample", True):
         strategies = tuple(x for x in strategies if x != "envmap") or ("brdf",)
     per_strategy = max(1, int(spp) // len(strategies))
@@ -103,7 +124,8 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
         stop = min(start + step, n_points)
         rng = np.random.default_rng([int(seed) & 0xFFFFFFFF, start])
         shift = rng.random((stop - start, 1, pattern.shape[1]))
-        u = (pattern[None] + shift) % 1.0                       # (Pc, S, 2 * strategies)
+        u = pattern[None] + shift                               # (Pc, S, 2 * strategies)
+        u -= u >= 1.0                                           # wrap (np.mod is slow)
         out[start:stop] = _envmap_chunk(points[start:stop], normals[start:stop],
                                         view[start:stop], brdf, envmap, u, occluded,
                                         heuristic, strategies)
