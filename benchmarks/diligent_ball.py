@@ -46,7 +46,8 @@ def _slice(scene_dir, scene, mask, normals, view, work, log):
     if rc == 0:
         try:
             rho, n = read_slice_csv(work / "slice.csv")
-            return {"rho": rho, "n": n, "spread": None}, "extract stage", seconds
+            return {"rho": rho, "n": n, "spread": _spread(work / "slice.json")}, "extract stage", \
+                seconds
         except InputError as bad:  # the stage wrote a slice its own reader rejects
             rc, err = 1, str(bad)
     log(f"extract stage unusable (exit {rc}: {err}): using the benchmark's direct extraction")
@@ -59,6 +60,16 @@ def _slice(scene_dir, scene, mask, normals, view, work, log):
     write_slice_csv(work / "slice.csv", rho, n, comments=["direct extraction (benchmark stand-in)"])
     return {"rho": rho, "n": n, "spread": spread}, "direct (benchmark stand-in)", \
         time.perf_counter() - start
+
+
+def _spread(slice_json):
+    """The extract stage's per-bin spread (90,3) from SLICE.json, or None (error bars optional)."""
+    import json
+    try:
+        spread = np.array(json.loads(slice_json.read_text())["spread"], dtype=float)
+    except (OSError, KeyError, ValueError, TypeError):
+        return None
+    return spread if spread.shape == (90, 3) else None
 
 
 def _renders(scene_dir, scene, brdf_path, method, mask, normals, view, work, table):
