@@ -63,6 +63,7 @@ def _parser():
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     s.add_argument("--model", metavar="MODEL.npz")
     s.add_argument("--methods", default="dsgplvm")
+    s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
 
     s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
     s.add_argument("--merl-dir", required=True, metavar="DIR")

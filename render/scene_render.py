@@ -77,7 +77,7 @@ def render_surface(surface, camera, light, brdf, spp=64, seed=0, occluded=None, 
     raise InputError(where, f"unknown light type {light.type!r}")
 
 
-def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True):
+def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geometry=None):
     """Render every `reference` photo's lighting (or the given photos) from its camera.
 
     scene: capture.Scene; brdf: a render.brdf_models model. Yields (photo, image, mask) per photo:
@@ -85,7 +85,8 @@ def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True):
     `scale`), 0 where the pixel misses the geometry; mask (H, W) bool of the pixels that see it.
     """
     photos = scene.photos_with_role("reference") if photos is None else photos
-    geometry = SceneGeometry(scene)
+    # A SceneGeometry passed in keeps its primary hits across calls (e.g. one render per method).
+    geometry = SceneGeometry(scene) if geometry is None else geometry
     occluded = geometry.occluder()
     envmaps = {}
     for photo in photos:
