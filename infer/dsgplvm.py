@@ -69,6 +69,8 @@ class DSGPLVM:
         latent, q = pca_latent(grams, n_dims, self.q)
         if self.view_weighting == "balanced":
             weights = [min(n_dims) / d for d in n_dims]
+        elif self.view_weighting == "per_dim":
+            weights = [1.0 / d for d in n_dims]
         elif self.view_weighting == "paper":
             weights = [1.0] * len(names)
         else:
