@@ -1,0 +1,10 @@
+"""brdf: the shared data model of flashbrdf. Every stage imports it; it imports no stage.
+
+- merl: MERL `.binary` tables (read, write, bin centres, validity mask)
+- angles: Rusinkiewicz (theta_h, theta_d, phi_d) <-> direction pairs, MERL bin indexing
+- lookup: evaluating a 3D or 2D table at arbitrary angles or directions
+- views: the 1D flash slice, 2D and 3D views; slice.csv
+- colour: linear sRGB <-> CIELAB, the log-CIELAB feature map
+- metrics: the paper's Table 1 / Table 2 errors
+- errors, atomic: bad-input errors (exit 2) and atomic file output
+"""

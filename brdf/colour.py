@@ -1,0 +1,74 @@
+"""Colour transforms and the paper's BRDF feature map.
+
+CIELAB here is colour-science's `RGB_to_XYZ` (linear sRGB, no decoding, no adaptation) followed by
+`XYZ_to_Lab` with the D65 white at Y = 1, as the contract fixes. The same arithmetic is done with
+the matrix taken once from colour-science, because the 3D tables have 4.4 M bins and the metrics
+run over hundreds of them; tests check it against colour-science itself.
+"""
+
+import functools
+
+import numpy as np
+
+FEATURE_OFFSET = 1e-3  # 1/sr; see rho_to_features
+
+_DELTA = 6.0 / 29.0
+
+
+@functools.lru_cache(maxsize=1)
+def _srgb_matrices():
+    import colour  # imported lazily: it is slow to import and only its constants are needed
+
+    rgb_to_xyz = np.array(colour.RGB_COLOURSPACES["sRGB"].matrix_RGB_to_XYZ, dtype=np.float64)
+    white_xy = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+    white = np.array(colour.xy_to_XYZ(white_xy), dtype=np.float64)
+    return rgb_to_xyz, np.linalg.inv(rgb_to_xyz), white
+
+
+def linear_rgb_to_lab(rgb):
+    """CIELAB (..., 3) of linear sRGB triplets (..., 3); white (1, 1, 1) -> L = 100.
+
+    Negative inputs follow the CIE function's linear segment, so the map is defined (and
+    invertible) on all of R^3.
+    """
+    rgb_to_xyz, _, white = _srgb_matrices()
+    t = (np.asarray(rgb, dtype=np.float64) @ rgb_to_xyz.T) / white
+    f = np.where(t > _DELTA ** 3, np.cbrt(t), t / (3 * _DELTA ** 2) + 4.0 / 29.0)
+    return np.stack([116.0 * f[..., 1] - 16.0, 500.0 * (f[..., 0] - f[..., 1]),
+                     200.0 * (f[..., 1] - f[..., 2])], axis=-1)
+
+
+def lab_to_linear_rgb(lab):
+    """Linear sRGB (..., 3) of CIELAB triplets (..., 3); the inverse of linear_rgb_to_lab."""
+    _, xyz_to_rgb, white = _srgb_matrices()
+    lab = np.asarray(lab, dtype=np.float64)
+    fy = (lab[..., 0] + 16.0) / 116.0
+    f = np.stack([fy + lab[..., 1] / 500.0, fy, fy - lab[..., 2] / 200.0], axis=-1)
+    t = np.where(f > _DELTA, f ** 3, 3 * _DELTA ** 2 * (f - 4.0 / 29.0))
+    return (t * white) @ xyz_to_rgb.T
+
+
+def rho_to_features(rho, space="lab"):
+    """The paper's feature map of BRDF values: natural log, then CIELAB. (..., 3) -> (..., 3).
+
+    The log is ln(1 + rho / FEATURE_OFFSET) with FEATURE_OFFSET = 1e-3 1/sr: it is finite and 0 for
+    rho = 0 (black materials), and ln(rho) + 6.9 for rho >> 1e-3, so chrome's six decades map to a
+    range of about 16. space="rgb" skips the CIELAB step (the log-RGB ablation). NaN propagates.
+    """
+    log_rgb = np.log1p(np.maximum(np.asarray(rho, dtype=np.float64), 0.0) / FEATURE_OFFSET)
+    log_rgb = np.where(np.isnan(rho), np.nan, log_rgb)
+    if space == "rgb":
+        return log_rgb
+    if space != "lab":
+        raise ValueError(f"unknown feature space {space!r}")
+    return linear_rgb_to_lab(log_rgb)
+
+
+def features_to_rho(features, space="lab"):
+    """BRDF values (..., 3) in 1/sr from features; the inverse of rho_to_features, clamped >= 0."""
+    log_rgb = np.asarray(features, dtype=np.float64)
+    if space == "lab":
+        log_rgb = lab_to_linear_rgb(log_rgb)
+    elif space != "rgb":
+        raise ValueError(f"unknown feature space {space!r}")
+    return np.maximum(FEATURE_OFFSET * np.expm1(np.minimum(log_rgb, 700.0)), 0.0)

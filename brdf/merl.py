@@ -1,0 +1,121 @@
+"""MERL tables: the isotropic BRDF database layout of Matusik et al. 2003.
+
+A MERL table here is a float64 array of shape (90, 90, 180, 3), indexed [theta_h bin, theta_d bin,
+phi_d bin, RGB], holding the BRDF in 1/sr (the file's colour scale already applied) and NaN where
+MERL has no data (below the horizon). On disk the layout is MERL's own:
+
+    header   int32 x 3 = (90, 90, 180)
+    body     float64, all red, then all green, then all blue; index = phi_d + 180*(theta_d + 90*theta_h)
+    value    stored * (1/1500, 1.15/1500, 1.66/1500) = BRDF in 1/sr; negative = no data
+"""
+
+import functools
+import os
+
+import numpy as np
+
+from brdf.atomic import atomic_path
+from brdf.errors import InputError
+
+N_THETA_H, N_THETA_D, N_PHI_D = 90, 90, 180
+MERL_SHAPE = (N_THETA_H, N_THETA_D, N_PHI_D)
+MERL_SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
+MERL_FILE_SIZE = 12 + 8 * 3 * N_THETA_H * N_THETA_D * N_PHI_D  # 34,992,012 bytes
+
+
+def theta_h_centres():
+    """theta_h bin centres in radians, (90,): (pi/2)((i + 0.5)/90)^2 (square-root spacing)."""
+    return (np.pi / 2) * ((np.arange(N_THETA_H) + 0.5) / N_THETA_H) ** 2
+
+
+def theta_d_centres():
+    """theta_d bin centres in radians, (90,): (j + 0.5) degrees."""
+    return np.deg2rad(np.arange(N_THETA_D) + 0.5)
+
+
+def phi_d_centres():
+    """phi_d bin centres in radians, (180,): (k + 0.5) degrees over [0, pi)."""
+    return np.deg2rad(np.arange(N_PHI_D) + 0.5)
+
+
+@functools.lru_cache(maxsize=1)
+def _valid_mask():
+    # Directions at each bin centre, with phi_h = 0: rotate d about y by theta_h (the inverse of
+    # Rusinkiewicz's frame change), then reflect it about h to get the other direction.
+    th, td, pd = np.meshgrid(theta_h_centres(), theta_d_centres(), phi_d_centres(), indexing="ij")
+    dx, dy, dz = np.sin(td) * np.cos(pd), np.sin(td) * np.sin(pd), np.cos(td)
+    wi_z = dz * np.cos(th) - dx * np.sin(th)
+    wi_x = dx * np.cos(th) + dz * np.sin(th)
+    h_x, h_z = np.sin(th), np.cos(th)
+    wo_z = 2 * (wi_x * h_x + wi_z * h_z) * h_z - wi_z
+    mask = (wi_z > 0) & (wo_z > 0)
+    mask.setflags(write=False)
+    return mask
+
+
+def merl_valid_mask():
+    """(90, 90, 180) bool: bins whose centre has both directions above the horizon.
+
+    This is where the MERL database (and the NBRDF proxy) stores data; elsewhere it is negative.
+    """
+    return _valid_mask()
+
+
+def read_merl(path):
+    """Read a MERL `.binary` file.
+
+    Returns a (90, 90, 180, 3) float64 table in 1/sr with NaN where the file has no data
+    (negative values). Raises InputError naming the file for a wrong size, a wrong header or
+    NaN/Inf values.
+    """
+    path = os.fspath(path)
+    try:
+        size = os.path.getsize(path)
+        if size != MERL_FILE_SIZE:
+            raise InputError(path, f"not a MERL table: {size} bytes, expected {MERL_FILE_SIZE}")
+        with open(path, "rb") as f:
+            header = np.fromfile(f, dtype="<i4", count=3)
+            body = np.fromfile(f, dtype="<f8")
+    except OSError as err:
+        raise InputError(path, f"cannot read: {err.strerror or err}") from None
+    if tuple(header) != MERL_SHAPE:
+        raise InputError(path, f"wrong MERL header {tuple(int(h) for h in header)}, "
+                               f"expected {MERL_SHAPE}")
+    if not np.all(np.isfinite(body)):
+        bad = int(np.count_nonzero(~np.isfinite(body)))
+        raise InputError(path, f"{bad} NaN/Inf values in the table")
+    raw = body.reshape(3, *MERL_SHAPE)
+    table = np.moveaxis(raw, 0, -1) * MERL_SCALE
+    table[table < 0] = np.nan
+    return table
+
+
+def write_merl(path, table):
+    """Write a (90, 90, 180, 3) table in 1/sr as a MERL `.binary` file, atomically.
+
+    NaN, Inf or negative values are written as no data (-1 in file units). The file is exactly
+    34,992,012 bytes.
+    """
+    table = np.asarray(table, dtype=np.float64)
+    if table.shape != MERL_SHAPE + (3,):
+        raise ValueError(f"MERL table must be {MERL_SHAPE + (3,)}, got {table.shape}")
+    raw = table / MERL_SCALE
+    raw = np.where(np.isfinite(raw) & (raw >= 0), raw, -1.0)
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            np.array(MERL_SHAPE, dtype="<i4").tofile(f)
+            np.ascontiguousarray(np.moveaxis(raw, -1, 0), dtype="<f8").tofile(f)
+
+
+def list_merl(folder):
+    """Sorted [(name, path)] of the `*.binary` files in `folder`; reads no table.
+
+    Raises InputError if the folder does not exist or holds no `.binary` file.
+    """
+    folder = os.fspath(folder)
+    if not os.path.isdir(folder):
+        raise InputError(folder, "not a folder")
+    names = sorted(f for f in os.listdir(folder) if f.endswith(".binary"))
+    if not names:
+        raise InputError(folder, "no MERL .binary files in this folder")
+    return [(n[: -len(".binary")], os.path.join(folder, n)) for n in names]

@@ -1,0 +1,73 @@
+"""The paper's error metrics (Table 1 and Table 2), exactly as the contract defines them.
+
+epsilon(x) is `lin` (x), `root` (sqrt x) or `log` (ln(1 + x)), applied to rho clamped to >= 0.
+- RGB error: mean over valid bins of the mean over channels of |eps(pred) - eps(true)|.
+- LAB error: mean over valid bins of Delta E*ab (CIE 1976) between the CIELAB colours of the
+  triplets eps(pred) and eps(true), read as linear sRGB, D65 white at Y = 1.
+Valid bins are those where the ground truth is finite; a NaN prediction there counts as 0.
+"""
+
+import numpy as np
+
+from brdf.colour import linear_rgb_to_lab
+
+TRANSFORMS = ("lin", "root", "log")
+SPACES = ("rgb", "lab")
+_EPSILON = {"lin": lambda x: x, "root": np.sqrt, "log": np.log1p}
+
+
+def _valid_pairs(pred, true):
+    pred = np.asarray(pred, dtype=np.float64)
+    true = np.asarray(true, dtype=np.float64)
+    if pred.shape != true.shape or pred.shape[-1] != 3:
+        raise ValueError(f"shapes differ or are not (..., 3): {pred.shape} vs {true.shape}")
+    valid = np.all(np.isfinite(true), axis=-1)
+    p = pred[valid]
+    p = np.where(np.isfinite(p), np.maximum(p, 0.0), 0.0)
+    return p, np.maximum(true[valid], 0.0)
+
+
+def _error(p, t, transform, space):
+    ep, et = _EPSILON[transform](p), _EPSILON[transform](t)
+    if space == "rgb":
+        return float(np.mean(np.abs(ep - et)))
+    if space == "lab":
+        return float(np.mean(np.linalg.norm(linear_rgb_to_lab(ep) - linear_rgb_to_lab(et), axis=-1)))
+    raise ValueError(f"unknown colour space {space!r}")
+
+
+def brdf_error(pred, true, transform="log", space="lab"):
+    """One Table 1 error between two BRDFs of the same shape (..., 3) in 1/sr: a float."""
+    if transform not in _EPSILON:
+        raise ValueError(f"unknown transform {transform!r}")
+    p, t = _valid_pairs(pred, true)
+    if t.size == 0:
+        return float("nan")
+    return _error(p, t, transform, space)
+
+
+def brdf_errors(pred, true):
+    """All six Table 1 errors: {"rgb_lin", "rgb_root", "rgb_log", "lab_lin", "lab_root", "lab_log"}."""
+    p, t = _valid_pairs(pred, true)
+    return {f"{space}_{transform}": (_error(p, t, transform, space) if t.size else float("nan"))
+            for space in SPACES for transform in TRANSFORMS}
+
+
+def summarise(values):
+    """{"mean", "median"} of per-material errors, ignoring NaN."""
+    values = np.asarray(values, dtype=np.float64)
+    values = values[np.isfinite(values)]
+    if values.size == 0:
+        return {"mean": float("nan"), "median": float("nan")}
+    return {"mean": float(np.mean(values)), "median": float(np.median(values))}
+
+
+def delta_e_log(pred, ref):
+    """Per-element Delta E*ab between CIELAB(ln(1 + pred)) and CIELAB(ln(1 + ref)).
+
+    pred, ref: (..., 3) linear RGB (pixels or BRDF values), clamped to >= 0. Returns (...).
+    This is Table 2's render metric.
+    """
+    p = np.log1p(np.maximum(np.asarray(pred, dtype=np.float64), 0.0))
+    r = np.log1p(np.maximum(np.asarray(ref, dtype=np.float64), 0.0))
+    return np.linalg.norm(linear_rgb_to_lab(p) - linear_rgb_to_lab(r), axis=-1)

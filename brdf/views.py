@@ -1,0 +1,122 @@
+"""The three views of a BRDF used by the paper: the 1D flash slice, the 2D and the 3D table.
+
+- 1D: rho(theta_h) at theta_d bin 0, mean over the valid phi_d bins: (90, 3), plus a count n.
+- 2D: rho(theta_h, theta_d), mean over the valid phi_d bins: (90, 90, 3).
+- 3D: the full MERL table (90, 90, 180, 3).
+NaN marks an empty bin in every view; `np.isfinite(view[..., 0])` is its validity mask.
+Also reads and writes the contract's `slice.csv`.
+"""
+
+import csv
+import io
+import os
+import warnings
+
+import numpy as np
+
+from brdf.atomic import write_text
+from brdf.errors import InputError
+from brdf.merl import N_THETA_H, merl_valid_mask, theta_h_centres
+
+SLICE_HEADER = ["theta_h_deg", "r", "g", "b", "n"]
+
+
+def _nanmean(values, axis):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN bins stay NaN, on purpose
+        return np.nanmean(values, axis=axis)
+
+
+def flash_slice(merl_table):
+    """The theta_d = 0 slice: (rho (90, 3) in 1/sr with NaN where empty, n (90,) int).
+
+    rho is the mean over the valid phi_d bins of theta_d bin 0; n counts those bins.
+    """
+    first = np.asarray(merl_table)[:, 0]
+    n = np.count_nonzero(np.all(np.isfinite(first), axis=-1), axis=1)
+    return _nanmean(first, axis=1), n
+
+
+def table_2d(merl_table):
+    """rho(theta_h, theta_d): (90, 90, 3), the mean over the valid phi_d bins, NaN where none."""
+    return _nanmean(np.asarray(merl_table), axis=2)
+
+
+def table_3d_from_2d(table_2d):
+    """A (90, 90, 180, 3) table copying `table_2d` across phi_d, NaN where MERL has no data."""
+    table = np.repeat(np.asarray(table_2d, dtype=np.float64)[:, :, None, :], 180, axis=2)
+    table[~merl_valid_mask()] = np.nan
+    return table
+
+
+def write_slice_csv(path, rho, n, comments=()):
+    """Write the contract's slice.csv atomically.
+
+    rho: (90, 3) in 1/sr, NaN (or any non-finite) where the bin has no sample; n: (90,) counts.
+    comments: lines written first, each prefixed with '# '.
+    """
+    rho = np.asarray(rho, dtype=np.float64)
+    n = np.asarray(n)
+    if rho.shape != (N_THETA_H, 3) or n.shape != (N_THETA_H,):
+        raise ValueError(f"slice must be (90, 3) with (90,) counts, got {rho.shape}, {n.shape}")
+    out = io.StringIO()
+    for line in comments:
+        out.write("# " + str(line).replace("\n", " ") + "\n")
+    out.write(",".join(SLICE_HEADER) + "\n")
+    for theta, row, count in zip(np.degrees(theta_h_centres()), rho, n):
+        values = ",".join(repr(float(v)) for v in row) if np.all(np.isfinite(row)) else ",,"
+        out.write(f"{float(theta)!r},{values},{int(count)}\n")
+    write_text(path, out.getvalue())
+
+
+def read_slice_csv(path):
+    """Read a contract slice.csv: (rho (90, 3) in 1/sr with NaN where empty, n (90,) int).
+
+    Raises InputError naming the file and the line for anything that is not the contract's format.
+    """
+    path = os.fspath(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            lines = [(k + 1, line) for k, line in enumerate(f)
+                     if line.strip() and not line.lstrip().startswith("#")]
+    except (OSError, UnicodeDecodeError) as err:
+        raise InputError(path, f"cannot read: {getattr(err, 'strerror', None) or err}") from None
+    if not lines:
+        raise InputError(path, "empty slice file")
+    header = [h.strip() for h in lines[0][1].strip().split(",")]
+    if header != SLICE_HEADER:
+        raise InputError(path, f"line {lines[0][0]}: header must be {','.join(SLICE_HEADER)}")
+    rows = lines[1:]
+    if len(rows) != N_THETA_H:
+        raise InputError(path, f"expected {N_THETA_H} data rows, found {len(rows)}")
+    centres = np.degrees(theta_h_centres())
+    rho = np.full((N_THETA_H, 3), np.nan)
+    n = np.zeros(N_THETA_H, dtype=np.int64)
+    for i, (lineno, line) in enumerate(rows):
+        fields = next(csv.reader([line.strip()]))
+        where = f"line {lineno}"
+        if len(fields) != 5:
+            raise InputError(path, f"{where}: expected 5 fields, found {len(fields)}")
+        try:
+            theta = float(fields[0])
+            n[i] = int(fields[4]) if fields[4].strip() else 0
+            values = [float(v) if v.strip() else np.nan for v in fields[1:4]]
+        except ValueError:
+            raise InputError(path, f"{where}: not a number") from None
+        if not abs(theta - centres[i]) <= 1e-6 * max(1.0, centres[i]):
+            raise InputError(path, f"{where}: theta_h_deg {theta} is not bin {i}'s centre "
+                                   f"{centres[i]:.6f}")
+        present = [bool(v.strip()) for v in fields[1:4]]
+        if any(present) and not all(present):
+            raise InputError(path, f"{where}: r, g, b must be all given or all empty")
+        if any(present):
+            if not all(np.isfinite(values)):
+                raise InputError(path, f"{where}: NaN or Inf value")
+            if min(values) < 0:
+                raise InputError(path, f"{where}: negative BRDF value")
+            if n[i] < 0:
+                raise InputError(path, f"{where}: negative sample count")
+            rho[i] = values
+    if not np.any(np.isfinite(rho[:, 0])):
+        raise InputError(path, "the slice has no sample in any bin")
+    return rho, n

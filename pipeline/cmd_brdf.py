@@ -1,0 +1,15 @@
+"""`flashbrdf merl-slice`: the theta_d = 0 slice of a MERL table, as slice.csv."""
+
+import os
+
+from brdf.merl import read_merl
+from brdf.views import flash_slice, write_slice_csv
+
+
+def merl_slice(args):
+    table = read_merl(args.brdf)
+    rho, n = flash_slice(table)
+    write_slice_csv(args.out, rho, n, comments=[
+        f"flashbrdf merl-slice {os.path.basename(args.brdf)}",
+        "theta_d = 0 slice: mean over the valid phi_d bins of theta_d bin 0; n = phi_d bins used"])
+    return 0

@@ -1,0 +1,112 @@
+"""Half/difference angles: round trips, the singular theta_h = 0 frame, reciprocity, lookup."""
+
+import numpy as np
+import pytest
+
+from brdf.angles import (half_diff_from_local, half_diff_from_world, local_from_half_diff,
+                         merl_bin_index, phi_h_from_local)
+from brdf.lookup import evaluate_directions, evaluate_table
+from brdf.merl import phi_d_centres, theta_d_centres, theta_h_centres
+
+
+def _hemisphere(rng, n, min_cos=0.0):
+    v = rng.normal(size=(n, 3))
+    v /= np.linalg.norm(v, axis=1, keepdims=True)
+    v[:, 2] = np.abs(v[:, 2])
+    return v[v[:, 2] > min_cos]
+
+
+def _special_pairs():
+    n = np.array([0.0, 0.0, 1.0])
+    grazing = np.array([np.cos(1e-7), 0.0, np.sin(1e-7)])
+    off = np.array([0.6, 0.0, 0.8])
+    tilt = np.array([0.0, np.sin(1e-9), np.cos(1e-9)])
+    return np.array([[n, n], [off, off], [grazing, grazing], [grazing, -grazing * [1, 1, -1]],
+                     [tilt, n], [n, off], [grazing, n]])
+
+
+def test_io_hd_io_roundtrip_within_1e9():
+    rng = np.random.default_rng(1)
+    wi, wo = _hemisphere(rng, 20000), _hemisphere(rng, 20000)
+    m = min(len(wi), len(wo))
+    wi, wo = wi[:m], wo[:m]
+    special = _special_pairs()
+    wi, wo = np.concatenate([wi, special[:, 0]]), np.concatenate([wo, special[:, 1]])
+    th, td, pd = half_diff_from_local(wi, wo, fold=False)
+    assert np.all(np.isfinite(th) & np.isfinite(td) & np.isfinite(pd))
+    wi2, wo2 = local_from_half_diff(th, td, pd, phi_h_from_local(wi, wo))
+    assert np.max(np.abs(wi2 - wi)) < 1e-9
+    assert np.max(np.abs(wo2 - wo)) < 1e-9
+
+
+def test_folded_phi_d_is_reciprocal_and_in_range():
+    rng = np.random.default_rng(2)
+    wi, wo = _hemisphere(rng, 5000)[:4000], _hemisphere(rng, 5000)[:4000]
+    a = np.stack(half_diff_from_local(wi, wo))
+    b = np.stack(half_diff_from_local(wo, wi))
+    assert np.all((a[2] >= 0) & (a[2] < np.pi))
+    # Swapping the directions moves phi_d by pi, which folding removes (modulo the seam at 0/pi).
+    diff = np.abs(a - b)
+    diff[2] = np.minimum(diff[2], np.pi - diff[2])
+    assert diff.max() < 1e-9
+
+
+def test_theta_h_zero_is_finite():
+    wi = np.array([[0.3, 0.1, np.sqrt(1 - 0.1)], [0.0, 0.0, 1.0]])
+    wo = wi * [-1, -1, 1]  # mirror pair: h = n exactly
+    th, td, pd = half_diff_from_local(wi, wo)
+    assert np.all(np.isfinite(pd)) and np.max(th) < 1e-12
+
+
+def test_world_frame_equals_local_frame_after_rotation():
+    rng = np.random.default_rng(3)
+    wi, wo = _hemisphere(rng, 300)[:200], _hemisphere(rng, 300)[:200]
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    n = np.array([0.0, 0.0, 1.0])
+    local = np.stack(half_diff_from_local(wi, wo))
+    world = np.stack(half_diff_from_world(wi @ q.T, wo @ q.T, n @ q.T))
+    diff = np.abs(local - world)
+    diff[2] = np.minimum(diff[2], np.pi - diff[2])
+    assert diff.max() < 1e-9
+
+
+def test_bin_centres_index_their_own_bins():
+    i, j, k = merl_bin_index(theta_h_centres(), theta_d_centres(), phi_d_centres()[:90])
+    np.testing.assert_array_equal(i, np.arange(90))
+    np.testing.assert_array_equal(j, np.arange(90))
+    np.testing.assert_array_equal(k, np.arange(90))
+    assert merl_bin_index(0.0, 0.0, -1e-3)[2] == 179  # negative phi_d folds to the last bin
+
+
+@pytest.mark.parametrize("interpolate", [False, True])
+def test_lookup_at_bin_centres_returns_the_table(interpolate):
+    rng = np.random.default_rng(4)
+    table = rng.uniform(0.1, 2.0, size=(90, 90, 180, 3))
+    i, j, k = rng.integers(0, 90, 500), rng.integers(0, 90, 500), rng.integers(0, 180, 500)
+    values = evaluate_table(table, theta_h_centres()[i], theta_d_centres()[j],
+                            phi_d_centres()[k], interpolate=interpolate)
+    np.testing.assert_allclose(values, table[i, j, k], rtol=1e-9)
+
+
+def test_interpolation_skips_no_data_and_is_linear():
+    table = np.full((90, 90, 3), np.nan)
+    table[10, 20] = 1.0
+    table[10, 21] = 3.0
+    v = evaluate_table(table, theta_h_centres()[10], np.deg2rad(21.25), 0.0, interpolate=True)
+    np.testing.assert_allclose(v, 2.5)  # 1 and 3 at 20.5 and 21.5 deg, weights 0.25/0.75
+    v = evaluate_table(table, theta_h_centres()[40], np.deg2rad(50.0), 0.0, interpolate=True)
+    np.testing.assert_array_equal(v, 0.0)
+
+
+def test_lookup_is_reciprocal_and_zero_below_horizon():
+    rng = np.random.default_rng(5)
+    table = rng.uniform(0.1, 2.0, size=(90, 90, 180, 3))
+    wi, wo = _hemisphere(rng, 3000, 0.05)[:1000], _hemisphere(rng, 3000, 0.05)[:1000]
+    n = np.array([0.0, 0.0, 1.0])
+    for interpolate in (False, True):
+        a = evaluate_directions(table, wi, wo, n, interpolate)
+        b = evaluate_directions(table, wo, wi, n, interpolate)
+        # Nearest lookups can differ only where phi_d sits on the 0/pi seam; none do here.
+        np.testing.assert_allclose(a, b, rtol=1e-9)
+    below = wo * [1, 1, -1]
+    assert np.all(evaluate_directions(table, wi, below, n) == 0)
