@@ -16,7 +16,8 @@ from .viewdata import ViewData
 
 FORMAT = "flashbrdf-dsgplvm-1"
 CONFIG_KEYS = ("q", "beta", "xi", "mu0", "rho", "mu_max", "max_cycles", "tol", "step1_maxiter",
-               "view_weighting", "seed", "views", "source_view", "store_views")
+               "view_weighting", "inverse_width", "learn_inverse_width", "seed", "views",
+               "source_view", "store_views")
 
 
 def save_model(model, path, store_views=None):
