@@ -48,6 +48,12 @@ class DSGPLVM:
         self.inverse_width, self.learn_inverse_width = inverse_width, learn_inverse_width
         self.views, self.source_view, self.store_views = views, source_view, store_views
 
+    def get_params(self):
+        """Constructor arguments (scikit-learn style), as a dict."""
+        import inspect
+        names = inspect.signature(type(self).__init__).parameters
+        return {k: getattr(self, k) for k in names if k != "self"}
+
     # ------------------------------------------------------------------ learning
     def fit(self, views, labels=None):
         """views: dict name -> (N, D_v) features (NaN = missing); labels: (N,) ints or None
