@@ -147,12 +147,14 @@ def run_experiment(k, split, data, cache, quick, costs, points, ablations):
     if ablations is not None:
         entry = ablations.setdefault("dsgplvm (chosen q, beta)", {"errors": []})
         entry["errors"] = entry["errors"] + record["errors_2d"]["dsgplvm"]
-        run_ablations(chosen["dsgplvm"], train, data, test_idx, ablations, k, points, quick)
+        run_ablations(fitted["dsgplvm"], train, data, test_idx, ablations, k, points, quick)
     return record, fitted
 
 
-def run_ablations(params, train, data, test_idx, ablations, k, points, quick=False):
-    """No prior (β = 0), log-RGB features, no back-constraints (latent by optimisation), ADM cycles."""
+def run_ablations(chosen, train, data, test_idx, ablations, k, points, quick=False):
+    """No prior (β = 0), log-RGB features, no back-constraints (latent by optimisation at test time,
+    on the chosen fitted model), ADM cycles; `chosen` is the fitted DSGPLVMMethod."""
+    params = chosen.get_params()
     variants = {"no prior (beta=0)": {"beta": 0.0},
                 "log-RGB features": {"feature_space": "rgb"},
                 "no back-constraints (latent optimised at test time)": {"latent": "optimise"}}
@@ -160,7 +162,10 @@ def run_ablations(params, train, data, test_idx, ablations, k, points, quick=Fal
         variants |= {f"ADM cycles <= {c}": {"max_cycles": c} for c in (1, 5, 20)}
     for label, change in variants.items():
         try:
-            m = make_method("dsgplvm", **(params | change)).fit(train)
+            if change.get("latent") == "optimise":
+                m = make_method("dsgplvm", **(params | change), model=chosen.model).fit(train)
+            else:
+                m = make_method("dsgplvm", **(params | change)).fit(train)
         except TypeError as err:  # the model does not offer this switch
             ablations.setdefault(label, {"skipped": str(err)})
             continue
