@@ -127,3 +127,15 @@ def test_extreme_slices_give_finite_predictions(mixed_set, make):
         for view, valid in views:
             table, _ = method.predict(s, view)
             assert np.isfinite(table[valid]).all() and (table[valid] >= 0).all()
+
+
+def test_dsgplvm_adapter_duplicate_training_brdfs(mixed_set):
+    # two identical training materials make the Gram matrices singular: training must still succeed
+    from infer import DSGPLVMMethod
+    dup = mixed_set.subset([0, 1, 2, 3, 4, 4])
+    method = DSGPLVMMethod(max_cycles=3).fit(dup)
+    table, var = method.predict(mixed_set.slices[5], "2d")
+    valid = np.isfinite(mixed_set.tables_2d[0]).all(-1)
+    assert np.isfinite(table[valid]).all() and np.isfinite(var[valid]).all()
+    weights, space = method.combination(mixed_set.slices[5])
+    assert weights.shape == (6,) and abs(weights.sum() - 1) < 1e-9  # affine: view mean folded in

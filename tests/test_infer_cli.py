@@ -87,3 +87,23 @@ def test_evaluate_quick(merl_proxy, tmp_path):
     assert (out / "table1.md").read_text().count("MERL (NBRDF proxy)") >= 1
     assert (out / "error_vs_runtime.png").stat().st_size > 1000
     assert not list(out.glob(".cache*"))
+
+
+def test_dsgplvm_extreme_and_gappy_slices(trained):
+    from infer import load_method
+    folder, model, slice_csv = trained
+    method = load_method(model, "dsgplvm")
+    valid = method.predict(np.full((90, 3), 0.1), "2d")[0]
+    valid = np.isfinite(valid).all(-1)
+    th = np.linspace(0, 1, 90)[:, None]
+    chrome = 10 ** (np.log10(4e3) - (np.log10(4e3) + 3) * th) * np.ones((1, 3))
+    for s in (chrome, np.zeros((90, 3))):
+        table, var = method.predict(s, "2d")
+        assert np.isfinite(table[valid]).all() and np.isfinite(var[valid]).all()
+    full, _ = views.read_slice_csv(slice_csv)
+    gap, zero = full.copy(), full.copy()
+    gap[30:45], zero[30:45] = np.nan, 0.0
+    p_full, p_gap, p_zero = (np.nan_to_num(method.predict(s, "2d")[0]) for s in (full, gap, zero))
+    d_gap = np.abs(np.log1p(p_gap) - np.log1p(p_full)).mean()
+    d_zero = np.abs(np.log1p(p_zero) - np.log1p(p_full)).mean()
+    assert d_gap < d_zero  # a gap is missing data: zeros would pull the prediction further
