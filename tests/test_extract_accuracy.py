@@ -39,7 +39,8 @@ def test_colocated_noise_free_within_1pct(clean_sphere):
     # reach stated in the module docstring
     assert result.n[88] == 0 and result.n[89] == 0 and result.n[87] > 0
     assert np.all(result.n[:6] == 0) and result.n[6] > 0
-    assert result.report["theta_d_deg"]["max"] < 1e-6  # co-located: omega_i == omega_o
+    # co-located: omega_i == omega_o up to float32 direction math (~1e-7 rad = 6e-6 deg)
+    assert result.report["theta_d_deg"]["max"] < 1e-4
 
 
 def test_flash_offset_3cm_within_1pct(tmp_path):
