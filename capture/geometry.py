@@ -130,14 +130,21 @@ class MeshIntersector:
 
 
 def _as_intersector(target):
-    return target if isinstance(target, MeshIntersector) else MeshIntersector(target)
+    """MeshIntersector from a MeshIntersector, a trimesh.Trimesh or a capture.Scene."""
+    if isinstance(target, MeshIntersector):
+        return target
+    from capture.scene import Scene
+    if isinstance(target, Scene):
+        from capture import scene_intersector
+        return scene_intersector(target)
+    return MeshIntersector(target)
 
 
 def intersect(target, origins, directions):
     """First hit of each ray with the mesh.
 
-    target: MeshIntersector or trimesh.Trimesh; origins, directions: (..., 3) world, directions
-    unit. Returns Hits with the rays' leading shape. No Python loop over rays (chunked Embree calls).
+    target: MeshIntersector (build it once and reuse it), trimesh.Trimesh or capture.Scene;
+    origins, directions: (..., 3) world, directions unit. Returns Hits with the rays' leading shape. No Python loop over rays (chunked Embree calls).
     """
     mi = _as_intersector(target)
     directions = np.asarray(directions, dtype=np.float64)
@@ -311,14 +318,20 @@ def load_normal_map(geometry, camera):
     return normals, (mask > 0) & good
 
 
-def surface_from_normal_map(geometry, camera, pixel_mask=None):
+def surface_from_normal_map(geometry, camera=None, pixel_mask=None):
     """The Surface of normal-map geometry: no ray casting, no depth (points is None).
+
+    geometry: capture.Geometry, or a capture.Scene (then camera defaults to the scene's).
 
     Normals go from the camera frame to world with world_from_camera; view directions are the
     reversed pixel rays (exact for orthographic cameras; for a pinhole, the direction toward the
     camera centre from any point on the pixel's ray).
     """
     from capture.camera import pixel_rays
+    from capture.scene import Scene
+    if isinstance(geometry, Scene):
+        camera = camera or geometry.camera
+        geometry = geometry.geometry
     normals_cam, mask = load_normal_map(geometry, camera)
     if pixel_mask is not None:
         mask = mask & pixel_mask
