@@ -48,6 +48,9 @@ def _parser():
     s.add_argument("--brdf", required=True, metavar="BRDF.binary")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     s.add_argument("--spp", type=int, default=64)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--interpolate", action="store_true",
+                   help="interpolate the BRDF table between bin centres (default: nearest bin)")
 
     s = sub.add_parser("compare", help="log-CIELAB Delta E between two images")
     s.add_argument("pred", metavar="PRED.exr")
