@@ -271,7 +271,7 @@ def surface_at_pixels(target, camera, rows, cols):
     points = _hit_points(mi, face, weights)
     normals = _shading_normals(mi, face, weights)
     if camera.model == "orthographic":
-        view = np.broadcast_to(-camera.world_from_camera[:3, 2], points.shape)
+        view = np.tile(-camera.world_from_camera[:3, 2], (len(points), 1))
     else:
         view = camera.world_from_camera[:3, 3] - points
         view /= np.sqrt(np.einsum("ij,ij->i", view, view))[:, None]
