@@ -29,29 +29,31 @@ MAD_TO_SIGMA = 1.4826
 def _bin_statistics(rho, theta_h, censored, counts, k, rel_floor):
     """Per-bin robust statistics of samples sorted by bin (contiguous runs of `counts`).
 
+    rho: (C, N) channel-major, so every per-bin slice is C contiguous rows.
     One pass per non-empty bin, each fully vectorised (a partition-based median is O(n)): the loop
     runs over the 90 bins, never over pixels. Returns median, sigma, mean of the inliers (n_bins, C),
     mean theta_h of the inliers (n_bins,), inlier counts (n_bins,), inlier mask (N,).
     """
-    n_bins, channels = len(counts), rho.shape[1]
+    channels, n_bins = rho.shape[0], len(counts)
     median, sigma, mean = (np.full((n_bins, channels), np.nan) for _ in range(3))
     theta_mean = np.full(n_bins, np.nan)
     n = np.zeros(n_bins, dtype=np.int64)
-    inlier = np.zeros(len(rho), dtype=bool)
+    inlier = np.zeros(rho.shape[1], dtype=bool)
     ends = np.cumsum(counts)
     with np.errstate(invalid="ignore"):
         for i in np.flatnonzero(counts):
             lo, hi = ends[i] - counts[i], ends[i]
-            segment = rho[lo:hi]
-            median[i] = np.median(segment, axis=0)
-            deviation = np.abs(segment - median[i])
-            sigma[i] = MAD_TO_SIGMA * np.median(deviation, axis=0)
-            limit = k * np.maximum(sigma[i], rel_floor * np.abs(median[i]) + 1e-300)
-            keep = np.all(deviation <= limit, axis=1) & ~censored[lo:hi]
+            segment = rho[:, lo:hi]
+            median[i] = np.median(segment, axis=1)
+            deviation = np.abs(segment - median[i][:, None])
+            sigma[i] = MAD_TO_SIGMA * np.median(deviation, axis=1)
+            limit = k * np.maximum(sigma[i], rel_floor * np.abs(median[i]) + 1e-30)
+            keep = np.all(deviation <= limit[:, None].astype(rho.dtype), axis=0)
+            keep &= ~censored[lo:hi]
             inlier[lo:hi] = keep
             n[i] = np.count_nonzero(keep)
             if n[i]:
-                mean[i] = np.compress(keep, segment, axis=0).mean(axis=0)
+                mean[i] = np.compress(keep, segment, axis=1).mean(axis=1, dtype=np.float64)
                 if theta_h is not None:
                     theta_mean[i] = theta_h[lo:hi][keep].mean()
     return median, sigma, mean, theta_mean, n, inlier
@@ -85,11 +87,12 @@ def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e
     """
     bin_index = np.asarray(bin_index, dtype=np.intp)
     order = np.argsort(bin_index.astype(np.int16), kind="stable")  # radix sort: O(n)
-    # np.take: several times faster than fancy indexing for these row gathers
-    rho = np.take(np.asarray(rho, dtype=np.float64), order, axis=0)
-    censored = (np.zeros(len(rho), dtype=bool) if censored is None
+    # channel-major float32 copy in bin order (np.take: several times faster than fancy
+    # indexing); float32 keeps 7 digits, and means accumulate in float64
+    rho = np.take(np.asarray(rho, dtype=np.float32).T, order, axis=1)
+    censored = (np.zeros(len(order), dtype=bool) if censored is None
                 else np.take(np.asarray(censored, dtype=bool), order))
-    rho[censored] = np.inf
+    rho[:, censored] = np.inf
     if theta_h is not None:
         theta_h = np.take(np.asarray(theta_h, dtype=np.float64), order)
     total = np.bincount(bin_index, minlength=n_bins)
