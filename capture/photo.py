@@ -70,7 +70,7 @@ def read_float_image(path):
         data = data[..., :3]
     elif all(c in names for c in "RGB"):
         data = data[..., [names.index(c) for c in "RGB"]]
-    data = _to_rgb(data, path)
+    data = np.ascontiguousarray(_to_rgb(data, path))
     window = (spec.x, spec.y, spec.width, spec.height)
     full = (spec.full_x, spec.full_y, spec.full_width, spec.full_height)
     if window != full and spec.full_width > 0 and spec.full_height > 0:
@@ -132,7 +132,7 @@ def _read_cv(path, encoding):
         raise InputError(path, "cannot read image (corrupt or unsupported)")
     if img.ndim == 3 and img.shape[2] >= 3:
         img = img[..., [2, 1, 0]]  # BGR(A) -> RGB
-    img = _to_rgb(img, path)
+    img = np.ascontiguousarray(_to_rgb(img, path))
     if img.dtype in (np.uint8, np.uint16):
         top = float(np.iinfo(img.dtype).max)
         clipped = np.any(img >= SATURATION_FRACTION * top, axis=-1)
