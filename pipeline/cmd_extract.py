@@ -45,6 +45,8 @@ def extract(args):
                   spread=[[None if not np.isfinite(v) else float(v) for v in row]
                           for row in result.spread])
     json_path = out.with_suffix(".json")
+    if json_path == out:  # --out x.json: keep the slice, put the report beside it
+        json_path = out.with_name(out.stem + ".report.json")
     text = json.dumps(report, indent=1) + "\n"
     write_slice_csv(out, result.rho, result.n, comments=comments)
     try:
