@@ -192,11 +192,11 @@ def _hit_points(mi, face, weights):
     return _interpolate(mi.corners, face, weights).astype(np.float64) + mi.centre
 
 
-def _shading_normals(mi, face, weights):
-    """(M, 3) float64 unit shading normals at barycentric weights (M, 3) on faces (M,)."""
+def _shading_normals(mi, face, weights, dtype=np.float64):
+    """(M, 3) unit shading normals (dtype) at barycentric weights (M, 3) on faces (M,)."""
     if mi.corner_normals is None:
-        return np.take(mi.face_normals, face, axis=0)
-    n = _interpolate(mi.corner_normals, face, weights).astype(np.float64)
+        return np.take(mi.face_normals, face, axis=0).astype(dtype, copy=False)
+    n = _interpolate(mi.corner_normals, face, weights).astype(dtype, copy=False)
     length = np.sqrt(np.einsum("ij,ij->i", n, n))
     ok = length > 1e-6
     n /= np.where(ok, length, 1.0)[:, None]
@@ -252,11 +252,12 @@ def surface_from_mesh(target, camera, pixel_mask=None):
     return surface_at_pixels(target, camera, rows, cols)
 
 
-def surface_at_pixels(target, camera, rows, cols):
+def surface_at_pixels(target, camera, rows, cols, dtype=np.float64):
     """Trace the rays of pixels (rows, cols) (N,) int against the mesh; a Surface of the hits.
 
-    The hot path of extraction: float32 rays straight into Embree, float64 geometry (points,
-    normals, view directions) only for the rays that hit.
+    The hot path of extraction: float32 rays straight into Embree, geometry only for the rays
+    that hit. Points are float64 world; normals and view directions are `dtype` (extraction
+    asks for float32: ~1e-7 rad, far finer than any theta_h bin).
     """
     from capture.camera import embree_rays
     mi = _as_intersector(target)
@@ -268,12 +269,14 @@ def surface_at_pixels(target, camera, rows, cols):
     rows, cols = np.compress(hit, rows), np.compress(hit, cols)
     face = np.compress(hit, face).astype(np.int64)
     weights = _barycentric_weights(np.compress(hit, r["u"]), np.compress(hit, r["v"]))
-    points = _hit_points(mi, face, weights)
-    normals = _shading_normals(mi, face, weights)
+    relative = _interpolate(mi.corners, face, weights)  # float32, relative to mi.centre
+    points = relative.astype(np.float64) + mi.centre
+    normals = _shading_normals(mi, face, weights, dtype)
     if camera.model == "orthographic":
-        view = np.tile(-camera.world_from_camera[:3, 2], (len(points), 1))
+        view = np.tile(-camera.world_from_camera[:3, 2].astype(dtype), (len(points), 1))
     else:
-        view = camera.world_from_camera[:3, 3] - points
+        view = (camera.world_from_camera[:3, 3] - mi.centre).astype(np.float32) - relative
+        view = view.astype(dtype, copy=False)
         view /= np.sqrt(np.einsum("ij,ij->i", view, view))[:, None]
     return Surface(rows, cols, points, normals, view, face)
 

@@ -81,12 +81,12 @@ def _surface_batches(scene, camera, usable_any, intersector, chunk):
         yield capture.surface_from_normal_map(scene.geometry, camera, usable_any)
         return
     r0, r1, c0, c1 = capture.pixel_box(camera, intersector.mesh.bounds)
-    box = np.zeros(camera.shape, dtype=bool)
-    box[r0:r1, c0:c1] = True
-    flat = np.flatnonzero(usable_any & box)
-    for s in range(0, len(flat), chunk):
-        rows, cols = np.divmod(flat[s:s + chunk], camera.width)
-        yield capture.surface_at_pixels(intersector, camera, rows, cols)
+    rows, cols = np.nonzero(usable_any[r0:r1, c0:c1])
+    rows += r0
+    cols += c0
+    for s in range(0, len(rows), chunk):
+        yield capture.surface_at_pixels(intersector, camera, rows[s:s + chunk],
+                                        cols[s:s + chunk], dtype=np.float32)
 
 
 def _no_sample_error(scene, per_photo):
