@@ -38,7 +38,7 @@ def _embree_time(scene_dir, rows_cols=None):
     d = dirs.astype(np.float32)
     start, cpu = time.perf_counter(), time.process_time()
     for s in range(0, len(d), 1 << 21):
-        mi._scene.run(o[s:s + (1 << 21)], d[s:s + (1 << 21)], output=1)
+        mi.embree_first_hit(o[s:s + (1 << 21)], d[s:s + (1 << 21)])
     return time.perf_counter() - start, time.process_time() - cpu, len(d)
 
 

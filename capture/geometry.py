@@ -109,21 +109,26 @@ class MeshIntersector:
         self.vertex_normals = (np.asarray(mesh.vertex_normals, dtype=np.float64)
                                if use_vertex_normals else None)
         self.centre = (self.vertices.min(0) + self.vertices.max(0)) / 2
+        relative = (self.vertices - self.centre).astype(np.float32)
         # per-face corners (relative to the centre) and corner normals, float32: one gather per
         # hit instead of two, at half the memory traffic (float32 is ~1e-7 of the mesh size)
-        self.corners = (self.vertices - self.centre)[self.faces].astype(np.float32)  # (F, 3, 3)
+        self.corners = relative[self.faces]  # (F, 3, 3)
         self.corner_normals = (None if self.vertex_normals is None
                                else self.vertex_normals[self.faces].astype(np.float32))
         self.scale = float(np.linalg.norm(self.vertices.max(0) - self.vertices.min(0))) or 1.0
         self._scene = rtcore_scene.EmbreeScene()
-        TriangleMesh(scene=self._scene, vertices=(self.vertices - self.centre).astype(np.float32),
-                     indices=self.faces.astype(np.int32))
+        TriangleMesh(scene=self._scene, vertices=relative, indices=self.faces.astype(np.int32))
+
+    def embree_first_hit(self, origins, directions):
+        """Embree's own first-hit query, nothing else: origins (N, 3) float32 already shifted by
+        -centre, directions (N, 3) float32. Returns embreex's dict: primID (N,) (-1 = miss),
+        u, v (barycentrics), tfar, Ng."""
+        return self._scene.run(origins, directions, output=1)
 
     def raw_first_hit(self, origins, directions):
-        """Embree's own first-hit query: dict of primID (N,), u, v, tfar (float32). (N, 3) in."""
+        """First-hit query for world-frame float64 rays (N, 3): see embree_first_hit."""
         o = (np.asarray(origins, dtype=np.float64) - self.centre).astype(np.float32)
-        d = np.asarray(directions, dtype=np.float32)
-        return self._scene.run(o, d, output=1)
+        return self.embree_first_hit(o, np.asarray(directions, dtype=np.float32))
 
     def is_convex(self):
         return is_convex(self.mesh)
@@ -144,7 +149,8 @@ def intersect(target, origins, directions):
     """First hit of each ray with the mesh.
 
     target: MeshIntersector (build it once and reuse it), trimesh.Trimesh or capture.Scene;
-    origins, directions: (..., 3) world, directions unit. Returns Hits with the rays' leading shape. No Python loop over rays (chunked Embree calls).
+    origins, directions: (..., 3) world, directions unit. Returns Hits with the rays' leading
+    shape. No Python loop over rays (chunked Embree calls).
     """
     mi = _as_intersector(target)
     directions = np.asarray(directions, dtype=np.float64)
@@ -263,7 +269,7 @@ def surface_at_pixels(target, camera, rows, cols, dtype=np.float64):
     mi = _as_intersector(target)
     rows, cols = np.asarray(rows), np.asarray(cols)
     origins, directions = embree_rays(camera, rows, cols, mi.centre)
-    r = mi._scene.run(origins, directions, output=1)
+    r = mi.embree_first_hit(origins, directions)
     face = r["primID"]
     hit = face >= 0
     rows, cols = np.compress(hit, rows), np.compress(hit, cols)
