@@ -14,9 +14,8 @@ be biased low).
 
 Bin-centre correction: the slice is defined at bin centres, but a bin's samples can sit off
 centre (a bin half outside the observed range at grazing angles, or uneven pixel density across
-a bin). The trimmed mean is moved along the local slope, taken from the neighbouring bins'
-estimates (central difference, one-sided at the end of a run), from the samples' mean theta_h to
-the bin centre.
+a bin). The trimmed mean is moved along the local slope (a count-weighted line through the
+estimates of the bins within two of it), from the samples' mean theta_h to the bin centre.
 """
 
 import numpy as np
@@ -59,19 +58,30 @@ def _bin_statistics(rho, theta_h, censored, counts, k, rel_floor):
     return median, sigma, mean, theta_mean, n, inlier
 
 
-def _centre_correction(estimate, theta_mean, centres, usable):
-    """Move each usable bin's estimate (n_bins, 3) along the neighbours' slope to its centre."""
-    idx = np.arange(len(centres))
-    ok = usable & np.all(np.isfinite(estimate), 1)
-    left = np.concatenate([[False], ok[:-1]])
-    right = np.concatenate([ok[1:], [False]])
-    lo = np.where(left, idx - 1, idx)
-    hi = np.where(right, idx + 1, idx)
-    has_slope = ok & (lo != hi)
-    lo, hi = lo[has_slope], hi[has_slope]
-    slope = (estimate[hi] - estimate[lo]) / (theta_mean[hi] - theta_mean[lo])[:, None]
+def _centre_correction(estimate, theta_mean, centres, n, usable, reach=2):
+    """Move each usable bin's estimate (n_bins, 3) to its centre along the local slope.
+
+    The slope is a least-squares line through the (mean theta_h, estimate) points of the bins
+    within `reach` of it (itself included), weighted by their sample counts, so that a sparse,
+    noisy neighbour barely tilts it. Needs at least two such bins.
+    """
+    n_bins = len(centres)
+    ok = usable & np.all(np.isfinite(estimate), 1) & (n > 0)
+    neighbours = np.arange(n_bins)[:, None] + np.arange(-reach, reach + 1)  # (n_bins, 2r+1)
+    inside = (neighbours >= 0) & (neighbours < n_bins)
+    neighbours = np.clip(neighbours, 0, n_bins - 1)
+    w = np.where(inside & ok[neighbours], n[neighbours], 0).astype(np.float64)
+    t = np.where(w > 0, theta_mean[neighbours], 0.0)
+    m = np.where((w > 0)[..., None], estimate[neighbours], 0.0)  # (n_bins, 2r+1, 3)
+    total = w.sum(1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t_bar = (w * t).sum(1) / total
+        m_bar = (w[..., None] * m).sum(1) / total[:, None]
+        dt = np.where(w > 0, t - t_bar[:, None], 0.0)
+        slope = ((w * dt)[..., None] * (m - m_bar[:, None])).sum(1) / (w * dt ** 2).sum(1)[:, None]
+    has_slope = ok & (np.count_nonzero(w, axis=1) >= 2) & np.all(np.isfinite(slope), 1)
     out = estimate.copy()
-    out[has_slope] += slope * (centres[has_slope] - theta_mean[has_slope])[:, None]
+    out[has_slope] += slope[has_slope] * (centres[has_slope] - theta_mean[has_slope])[:, None]
     return out
 
 
@@ -104,7 +114,7 @@ def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e
         estimate = median
     else:
         if theta_h is not None:
-            estimate = _centre_correction(estimate, theta_mean, theta_h_centres()[:n_bins],
+            estimate = _centre_correction(estimate, theta_mean, theta_h_centres()[:n_bins], n,
                                           n_censored == 0)
         estimate = np.where(n_censored[:, None] > 0, median, estimate)
     empty = (n == 0) | (2 * n_censored >= total)

@@ -7,6 +7,7 @@ A point light's position is in the CAMERA frame (a flash offset from the lens); 
 light's direction is a unit WORLD vector toward the light.
 
 Rejections, in this order (each pixel counted once, under the first reason that applies):
+  silhouette  next to the object's outline in the image (slice_extract.extract.silhouette_mask);
   backfacing  cos(theta_o) <= 0: the shading normal faces away from the camera;
   grazing     cos(theta_o) < min_cos or cos(theta_i) < min_cos (light behind or at grazing);
   theta_d     theta_d above max_theta_d (the light is too far from the camera for a theta_d ~ 0
@@ -20,7 +21,7 @@ import numpy as np
 
 from brdf.errors import InputError
 
-REASONS = ("backfacing", "grazing", "theta_d", "shadowed")
+REASONS = ("silhouette", "backfacing", "grazing", "theta_d", "shadowed")
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,14 +98,16 @@ class PhotoSamples:
     n_usable: int
 
 
-def photo_samples(radiance, usable, surface, light, options, intersector=None, clipped=None):
+def photo_samples(radiance, usable, surface, light, options, intersector=None, clipped=None,
+                  edge=None):
     """BRDF samples from one photo over one Surface patch (pixels that see the object).
 
     radiance (H, W, 3) pixel-model units; usable (H, W) bool; clipped (H, W) bool or None:
     too-bright pixels, kept as censored samples so that bins know where a highlight was lost;
     surface: capture.Surface; light: LightSetup; options: ExtractOptions; intersector:
     capture.MeshIntersector for shadow rays, or None to skip them (convex mesh, light at the
-    viewpoint, normal-map geometry). Returns PhotoSamples.
+    viewpoint, normal-map geometry); edge (H, W) bool or None: silhouette pixels to reject.
+    Returns PhotoSamples.
     """
     # flat indices + np.take: several times faster than 2D fancy indexing on big images
     flat = surface.rows * usable.shape[1] + surface.cols
@@ -113,6 +116,11 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
             else np.take(clipped.ravel(), flat) & ~valid)
     keep = valid | cens
     n_usable = int(np.count_nonzero(valid))
+    silhouette = 0
+    if edge is not None:
+        on_edge = np.take(edge.ravel(), flat)
+        silhouette = int(np.count_nonzero(valid & on_edge))
+        keep &= ~on_edge
     normals, wo, points = surface.normals, surface.view_dirs, surface.points
     if not keep.all():  # (usually all are: the surface was traced for these pixels)
         flat, cens = np.compress(keep, flat), np.compress(keep, cens)
@@ -134,6 +142,7 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
     cos_o = np.einsum("ij,ij->i", normals, wo)
     cos_i = np.einsum("ij,ij->i", normals, wi)
     rejected = dict.fromkeys(REASONS, 0)
+    rejected["silhouette"] = silhouette
 
     def drop(mask, reason):  # count only usable pixels; censored ones are not "used" anyway
         rejected[reason] = int(np.count_nonzero(mask & ~cens_now))

@@ -35,7 +35,9 @@ def _scene(folder, src, index):
 def test_diligent_ball_two_near_flash_lights_agree(tmp_path):
     """Lights 052 (4.36 deg off axis, theta_d = 2.2 deg) and 004 (4.58 deg) see the same
     material: their slices must agree where both have >= 50 pixels. DiLiGenT calibrates each
-    light's intensity to a few percent, so 3% on the median bin and 5% on any bin."""
+    light's intensity to a few percent: 3% on the median bin and 5% on 90% of the bins. The
+    last bins (theta_h ~ 80 deg, cos theta_i ~ 0.2) turn a 1 deg normal-map error into ~9%, so
+    the worst bin is allowed 10%."""
     src = shared_path("data", "real", "diligent-ball")
     a = extract_slice(_scene(tmp_path / "052", src, 52))
     b = extract_slice(_scene(tmp_path / "004", src, 4))
@@ -43,6 +45,6 @@ def test_diligent_ball_two_near_flash_lights_agree(tmp_path):
     ok = (a.n >= 50) & (b.n >= 50)
     assert ok.sum() >= 40
     rel = np.max(np.abs(a.rho[ok] / b.rho[ok] - 1), axis=1)
-    assert np.median(rel) < 0.03 and rel.max() < 0.05
+    assert np.median(rel) < 0.03 and np.percentile(rel, 90) < 0.05 and rel.max() < 0.10
     # the ball's rim is reached: the observed range ends near the grazing limit (84.3 deg)
     assert a.coverage["theta_h_deg_observed"][1] > 80
