@@ -89,13 +89,15 @@ class Lambert(BRDFModel):
 class GGX(BRDFModel):
     """Lambert diffuse + GGX microfacet specular (Walter et al. 2007):
         rho = diffuse/pi + F D G / (4 cos_i cos_o),
-    D = GGX with roughness alpha, G = separable Smith, F = Schlick from `specular` (F0, (3,)).
+    D = GGX with roughness alpha, G = separable Smith, F = Schlick from `specular` (F0, (3,)), or
+    F = `specular` itself with fresnel=False (then it equals tests/synthetic.py's ggx_lambert).
     Sampling: a mixture of cosine and D(h) cos(theta_h) half vectors (exact pdf), mixed by the
     diffuse and specular luminances.
     """
 
-    def __init__(self, alpha, specular=(1.0, 1.0, 1.0), diffuse=(0.0, 0.0, 0.0)):
+    def __init__(self, alpha, specular=(1.0, 1.0, 1.0), diffuse=(0.0, 0.0, 0.0), fresnel=True):
         self.alpha = float(alpha)
+        self.fresnel = bool(fresnel)
         self.specular = np.broadcast_to(np.asarray(specular, dtype=np.float64), (3,)).copy()
         self.diffuse = np.broadcast_to(np.asarray(diffuse, dtype=np.float64), (3,)).copy()
         ld, ls = _luminance(self.diffuse), _luminance(self.specular)
@@ -116,7 +118,8 @@ class GGX(BRDFModel):
         above = (ci > 0) & (co > 0)
         h = _half_vector(wi, wo)
         cos_d = np.clip(np.sum(wi * h, axis=-1), 0.0, 1.0)
-        fresnel = self.specular + (1.0 - self.specular) * ((1.0 - cos_d) ** 5)[..., None]
+        fresnel = (self.specular + (1.0 - self.specular) * ((1.0 - cos_d) ** 5)[..., None]
+                   if self.fresnel else self.specular)
         spec = self._d(h[..., 2]) * self._g1(ci) * self._g1(co) / np.maximum(4 * ci * co, 1e-300)
         value = self.diffuse * INV_PI + fresnel * spec[..., None]
         return np.where(above[..., None], value, 0.0)

@@ -144,3 +144,24 @@ def test_bad_input(tmp_path, capsys, gold):
     assert len(err) == 3 and "reference" in err[0] and "missing.binary" in err[1]
     assert "nowhere.hdr" in err[2]
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_analytic_brdf_reproduces_flash_photos_through_render_scene(tmp_path):
+    # The slice-extraction tests' synthetic flash photos (Lambert + GGX, co-located and offset
+    # flashes, photo scale 2) through render.render_scene with the same analytic BRDF: equal
+    # to float32 rounding, since both implement the contract's pixel model.
+    import capture
+    from render import GGX, render_scene
+    from synthetic import ggx_lambert
+    kd, ks, alpha = (0.5, 0.3, 0.2), (0.8, 0.7, 0.6), 0.2
+    folder = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=4),
+                                   ggx_lambert(kd, ks, alpha), pinhole_camera(48, 48, 500.0),
+                                   [point_light([0, 0, 0]), point_light([0.04, -0.02, 0.0])],
+                                   scale=2.0)
+    scene = capture.load_scene(folder)
+    photos = scene.photos_with_role("flash")
+    brdf = GGX(alpha, specular=ks, diffuse=kd, fresnel=False)
+    for photo, image, mask in render_scene(scene, brdf, photos=photos, progress=False):
+        reference = read_image(folder / photo.file.name)
+        assert np.array_equal(mask, reference.any(axis=-1))
+        assert np.allclose(image, reference, rtol=1e-5, atol=1e-7 * reference.max())
