@@ -48,6 +48,25 @@ def pixel_rays(camera, rows, cols):
     return origins, directions
 
 
+def embree_rays(camera, rows, cols, shift):
+    """float32 rays for Embree through pixel centres (rows, cols) (N,): origins - shift (N, 3)
+    and directions (N, 3), WORLD frame, NOT unit length (Embree does not need them unit; this is
+    the hot path of extraction, so the float64 work is left to the rays that hit)."""
+    if camera.model == "pinhole" and camera.distortion is None:
+        rot = camera.world_from_camera[:3, :3].astype(np.float32)
+        x = ((np.asarray(cols, np.float32) - np.float32(camera.cx)) / np.float32(camera.fx))
+        y = ((np.asarray(rows, np.float32) - np.float32(camera.cy)) / np.float32(camera.fy))
+        directions = np.empty((len(x), 3), dtype=np.float32)
+        directions[:] = rot[:, 2]
+        directions += x[:, None] * rot[:, 0]
+        directions += y[:, None] * rot[:, 1]
+        origins = np.empty_like(directions)
+        origins[:] = (camera.world_from_camera[:3, 3] - shift).astype(np.float32)
+        return origins, directions
+    origins, directions = pixel_rays(camera, rows, cols)
+    return (origins - shift).astype(np.float32), directions.astype(np.float32)
+
+
 def camera_rays(camera):
     """One ray per pixel centre of `camera`.
 

@@ -46,12 +46,14 @@ def _ambient(scene, camera):
         if a.camera.shape != camera.shape:
             raise InputError(a.where, "ambient photo's camera differs in size from the flash's")
         rgb, ok = load_photo_entry(a)
-        total = rgb.astype(np.float64) if total is None else total + rgb
+        total = rgb if total is None else total + rgb
         usable = ok if usable is None else usable & ok
     scales = {a.scale if a.scale_given else None for a in ambients}
     if len(scales) > 1:
         raise InputError(ambients[1].where, "ambient photos must share one scale")
-    return (total / len(ambients)).astype(np.float32), usable, scales.pop()
+    if len(ambients) > 1:
+        total /= np.float32(len(ambients))
+    return total, usable, scales.pop()
 
 
 def load_flash_images(scene):
@@ -71,9 +73,10 @@ def load_flash_images(scene):
         if ambient is not None:
             amb, amb_ok, amb_scale = ambient
             factor = 1.0 if amb_scale is None else photo.scale / amb_scale
-            rgb = rgb - np.float32(factor) * amb
-            usable = usable & amb_ok
-            clipped = clipped & amb_ok
-        radiance = rgb / np.float32(photo.scale)
-        out.append(FlashImage(photo, radiance.astype(np.float32, copy=False), usable, clipped))
+            rgb -= amb if factor == 1.0 else np.float32(factor) * amb  # rgb is our own copy
+            usable &= amb_ok
+            clipped &= amb_ok
+        if photo.scale != 1.0:
+            rgb /= np.float32(photo.scale)
+        out.append(FlashImage(photo, rgb, usable, clipped))
     return out

@@ -66,7 +66,9 @@ def read_float_image(path):
     finally:
         inp.close()
     data = np.asarray(data, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    if all(c in names for c in "RGB"):
+    if names[:3] == ["R", "G", "B"]:
+        data = data[..., :3]
+    elif all(c in names for c in "RGB"):
         data = data[..., [names.index(c) for c in "RGB"]]
     return _to_rgb(data, path)
 
@@ -97,14 +99,17 @@ def read_pfm(path):
 
 
 def _float_masks(rgb, saturation):
-    """(usable, clipped) of a float image: +Inf or >= saturation is clipped, NaN is invalid."""
+    """(usable, clipped) of a float image: +Inf or >= saturation is clipped, NaN is invalid.
+
+    Two reductions over the channels (NaN propagates through min/max), then per-pixel tests.
+    """
+    # elementwise over channel views: much faster than a reduction along a length-3 axis
+    low = np.minimum(np.minimum(rgb[..., 0], rgb[..., 1]), rgb[..., 2])
+    high = np.maximum(np.maximum(rgb[..., 0], rgb[..., 1]), rgb[..., 2])
+    ceiling = np.inf if saturation is None else saturation
     with np.errstate(invalid="ignore"):
-        clipped = np.any(rgb == np.inf, axis=-1)
-        if saturation is not None:
-            clipped |= np.any(rgb >= saturation, axis=-1)
-        usable = (np.all(np.isfinite(rgb), axis=-1) & np.all(rgb >= 0, axis=-1)
-                  & np.any(rgb > 0, axis=-1) & ~clipped)
-        clipped &= ~np.any(np.isnan(rgb), axis=-1)
+        clipped = (high >= ceiling) & ~np.isnan(low)
+        usable = (low >= 0) & (high > 0) & (high < ceiling)
     return usable, clipped
 
 

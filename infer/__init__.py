@@ -1,6 +1,27 @@
 """infer: from a 1D BRDF slice to a full 2D/3D BRDF.
 
-Takes training BRDF views (1D, 2D, optionally 3D, in the `brdf` feature space) and a new slice.
-Gives the DS-GPLVM of Georgoulis et al. 2015 and the baselines (pca, noll, chandraker, ashikhmin,
-oracle) behind one fit/predict interface, and the Table 1 evaluation.
+Every method is an estimator: `fit(training: TrainingSet)` then
+`predict(flash_slice (90, 3) 1/sr NaN-empty, view="2d"|"3d") -> (table, variance or None)` with table
+(90, 90, 3) or (90, 90, 180, 3) in 1/sr, NaN where MERL has no data. Methods: dsgplvm (the paper's
+DS-GPLVM, Georgoulis et al. 2015), pca (Nielsen et al. 2015), noll (Nöll et al. 2014), chandraker
+(Chandraker & Ramamoorthi 2011), ashikhmin (Ashikhmin & Premože 2007), oracle (evaluation only).
 """
+
+from infer.adapter import DSGPLVMMethod
+from infer.baselines import PCA, Ashikhmin, Chandraker, Noll, Oracle
+from infer.common import InferenceMethod, TrainingSet
+from infer.model_file import load_method, read_model, save_model
+
+METHODS = {"dsgplvm": DSGPLVMMethod, "pca": PCA, "noll": Noll, "chandraker": Chandraker,
+           "ashikhmin": Ashikhmin, "oracle": Oracle}
+
+
+def make_method(name, **params):
+    """A new (unfitted) method by name, with its hyperparameters; ValueError for unknown names."""
+    if name not in METHODS:
+        raise ValueError(f"unknown method {name!r}; expected one of {sorted(METHODS)}")
+    return METHODS[name](**params)
+
+
+__all__ = ["METHODS", "make_method", "InferenceMethod", "TrainingSet", "DSGPLVMMethod", "PCA",
+           "Ashikhmin", "Chandraker", "Noll", "Oracle", "save_model", "read_model", "load_method"]

@@ -26,27 +26,24 @@ from brdf.merl import N_THETA_H, theta_h_centres
 MAD_TO_SIGMA = 1.4826
 
 
-def group_median(groups, values, n_groups):
-    """Median of `values` (N,) within each group, groups (N,) int in [0, n_groups). NaN if empty.
+def bin_medians(sorted_values, counts):
+    """Per-bin median and MAD of `sorted_values` (N, C), grouped into contiguous runs of
+    `counts` (n_bins,) samples (sorted by bin, any order within a bin). NaN for empty bins.
 
-    One lexsort, no loop: within the sorted order each group is a contiguous run. +inf values
-    sort last, so a group's median is exact while under half of it is +inf.
+    One vectorised np.median (a partition, O(n)) per non-empty bin: the loop runs over the 90
+    bins, never over pixels. +inf values (censored samples) partition last, so a bin's median is
+    exact while fewer than half of its samples are +inf.
     """
-    order = np.lexsort((values, groups))
-    sorted_values = values[order]
-    counts = np.bincount(groups, minlength=n_groups)
-    starts = np.cumsum(counts) - counts
-    out = np.full(n_groups, np.nan)
-    filled = counts > 0
-    lo = starts[filled] + (counts[filled] - 1) // 2
-    hi = starts[filled] + counts[filled] // 2
+    n_bins, channels = len(counts), sorted_values.shape[1]
+    median = np.full((n_bins, channels), np.nan)
+    mad = np.full((n_bins, channels), np.nan)
+    ends = np.cumsum(counts)
     with np.errstate(invalid="ignore"):
-        out[filled] = 0.5 * (sorted_values[lo] + sorted_values[hi])
-    return out
-
-
-def _per_channel(fn, bin_index, values, n_bins):
-    return np.stack([fn(bin_index, values[:, c], n_bins) for c in range(values.shape[1])], 1)
+        for i in np.flatnonzero(counts):
+            segment = sorted_values[ends[i] - counts[i]:ends[i]]
+            median[i] = np.median(segment, axis=0)
+            mad[i] = np.median(np.abs(segment - median[i]), axis=0)
+    return median, mad
 
 
 def _centre_correction(estimate, theta_mean, centres, usable):
@@ -76,36 +73,37 @@ def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e
     robust sigma of the bin's samples (NaN where empty), inlier (N,) bool).
     """
     bin_index = np.asarray(bin_index, dtype=np.intp)
-    rho = np.array(rho, dtype=np.float64)
-    if censored is None:
-        censored = np.zeros(len(rho), dtype=bool)
+    order = np.argsort(bin_index.astype(np.int16), kind="stable")  # radix sort: O(n)
+    bins = bin_index[order]
+    rho = np.array(rho, dtype=np.float64)[order]
+    censored = (np.zeros(len(rho), dtype=bool) if censored is None
+                else np.asarray(censored, dtype=bool)[order])
     rho[censored] = np.inf
-    total = np.bincount(bin_index, minlength=n_bins)
-    n_censored = np.bincount(bin_index[censored], minlength=n_bins)
-    median = _per_channel(group_median, bin_index, rho, n_bins)
-    with np.errstate(invalid="ignore"):
-        deviation = np.abs(rho - median[bin_index])
-    mad = _per_channel(group_median, bin_index, deviation, n_bins)
+    total = np.bincount(bins, minlength=n_bins)
+    n_censored = np.bincount(bins[censored], minlength=n_bins)
+    median, mad = bin_medians(rho, total)
     spread = MAD_TO_SIGMA * mad
     limit = k * np.maximum(spread, rel_floor * np.abs(median) + 1e-300)
     with np.errstate(invalid="ignore"):
-        inlier = np.all(deviation <= limit[bin_index], axis=1) & ~censored
-    n = np.bincount(bin_index[inlier], minlength=n_bins)
+        inlier = np.all(np.abs(rho - median[bins]) <= limit[bins], axis=1) & ~censored
+    n = np.bincount(bins[inlier], minlength=n_bins)
 
     def bin_mean(values):
         with np.errstate(invalid="ignore", divide="ignore"):
-            return np.bincount(bin_index[inlier], weights=values[inlier], minlength=n_bins) / n
+            return np.bincount(bins[inlier], weights=values[inlier], minlength=n_bins) / n
 
     if estimator == "median":
         estimate = median
     else:
         estimate = np.stack([bin_mean(rho[:, c]) for c in range(rho.shape[1])], 1)
         if theta_h is not None:
-            estimate = _centre_correction(estimate, bin_mean(np.asarray(theta_h, float)),
+            estimate = _centre_correction(estimate, bin_mean(np.asarray(theta_h, float)[order]),
                                           theta_h_centres()[:n_bins], n_censored == 0)
         estimate = np.where(n_censored[:, None] > 0, median, estimate)
     empty = (n == 0) | (2 * n_censored >= total)
     n = np.where(empty, 0, n)
     estimate = np.where(empty[:, None], np.nan, estimate)
     spread = np.where(empty[:, None] | ~np.isfinite(spread), np.nan, spread)
-    return estimate, n, spread, inlier & ~empty[bin_index]
+    inlier_by_input = np.empty(len(order), dtype=bool)
+    inlier_by_input[order] = inlier & ~empty[bins]
+    return estimate, n, spread, inlier_by_input

@@ -125,7 +125,10 @@ def extract_slice(scene, options=None):
     images = capture.load_flash_images(scene)
     t = clock.add("load_photos", t)
     intersector = None if normal_map else capture.scene_intersector(scene)
-    convex = False if normal_map else capture.is_convex(intersector)
+    needs_shadows = options.shadow_rays and not normal_map and not all(
+        light_setup(img.photo).at_viewpoint for img in images)
+    # convexity costs a face-adjacency pass: only ask when a shadow ray could be needed
+    convex = needs_shadows and capture.is_convex(intersector)
     t = clock.add("load_mesh", t)
 
     parts, per_photo = [], []
@@ -144,7 +147,7 @@ def extract_slice(scene, options=None):
                                         options.chunk_pixels):
             t = clock.add("trace", t)
             for k in members:
-                skip = normal_map or convex or lights[k].at_viewpoint or not options.shadow_rays
+                skip = not needs_shadows or convex or lights[k].at_viewpoint
                 shadow = None if skip else intersector
                 got = photo_samples(images[k].radiance, images[k].usable, surface, lights[k],
                                     options, shadow, images[k].clipped)
@@ -161,7 +164,7 @@ def extract_slice(scene, options=None):
     censored = np.concatenate([p.censored for p in parts]) if parts else np.zeros(0, bool)
     if not np.any(~censored):
         raise _no_sample_error(scene, per_photo)
-    bins = merl_bin_index(theta_h, np.zeros_like(theta_h), np.zeros_like(theta_h))[0]
+    bins = merl_bin_index(theta_h, 0.0, 0.0)[0]
     estimate, n, spread, inlier = robust_bins(bins, rho, censored, theta_h, k=options.outlier_k,
                                               estimator=options.estimator)
     if not np.any(n):

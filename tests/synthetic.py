@@ -238,14 +238,14 @@ def write_png16(path, image, white=1.0):
 
 def write_synthetic_scene(folder, mesh, brdf_fn, camera, lights, ambient=0.0, photons=None,
                           seed=0, photo_format="exr", white=None, scale=1.0, shadows=True,
-                          mesh_name="object.ply", post=None):
+                          mesh_name="object.ply", post=None, ambient_photo=True):
     """Render one flash photo per light dict and write a complete scene folder.
 
     folder: created if needed; mesh: trimesh.Trimesh (world units, vertex normals);
     brdf_fn(wi, wo, normal) -> (N, 3) 1/sr; camera: contract camera dict; lights: list of
     contract light dicts (point or directional).
     ambient: constant radiance added to every pixel of every photo, with a matching `ambient`
-    photo (0 = no ambient photo); photons: Poisson noise at that mean count (None = exact);
+    photo (0 or ambient_photo=False: no ambient photo, the ambient stays in); photons: Poisson noise at that mean count (None = exact);
     photo_format: "exr" or "png16" (linear 16-bit, code 65535 = `white`, default the max pixel);
     scale: stored photo scale (pixels are multiplied by it); post(image, k) -> image: a hook to
     corrupt flash photo k (hot pixels, ...). Returns the folder Path.
@@ -273,7 +273,7 @@ def write_synthetic_scene(folder, mesh, brdf_fn, camera, lights, ambient=0.0, ph
         if ext == ".png":
             entry.update(encoding="linear", scale=scale / top)
         photos.append(entry)
-    if ambient:
+    if ambient and ambient_photo:
         name = f"ambient{ext}"
         flat = np.full((camera["height"], camera["width"], 3), float(ambient))
         write_exr(folder / name, flat) if ext == ".exr" else write_png16(folder / name, flat, top)

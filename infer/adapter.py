@@ -1,0 +1,148 @@
+"""DS-GPLVM behind the common interface: ρ in and out, features in between.
+
+The model (infer.dsgplvm.DSGPLVM) works on feature matrices: brdf.colour.rho_to_features of the flash
+slice (270 = 90 θh × 3), of the 2D table (24,300) and optionally of the valid 3D bins, NaN where a bin
+has no data. This adapter builds those views from a TrainingSet, inverts the predicted features with
+brdf.colour.features_to_rho and marks invalid bins NaN. 3D predictions combine the training 3D tables
+in feature space with the model's GP weights, streamed one table at a time; a model trained without
+a 3D view uses its 2D view's weights (the GP posterior mean is linear in the training outputs).
+"""
+
+import numpy as np
+
+from brdf import colour
+from infer.common import InferenceMethod, LinearSpace, valid_mask_2d
+
+
+def _model_class():
+    from infer.dsgplvm import DSGPLVM
+    return DSGPLVM
+
+
+class FeatureSpace(LinearSpace):
+    """brdf feature map (log, then Lab unless space="rgb") as the combination space."""
+
+    def __init__(self, space="lab"):
+        self.space = space
+
+    def forward(self, rho, sel=slice(None)):
+        return colour.rho_to_features(rho, space=self.space)
+
+    def inverse(self, mapped, sel=slice(None)):
+        return colour.features_to_rho(mapped, space=self.space)
+
+
+def slice_features(rho, space="lab"):
+    """(90, 3) ρ, NaN empty -> (270,) features, NaN where empty (missing data for the model)."""
+    feats = colour.rho_to_features(np.nan_to_num(rho), space=space)
+    feats[~np.isfinite(rho).all(axis=1)] = np.nan
+    return feats.ravel()
+
+
+def table_features(tables_2d, space="lab"):
+    """(N, 90, 90, 3) ρ -> (N, 24300) features, NaN where the table has no data."""
+    tables = np.asarray(tables_2d, float)
+    feats = colour.rho_to_features(np.nan_to_num(tables), space=space)
+    feats[~np.isfinite(tables).all(axis=-1)] = np.nan
+    return feats.reshape(len(tables), -1)
+
+
+class DSGPLVMMethod(InferenceMethod):
+    """fit(training) / predict(flash_slice, view) for the DS-GPLVM.
+
+    q, beta, seed and **model_kw go to DSGPLVM; feature_space "lab" (paper) or "rgb" (ablation);
+    views ("1d", "2d") or ("1d", "2d", "3d") (3D features are float32 rows of the valid bins).
+    latent "backprojection" (the paper, Eq. 9) or "optimise" (ablation without back-constraints at
+    test time: x* maximises the 1D GP's predictive density of the observed slice bins).
+    """
+    name = "dsgplvm"
+
+    def __init__(self, q=None, beta=50.0, feature_space="lab", views=("1d", "2d"), seed=0,
+                 latent="backprojection", model=None, **model_kw):
+        self.q, self.beta, self.feature_space = q, beta, feature_space
+        self.views, self.seed, self.model_kw = tuple(views), seed, model_kw
+        if latent not in ("backprojection", "optimise"):
+            raise ValueError(f"latent must be 'backprojection' or 'optimise', not {latent!r}")
+        self.latent = latent
+        self.model = model  # an already fitted DSGPLVM (e.g. loaded from a file)
+
+    def get_params(self):
+        return {"q": self.q, "beta": self.beta, "feature_space": self.feature_space,
+                "views": list(self.views), "seed": self.seed, "latent": self.latent, **self.model_kw}
+
+    def view_features(self, training):
+        views = {"1d": np.array([slice_features(s, self.feature_space) for s in training.slices]),
+                 "2d": table_features(training.tables_2d, self.feature_space)}
+        if "3d" in self.views:
+            rows = np.empty((len(training), training.table_3d_valid(0).size), np.float32)
+            for i in range(len(training)):
+                rows[i] = colour.rho_to_features(training.table_3d_valid(i),
+                                                 space=self.feature_space).ravel()
+            views["3d"] = rows
+        return views
+
+    def fit(self, training, labels=None):
+        self.training_ = training
+        if self.model is None:
+            model = _model_class()(q=self.q, beta=self.beta, seed=self.seed, views=self.views,
+                                   **self.model_kw)
+            self.model = model.fit(self.view_features(training), labels=labels)
+        return self
+
+    def _weights(self, feats, view):
+        if self.latent == "backprojection":
+            return self.model.predict_weights(feats, view=view)
+        post = self.model.posteriors_[view]
+        w, var = post.weights(optimise_latent(self.model, feats))
+        w = w[0] + (1.0 - w[0].sum()) / w.shape[1]
+        return w, float(var[0]) * self.model.view_data_[view].scale ** 2
+
+    def _predict_2d(self, rho):
+        feats = slice_features(rho, self.feature_space)
+        if self.latent == "backprojection":
+            mean, var = self.model.predict(feats, view="2d")
+        else:
+            w, v = self._weights(feats, "2d")
+            data = self.model.view_data_["2d"]
+            mean = np.full(len(data.keep), np.nan)
+            # folded weights sum to 1; centred rows sum to 0, so w @ centred = GP mean (centred)
+            mean[data.keep] = data.mean[data.keep] + data.scale * (w @ data.data)
+            var = np.full(len(data.keep), v)
+        mean = np.asarray(mean, float).reshape(90, 90, 3)
+        table = colour.features_to_rho(np.nan_to_num(mean), space=self.feature_space)
+        invalid = ~valid_mask_2d() | ~np.isfinite(mean).all(axis=-1)
+        table[invalid] = np.nan
+        var = np.broadcast_to(np.asarray(var, float), (90 * 90 * 3,) if np.size(var) > 1 else ())
+        if var.ndim:
+            var = var.reshape(90, 90, 3).copy()
+            var[invalid] = np.nan
+        return table, var
+
+    def _weights_view(self):
+        trained = getattr(self.model, "views_", None) or getattr(self.model, "view_names_", None)
+        return "3d" if trained is not None and "3d" in trained else "2d"
+
+    def combination(self, rho):
+        weights, _ = self._weights(slice_features(rho, self.feature_space), self._weights_view())
+        return np.asarray(weights, float), FeatureSpace(self.feature_space)
+
+
+def optimise_latent(model, feats, n_starts=5):
+    """x* (1, q) minimising the 1D GP's negative log predictive density of the observed slice bins,
+    started from the back-projection and the latents of the nearest training slices."""
+    from scipy.optimize import minimize
+    src = model.view_data_[model.source_view]
+    y = (np.asarray(feats, float)[src.keep] - src.mean[src.keep]) / src.scale
+    ok = np.isfinite(y)
+    post = model.posteriors_[model.source_view]
+    data = src.data[:, ok]
+
+    def nll(x):
+        w, var = post.weights(x[None])
+        r = y[ok] - w[0] @ data
+        return 0.5 * (r @ r) / var[0] + 0.5 * ok.sum() * np.log(var[0])
+
+    d2 = ((np.nan_to_num(data) - y[ok]) ** 2).sum(1)
+    starts = [model.project(feats)[0]] + [model.latent_[i] for i in np.argsort(d2)[:n_starts - 1]]
+    best = min((minimize(nll, x0, method="L-BFGS-B") for x0 in starts), key=lambda r: r.fun)
+    return best.x[None]

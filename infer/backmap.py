@@ -1,0 +1,84 @@
+"""Back-constraints of the DS-GPLVM (Eq. 9, 16-19): kernel-ridge back-mappings from a view to the
+latent space, their closed-form leave-one-out error, and the missing-data aware back-projection kernel.
+
+k_bc(y_i, y_m) = exp(-γ/2 |y_i − y_m|²);  A = (K_bc + λ/μ I)⁻¹ (X + Λ/μ)   (Eq. 16).
+"""
+
+import numpy as np
+from scipy import linalg, optimize
+
+from .gp import robust_cholesky
+
+# Search box for the LOO fit, relative to natural scales: γ around 2 / (mean squared distance) and the
+# ridge c = λ/μ relative to the unit diagonal of K_bc.
+LOG_GAMMA_SPAN = (-7.0, 5.0)
+RIDGE_RANGE = (1e-8, 10.0)
+
+
+def backmap_kernel(d2, gamma):
+    """K_bc from squared distances (any shape) and the inverse width γ."""
+    return np.exp(-0.5 * gamma * d2)
+
+
+def masked_squared_distances(y_new, y_train):
+    """Squared distances from possibly incomplete rows to complete training rows, (M, D)×(N, D)->(M, N).
+
+    NaN entries of y_new are missing data: the distance sums over observed dimensions only and is
+    rescaled by D / D_observed so it stays comparable with complete rows (never NaN -> 0). A row with
+    no observed dimension raises ValueError.
+    """
+    y_new = np.atleast_2d(np.asarray(y_new, dtype=float))
+    observed = np.isfinite(y_new)
+    n_obs = observed.sum(1)
+    if np.any(n_obs == 0):
+        raise ValueError("slice has no observed bin")
+    filled = np.where(observed, y_new, 0.0)
+    # Σ_obs (y − t)² = Σ_obs y² − 2 Σ_obs y t + Σ_obs t², each as a matrix product over the mask
+    d2 = ((filled ** 2).sum(1)[:, None] - 2.0 * filled @ y_train.T
+          + observed.astype(float) @ (y_train ** 2).T)
+    return np.maximum(d2, 0.0) * (y_new.shape[1] / n_obs)[:, None]
+
+
+def _eig(d2, gamma):
+    s, u = linalg.eigh(backmap_kernel(d2, gamma), check_finite=False)
+    return np.maximum(s, 0.0), u
+
+
+def loo_error(d2, latent, multipliers, mu, gamma, lam):
+    """E_LOO of Eq. 19: ½ Σ_i |A_i / [M⁻¹]_ii − Λ_i / μ|², M = K_bc + λ/μ I, A from Eq. 16.
+
+    d2: (N, N) squared distances of the view. latent X, multipliers Λ: (N, q). Returns float.
+    """
+    s, u = _eig(d2, gamma)
+    inv_eig = 1.0 / (s + lam / mu)
+    weights = u @ (inv_eig[:, None] * (u.T @ (latent + multipliers / mu)))
+    diag_inv = (u * u) @ inv_eig
+    resid = weights / diag_inv[:, None] - multipliers / mu
+    return 0.5 * float(np.sum(resid ** 2))
+
+
+def fit_loo(d2, latent, multipliers, mu, gamma0, lam0):
+    """Minimise E_LOO over (ln γ, ln λ) in a bounded box (scipy L-BFGS-B). Returns (γ, λ)."""
+    t = np.mean(d2[~np.eye(len(d2), dtype=bool)]) if len(d2) > 1 else 1.0
+    log_gamma_ref = np.log(2.0 / t) if t > 0 else 0.0
+    bounds = [(log_gamma_ref + LOG_GAMMA_SPAN[0], log_gamma_ref + LOG_GAMMA_SPAN[1]),
+              (np.log(RIDGE_RANGE[0] * mu), np.log(RIDGE_RANGE[1] * mu))]
+    start = np.clip([np.log(gamma0), np.log(lam0)], [b[0] for b in bounds], [b[1] for b in bounds])
+
+    def cost(p):
+        return loo_error(d2, latent, multipliers, mu, np.exp(p[0]), np.exp(p[1]))
+
+    # a coarse look first: E_LOO is often multi-modal in γ
+    grid = [(g, start[1]) for g in np.linspace(*bounds[0], 7)] + [tuple(start)]
+    best = min(grid, key=cost)
+    res = optimize.minimize(cost, best, method="L-BFGS-B", bounds=bounds,
+                            options={"maxiter": 50})
+    p = res.x if res.fun <= cost(best) else best
+    return float(np.exp(p[0])), float(np.exp(p[1]))
+
+
+def krr_weights(d2, latent, multipliers, mu, gamma, lam):
+    """A of Eq. 16: (K_bc + λ/μ I)⁻¹ (X + Λ/μ), by Cholesky. Returns (N, q)."""
+    m = backmap_kernel(d2, gamma) + (lam / mu) * np.eye(len(d2))
+    chol, _ = robust_cholesky(m)
+    return linalg.cho_solve((chol, True), latent + multipliers / mu, check_finite=False)

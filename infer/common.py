@@ -1,0 +1,214 @@
+"""Shared pieces of every inference method: the training set, the bin geometry and the estimator base.
+
+Frames and units: BRDF values ρ in 1/sr; angles in radians on MERL bin centres (brdf.merl); a
+"flash slice" is ρ(θh) at θd bin 0, shape (90, 3), NaN where the bin is empty (missing data, never 0).
+A 2D table is (90, 90, 3) over (θh, θd); a 3D table is (90, 90, 180, 3) over (θh, θd, φd); both NaN
+where MERL's layout has no data (below the horizon).
+"""
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from brdf import merl, views
+from brdf.errors import InputError
+
+
+# ----------------------------------------------------------------------------- bin geometry
+@functools.lru_cache(maxsize=1)
+def valid_bins_3d():
+    """Flat indices of MERL's valid 3D bins: (ih, id, kd) int arrays, each (n_valid,) (~3.29 M)."""
+    ih, jd, kd = np.nonzero(merl.merl_valid_mask())
+    return ih.astype(np.int16), jd.astype(np.int16), kd.astype(np.int16)
+
+
+@functools.lru_cache(maxsize=1)
+def valid_mask_2d():
+    """(90, 90) bool: (θh, θd) bins with at least one valid φd bin."""
+    return merl.merl_valid_mask().any(axis=2)
+
+
+def cos_in_out(theta_h, theta_d, phi_d):
+    """cos θi, cos θo of the light/view pair at half/difference angles (any broadcastable shapes).
+
+    With h = Ry(θh)·z and the difference vector d in the half-vector frame, ωi = Ry(θh)·d and
+    ωo = 2(ωi·h)h − ωi, so cos θi = cos θd cos θh − sin θd cos φd sin θh and cos θo the same with +.
+    """
+    a = np.cos(theta_d) * np.cos(theta_h)
+    b = np.sin(theta_d) * np.cos(phi_d) * np.sin(theta_h)
+    return a - b, a + b
+
+
+@functools.lru_cache(maxsize=1)
+def cos_in_out_valid():
+    """cos θi, cos θo at every valid 3D bin centre, each (n_valid,) float64."""
+    ih, jd, kd = valid_bins_3d()
+    return cos_in_out(merl.theta_h_centres()[ih], merl.theta_d_centres()[jd], merl.phi_d_centres()[kd])
+
+
+def mean_over_phi_d(values_valid):
+    """Mean over valid φd bins of per-valid-bin values (n_valid, ...) -> (90, 90, ...), NaN where none."""
+    ih, jd, _ = valid_bins_3d()
+    flat = ih.astype(np.int64) * 90 + jd
+    rest = values_valid.shape[1:]
+    columns = values_valid.reshape(len(flat), -1)
+    count = np.bincount(flat, minlength=8100).astype(float)
+    out = np.full((8100, columns.shape[1]), np.nan)
+    seen = count > 0
+    for c in range(columns.shape[1]):
+        out[seen, c] = np.bincount(flat, columns[:, c], minlength=8100)[seen] / count[seen]
+    return out.reshape((90, 90) + rest)
+
+
+def scatter_valid(values_valid):
+    """(n_valid, 3) values on valid bins -> (90, 90, 180, 3) table, NaN elsewhere."""
+    table = np.full((90, 90, 180, 3), np.nan)
+    ih, jd, kd = valid_bins_3d()
+    table[ih, jd, kd] = values_valid
+    return table
+
+
+# ----------------------------------------------------------------------------- slices
+def check_slice(flash_slice):
+    """Validate a flash slice: (90, 3) float, finite or NaN, ≥ 0. Returns float64 copy. InputError."""
+    rho = np.array(flash_slice, dtype=float)
+    if rho.shape != (90, 3):
+        raise InputError("slice", f"expected 90 theta_h bins x 3 channels, got shape {rho.shape}")
+    if np.isinf(rho).any():
+        raise InputError("slice", "infinite BRDF value")
+    if (rho < 0).any():
+        raise InputError("slice", "negative BRDF value")
+    if not np.isfinite(rho).all(axis=1).any():
+        raise InputError("slice", "no theta_h bin has a sample")
+    rho[~np.isfinite(rho).all(axis=1)] = np.nan
+    return rho
+
+
+def fill_slice(rho, offset=1e-3):
+    """Fill empty θh bins of a checked slice by linear interpolation of ln(1 + ρ/offset) over the bin
+    index (nearest value beyond the ends). For methods that need ρ at every θh; (90, 3) -> (90, 3)."""
+    ok = np.isfinite(rho).all(axis=1)
+    if ok.all():
+        return rho.copy()
+    idx = np.arange(90)
+    out = np.empty_like(rho)
+    for c in range(3):
+        out[:, c] = np.interp(idx, idx[ok], np.log1p(rho[ok, c] / offset))
+    return np.expm1(out) * offset
+
+
+# ----------------------------------------------------------------------------- training set
+@dataclass
+class TrainingSet:
+    """Training materials: names (N,), flash slices (N, 90, 3), 2D tables (N, 90, 90, 3), in 1/sr.
+
+    3D tables are never all held in memory: `table_3d_valid(i)` reads one at a time, either from
+    `paths` (MERL .binary files) or from `valid_3d` (N, n_valid, 3) stored rows (array or memmap).
+    """
+    names: list
+    slices: np.ndarray
+    tables_2d: np.ndarray
+    paths: list = None
+    valid_3d: np.ndarray = field(default=None, repr=False)
+
+    def __len__(self):
+        return len(self.names)
+
+    @classmethod
+    def from_merl_dir(cls, folder, names=None, keep_3d=False):
+        """Read the MERL tables of `folder` (all, or those in `names`, in that order).
+        keep_3d: also hold their valid 3D bins as float32 rows (N × 3.3 M × 3 × 4 B)."""
+        found = dict(merl.list_merl(folder))
+        if not found:
+            raise InputError(folder, "no .binary MERL tables in this folder")
+        names = list(found) if names is None else list(names)
+        missing = [n for n in names if n not in found]
+        if missing:
+            raise InputError(folder, f"missing MERL tables: {', '.join(missing[:5])}")
+        slices, tables, rows = [], [], []
+        ih, jd, kd = valid_bins_3d()
+        for n in names:
+            table = merl.read_merl(found[n])
+            slices.append(views.flash_slice(table)[0])
+            tables.append(views.table_2d(table))
+            if keep_3d:
+                rows.append(table[ih, jd, kd].astype(np.float32))
+        return cls(names, np.array(slices), np.array(tables), [found[n] for n in names],
+                   np.array(rows) if keep_3d else None)
+
+    def subset(self, index):
+        index = list(index)
+        return TrainingSet([self.names[i] for i in index], self.slices[index], self.tables_2d[index],
+                           None if self.paths is None else [self.paths[i] for i in index],
+                           None if self.valid_3d is None else self.valid_3d[index])
+
+    def has_3d(self):
+        return self.valid_3d is not None or self.paths is not None
+
+    def table_3d_valid(self, i):
+        """ρ on the valid 3D bins of material i, (n_valid, 3) float64."""
+        if self.valid_3d is not None:
+            return np.asarray(self.valid_3d[i], dtype=float)
+        if self.paths is None:
+            raise InputError("--merl-dir", "3D prediction needs the training tables: give --merl-dir "
+                             "or train with --views 1d,2d,3d")
+        ih, jd, kd = valid_bins_3d()
+        return merl.read_merl(self.paths[i])[ih, jd, kd]
+
+
+# ----------------------------------------------------------------------------- estimator base
+class InferenceMethod:
+    """Base of every method: fit(training) then predict(flash_slice, view) -> (table, variance).
+
+    table: (90, 90, 3) for view "2d", (90, 90, 180, 3) for "3d", 1/sr, NaN where MERL has no data.
+    variance: per-bin predictive variance in the method's feature space (same shape), or None.
+    Methods whose 3D prediction is a weighted sum of training tables in some mapped space implement
+    `combination(flash_slice)` -> (weights (N,), LinearSpace); the 3D table is then streamed.
+    """
+    name = "base"
+
+    def fit(self, training):
+        raise NotImplementedError
+
+    def predict(self, flash_slice, view="2d"):
+        rho = check_slice(flash_slice)
+        if view == "2d":
+            return self._predict_2d(rho)
+        if view == "3d":
+            return self._predict_3d(rho)
+        raise InputError("view", f"unknown view {view!r} (expected '2d' or '3d')")
+
+    def _predict_3d(self, rho):
+        weights, space = self.combination(rho)
+        values = stream_combination(self.training_, weights, space)
+        return scatter_valid(values), None
+
+    def get_params(self):
+        return {}
+
+
+class LinearSpace:
+    """A per-bin invertible map ρ -> m in which a method combines training tables linearly.
+
+    `sel` picks the valid 3D bins the rows belong to (a slice or index array into valid_bins_3d()).
+    forward(rho (n,3), sel) -> (n,3); inverse(m (n,3), sel) -> ρ (n,3) ≥ 0. Default: identity.
+    """
+
+    def forward(self, rho, sel=slice(None)):
+        return rho
+
+    def inverse(self, mapped, sel=slice(None)):
+        return np.maximum(mapped, 0.0)
+
+
+def stream_combination(training, weights, space, tol=1e-12):
+    """Σ_i w_i forward(T_i) over the valid 3D bins, reading one training table at a time, then
+    inverse. Skips tables whose weight is negligible. Returns ρ on valid bins (n_valid, 3)."""
+    total = np.zeros((len(valid_bins_3d()[0]), 3))
+    scale = np.abs(weights).max() if len(weights) else 0.0
+    for i, w in enumerate(weights):
+        if abs(w) <= tol * scale:
+            continue
+        total += w * space.forward(training.table_3d_valid(i))
+    return space.inverse(total)

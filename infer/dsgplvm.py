@@ -1,0 +1,199 @@
+"""DS-GPLVM of Georgoulis et al. 2015 (Sec. 3, Algorithm 1): a shared latent space for BRDF views of
+different dimensionality, learnt with a discriminative prior and back-constraints by ADM.
+
+Views are feature matrices (N, D_v) keyed by name ("1d", "2d", "3d"); the model is agnostic of what the
+features are. Inference projects a 1D slice with the 1D back-mapping (Eq. 9) and maps it forward with
+the target view's GP posterior (Eq. 20).
+"""
+
+import logging
+import time
+
+import numpy as np
+from scipy import optimize
+
+from . import adm
+from .backmap import backmap_kernel, fit_loo, krr_weights, masked_squared_distances
+from .gp import GPPosterior
+from .prior import distances_from_gram, joint_laplacian, mean_squared_distance, spectral_labels
+from .viewdata import pca_latent, prepare_view
+
+log = logging.getLogger(__name__)
+
+# Box for ln θ = (ln θ1, ln θ2, ln θ3, ln θ4) on views scaled to unit mean variance: keeps L-BFGS out of
+# overflow; the noise variance 1/θ4 stays within [e^-12, e^4].
+LOG_THETA_BOUNDS = [(-8.0, 6.0), (-12.0, 8.0), (-14.0, 4.0), (-4.0, 12.0)]
+
+
+class DSGPLVM:
+    """Discriminative shared GPLVM with independent back-projections (scikit-learn style).
+
+    q: latent size, None -> PCA components explaining 95% of the variance. beta: prior weight (Eq. 6).
+    xi: ridge of the joint Laplacian (Eq. 5). mu0, rho, mu_max: ADM penalty schedule (Eq. 15).
+    max_cycles, tol: ADM stopping (relative change of Eq. 12). step1_maxiter: L-BFGS iterations of
+    Step 1 per cycle. view_weighting: "paper" weighs Eq. 8 as written (the view with most dimensions
+    dominates), "balanced" divides each view's Eq. 8 by its D_v / D_min. source_view: the view
+    new inputs are given in (the flash slice).
+    """
+
+    def __init__(self, q=None, beta=50.0, xi=1e-3, mu0=1.0, rho=1.1, mu_max=1e3, max_cycles=100,
+                 tol=1e-5, step1_maxiter=50, view_weighting="paper", seed=0,
+                 views=("1d", "2d"), source_view="1d", store_views=None):
+        self.q, self.beta, self.xi = q, beta, xi
+        self.mu0, self.rho, self.mu_max = mu0, rho, mu_max
+        self.max_cycles, self.tol, self.step1_maxiter = max_cycles, tol, step1_maxiter
+        self.view_weighting, self.seed = view_weighting, seed
+        self.views, self.source_view, self.store_views = views, source_view, store_views
+
+    # ------------------------------------------------------------------ learning
+    def fit(self, views, labels=None):
+        """views: dict name -> (N, D_v) features (NaN = missing); labels: (N,) ints or None
+        (spectral clustering into 2 classes). Returns self."""
+        t0 = time.perf_counter()
+        names = [v for v in self.views if v in views]
+        if self.source_view not in names:
+            raise ValueError(f"views must include the source view {self.source_view!r}")
+        n = len(views[self.source_view])
+        if n < 3 or any(len(views[v]) != n for v in names):
+            raise ValueError("all views need the same number (>= 3) of training rows")
+        store = self.store_views if self.store_views is not None else \
+            tuple(v for v in names if v != "3d")
+        store = set(store) | {self.source_view}
+        data = {v: prepare_view(views[v], store=v in store) for v in names}
+        grams = [data[v].gram for v in names]
+        n_dims = [data[v].n_dims for v in names]
+        d2s = [distances_from_gram(g) for g in grams]
+
+        labels = spectral_labels(grams, 2, self.seed) if labels is None else np.asarray(labels)
+        laplacian = joint_laplacian(grams, labels, self.xi)
+        latent, q = pca_latent(grams, n_dims, self.q)
+        if self.view_weighting == "balanced":
+            weights = [min(n_dims) / d for d in n_dims]
+        elif self.view_weighting == "paper":
+            weights = [1.0] * len(names)
+        else:
+            raise ValueError(f"unknown view_weighting {self.view_weighting!r}")
+        mean_d2 = mean_squared_distance(distances_from_gram(latent @ latent.T))
+        log_thetas = np.tile(np.log([1.0, 2.0 / mean_d2, 0.1, 20.0]), (len(names), 1))
+
+        # Algorithm 1 initialisation: Λ0 = 0, A0 from Eq. 16 with LOO-fitted (γ, λ) on X0
+        mu = float(self.mu0)
+        lags = [np.zeros_like(latent) for _ in names]
+        gammas = [2.0 / mean_squared_distance(d2) for d2 in d2s]
+        lams = [1e-3 * mu for _ in names]
+        for v in range(len(names)):
+            gammas[v], lams[v] = fit_loo(d2s[v], latent, lags[v], mu, gammas[v], lams[v])
+        amats = [krr_weights(d2s[v], latent, lags[v], mu, gammas[v], lams[v])
+                 for v in range(len(names))]
+
+        bounds = [(None, None)] * latent.size + LOG_THETA_BOUNDS * len(names)
+        history, info = [], []
+        previous = None
+        for cycle in range(self.max_cycles):
+            # Step 1: X, θ by L-BFGS on Eq. 13
+            kbcs = [backmap_kernel(d2s[v], gammas[v]) for v in range(len(names))]
+            targets = [kbcs[v] @ amats[v] - lags[v] / mu for v in range(len(names))]
+            args = (n, q, grams, n_dims, laplacian, self.beta, weights, targets, mu)
+            res = optimize.minimize(adm.step1_objective, adm.pack(latent, log_thetas), args=args,
+                                    jac=True, method="L-BFGS-B", bounds=bounds,
+                                    options={"maxiter": self.step1_maxiter})
+            latent, log_thetas = adm.unpack(res.x, n, q, len(names))
+            latent, log_thetas = latent.copy(), log_thetas.copy()
+            # Step 2: γ, λ per view by LOO (Eq. 19); Step 3: A (Eq. 16), Λ and μ (Eq. 15)
+            for v in range(len(names)):
+                gammas[v], lams[v] = fit_loo(d2s[v], latent, lags[v], mu, gammas[v], lams[v])
+                amats[v] = krr_weights(d2s[v], latent, lags[v], mu, gammas[v], lams[v])
+                kbcs[v] = backmap_kernel(d2s[v], gammas[v])
+                lags[v] = lags[v] + mu * (latent - kbcs[v] @ amats[v])
+            mu = min(self.mu_max, self.rho * mu)
+            ls_value = adm.likelihood_prior(latent, log_thetas, grams, n_dims, laplacian,
+                                            self.beta, weights)[0]
+            value, resid = adm.augmented_lagrangian(ls_value, latent, kbcs, amats, lags, lams, mu)
+            history.append(value)
+            info.append({"cycle": cycle, "objective": value, "L_s": ls_value, "max_ibp": resid,
+                         "mu": mu, "step1_iters": int(res.nit), "gamma": list(gammas),
+                         "lambda": list(lams)})
+            log.info("DS-GPLVM cycle %d: Eq.12 %.6g, L_s %.6g, max|IBP| %.3g, mu %.3g",
+                     cycle, value, ls_value, resid, mu)
+            if previous is not None and abs(value - previous) <= self.tol * max(1.0, abs(value)):
+                break
+            previous = value
+
+        self.view_names_ = names
+        self.labels_ = labels
+        self.latent_, self.q_ = latent, q
+        self.log_theta_ = {v: log_thetas[i] for i, v in enumerate(names)}
+        self.gamma_ = {v: gammas[i] for i, v in enumerate(names)}
+        self.lambda_ = {v: lams[i] for i, v in enumerate(names)}
+        self.backmap_weights_ = {v: amats[i] for i, v in enumerate(names)}
+        self.multipliers_ = {v: lags[i] for i, v in enumerate(names)}
+        self.mu_ = mu
+        self.view_data_ = data
+        self.objective_history_ = history
+        self.cycle_info_ = info
+        self.n_cycles_ = len(history)
+        self._build_posteriors()
+        self.fit_time_ = time.perf_counter() - t0
+        return self
+
+    def _build_posteriors(self):
+        self.posteriors_ = {v: GPPosterior(self.latent_, self.log_theta_[v])
+                            for v in self.view_names_}
+
+    # ------------------------------------------------------------------ inference
+    def project(self, slice_features):
+        """Latent position of slice(s) by the source-view back-mapping (Eq. 9), missing-data aware.
+
+        slice_features: (D1,) or (M, D1) source-view features, NaN = missing bin. Returns (M, q).
+        """
+        src = self.view_data_[self.source_view]
+        y = np.atleast_2d(np.asarray(slice_features, dtype=float))
+        if y.shape[1] != len(src.keep):
+            raise ValueError(f"slice has {y.shape[1]} features, the model expects {len(src.keep)}")
+        y = (y[:, src.keep] - src.mean[src.keep]) / src.scale
+        d2 = masked_squared_distances(y, src.data)
+        return backmap_kernel(d2, self.gamma_[self.source_view]) @ \
+            self.backmap_weights_[self.source_view]
+
+    def predict_weights(self, slice_features, view="2d"):
+        """Prediction of `view` as an affine combination of its training rows, for lazy (streamed) 3D.
+
+        Returns (weights (N,) or (M, N), variance float or (M,)): the posterior mean (Eq. 20) equals
+        Σ_i weights_i · Y_i over the raw training feature rows Y_i of that view (weights sum to 1: the
+        view mean is folded in), and variance is the per-dimension predictive variance in feature
+        units² (the same for every dimension of the view: one isotropic GP per view).
+        """
+        single = np.ndim(slice_features) == 1
+        w, var = self.posteriors_[view].weights(self.project(slice_features))
+        w = w + (1.0 - w.sum(1, keepdims=True)) / w.shape[1]
+        var = var * self.view_data_[view].scale ** 2
+        return (w[0], float(var[0])) if single else (w, var)
+
+    def predict(self, slice_features, view="2d"):
+        """Posterior mean and per-dimension predictive variance of `view` from source-view features.
+
+        slice_features: (D1,) or (M, D1), NaN = missing. Returns (mean, variance), each (D_v,) or
+        (M, D_v) in feature units (NaN in columns that had no training data).
+        """
+        single = np.ndim(slice_features) == 1
+        data = self.view_data_[view]
+        if data.data is None:
+            raise ValueError(f"view {view!r} was not stored; combine rows with predict_weights")
+        w, var = self.posteriors_[view].weights(self.project(slice_features))
+        mean = np.full((len(w), len(data.keep)), np.nan)
+        mean[:, data.keep] = data.mean[data.keep] + data.scale * (w @ data.data)
+        variance = np.full_like(mean, np.nan)
+        variance[:, data.keep] = (var * data.scale ** 2)[:, None]
+        return (mean[0], variance[0]) if single else (mean, variance)
+
+    # ------------------------------------------------------------------ persistence
+    def save(self, path, store_views=None):
+        """Write one .npz with what predicting needs (see infer.dsgplvm_io)."""
+        from .dsgplvm_io import save_model
+        save_model(self, path, store_views)
+
+    @classmethod
+    def load(cls, path):
+        """Read a model written by save()."""
+        from .dsgplvm_io import load_model
+        return load_model(cls, path)

@@ -1,0 +1,137 @@
+"""3D Table 1 metrics without holding 3D tables in memory: a float32 cache of every material's valid
+3D bins on disk (memmap, N × 3.29 M × 3), read in bin chunks; every method's 3D prediction for every
+test material is formed chunk by chunk (linear methods as weights × mapped training rows) and the
+contract metrics (brdf.metrics.brdf_errors) are accumulated as count-weighted chunk means.
+"""
+
+import os
+
+import numpy as np
+
+from brdf import colour, merl, metrics
+from infer.baselines import Oracle, dual_weights
+from infer.common import valid_bins_3d
+
+CHUNK = 131_072  # bins per chunk: 60 training rows × 131 k × 3 × 8 B ≈ 190 MB
+
+
+class RowsView:
+    """Lazy row subset of a (N, n_valid, 3) array/memmap: rows[i] reads one material."""
+
+    def __init__(self, array, index):
+        self.array, self.index = array, np.asarray(index)
+
+    def __len__(self):
+        return len(self.index)
+
+    def __getitem__(self, i):
+        if np.ndim(i):
+            return RowsView(self.array, self.index[np.asarray(i)])
+        return self.array[self.index[i]]
+
+
+def build_cache(paths, filename):
+    """Write ρ on the valid bins of every MERL table in `paths` to a float32 memmap; return it."""
+    ih, jd, kd = valid_bins_3d()
+    shape = (len(paths), len(ih), 3)
+    if os.path.exists(filename) and os.path.getsize(filename) == np.prod(shape) * 4:
+        return np.memmap(filename, np.float32, "r", shape=shape)
+    rows = np.memmap(filename + ".part", np.float32, "w+", shape=shape)
+    for i, path in enumerate(paths):
+        rows[i] = merl.read_merl(path)[ih, jd, kd]
+    rows.flush()
+    del rows
+    os.replace(filename + ".part", filename)
+    return np.memmap(filename, np.float32, "r", shape=shape)
+
+
+def _chunks(n_valid, chunk, stride):
+    """Bin selections over the valid 3D bins: contiguous slices, or every `stride`-th φd bin."""
+    if stride == 1:
+        return [slice(start, min(start + chunk, n_valid)) for start in range(0, n_valid, chunk)]
+    bins = np.flatnonzero(valid_bins_3d()[2] % stride == 0)
+    return [bins[start:start + chunk] for start in range(0, len(bins), chunk)]
+
+
+def _oracle_weights(cache, oracle, train, test, chunks):
+    space = oracle.space_3d()
+    idx = np.concatenate([train, test])
+    raw = np.zeros((len(idx), len(idx)))
+    for sel in chunks:
+        m = space.forward(np.asarray(cache[idx][:, sel] if not isinstance(sel, slice)
+                                     else cache[idx, sel], float), sel).reshape(len(idx), -1)
+        raw += m @ m.T
+    n = len(train)
+    return np.array([dual_weights(raw[:n, :n], raw[:n, n + t], oracle.ridge)
+                     for t in range(len(test))]), space
+
+
+_EPS = {"lin": lambda x: x, "root": np.sqrt, "log": np.log1p}
+
+
+def _transformed(rho):
+    """{transform: (ε(ρ) (n,3), Lab(ε(ρ)) (n,3))} of ρ clamped ≥ 0 (NaN -> 0), as brdf.metrics."""
+    rho = np.where(np.isfinite(rho), np.maximum(rho, 0.0), 0.0)
+    out = {}
+    for t in metrics.TRANSFORMS:
+        e = _EPS[t](rho)
+        out[t] = (e, colour.linear_rgb_to_lab(e))
+    return out
+
+
+def _error_sums(pred_t, true_t):
+    """Sums over bins of the per-bin Table 1 errors (brdf.metrics' formulas) -> {key: float}."""
+    out = {}
+    for t in metrics.TRANSFORMS:
+        out[f"rgb_{t}"] = float(np.abs(pred_t[t][0] - true_t[t][0]).mean(axis=-1).sum())
+        out[f"lab_{t}"] = float(np.linalg.norm(pred_t[t][1] - true_t[t][1], axis=-1).sum())
+    return out
+
+
+def evaluate_3d(cache, train, test, methods, slices, chunk=CHUNK, stride=1):
+    """3D errors {method: [brdf_errors dict per test material]}.
+
+    cache: (N_all, n_valid, 3) rows; train/test: index arrays into it; methods: {name: fitted
+    method} (trained on the `train` rows); slices: (T, 90, 3) test flash slices. stride > 1 keeps
+    every stride-th φd bin only (quick smoke runs). Errors equal brdf.metrics.brdf_errors on the
+    same bins (the truth's ε and Lab are computed once per chunk and shared by all methods).
+    """
+    chunks = _chunks(cache.shape[1], chunk, stride)
+    plans = {}
+    for name, m in methods.items():
+        if isinstance(m, Oracle):
+            plans[name] = ("linear",) + _oracle_weights(cache, m, train, test, chunks) + (None,)
+        elif hasattr(m, "predict_valid_3d"):
+            plans[name] = ("direct", m)
+        else:
+            combos = [m.combination(s) for s in slices]
+            spaces = [c[1] for c in combos]
+            plans[name] = ("linear", np.array([c[0] for c in combos]), spaces[0], spaces)
+    sums = {name: [dict.fromkeys(metrics_keys(), 0.0) for _ in test] for name in methods}
+    counts = np.zeros(len(test))
+    for sel in chunks:
+        read = (lambda rows: cache[rows, sel]) if isinstance(sel, slice) else \
+            (lambda rows: cache[rows][:, sel])
+        true = np.asarray(read(test), np.float64)
+        ok = np.isfinite(true).all(axis=-1)
+        counts += ok.sum(axis=1)
+        true_t = [_transformed(true[t][ok[t]]) for t in range(len(test))]
+        x_train = np.asarray(read(train), np.float64)
+        for name, plan in plans.items():
+            if plan[0] == "direct":
+                preds = [plan[1].predict_valid_3d(s, sel) for s in slices]
+            else:
+                _, weights, space, spaces = plan
+                mapped = space.forward(x_train, sel).reshape(len(train), -1)
+                combined = (weights @ mapped).reshape(len(test), -1, 3)
+                preds = [(spaces[t] if spaces else space).inverse(combined[t], sel)
+                         for t in range(len(test))]
+            for t, pred in enumerate(preds):
+                for k, v in _error_sums(_transformed(pred[ok[t]]), true_t[t]).items():
+                    sums[name][t][k] += v
+    return {name: [{k: v / max(counts[t], 1) for k, v in per.items()} for t, per in enumerate(s)]
+            for name, s in sums.items()}
+
+
+def metrics_keys():
+    return tuple(f"{s}_{t}" for s in metrics.SPACES for t in metrics.TRANSFORMS)

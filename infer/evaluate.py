@@ -1,0 +1,312 @@
+"""The paper's Table 1 protocol (`flashbrdf evaluate`).
+
+Experiments: R repetitions of 5-fold splits of a seeded permutation (R = 5 gives the paper's 25
+experiments); in each, one fold (20 %) is the test set, the next fold the validation set and the rest
+(60 %) the training set. Validation picks the DS-GPLVM's q and β and the pca/oracle hyperparameters
+(LAB-log 2D error). Errors: brdf.metrics for every test prediction (2D; 3D on the experiments that fit
+the time budget, the paper's mean-performing one first), pooled mean and median, plus the
+"mean-performing experiment" (dsgplvm 2D LAB-log mean closest to the mean over experiments).
+"""
+
+import json
+import os
+import resource
+import sys
+import time
+import tracemalloc
+
+import numpy as np
+
+from brdf import merl, metrics
+from brdf.atomic import write_text
+from brdf.errors import InputError
+from infer import TrainingSet, make_method
+from infer.eval3d import RowsView, build_cache, evaluate_3d
+from infer.report import summarise_errors, write_markdown, write_runtime_plot
+
+DS_GRID = {"q": [None, 10], "beta": [50.0, 100.0]}
+PCA_GRID = {"n_components": [3, 6, 12, 24, None], "ridge": [1e-3, 1e-2, 1e-1, 1.0, 10.0]}
+ORACLE_GRID = {"ridge": [1e-6, 1e-2, 1.0]}
+QUICK_DS_GRID = {"q": [None], "beta": [50.0]}
+
+
+def splits(n, repetitions, seed=0, folds=5):
+    """[(train, valid, test)] index arrays; each repetition is a seeded permutation cut in `folds`."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(repetitions):
+        parts = np.array_split(rng.permutation(n), folds)
+        for f in range(folds):
+            test, valid = parts[f], parts[(f + 1) % folds]
+            train = np.concatenate([parts[g] for g in range(folds) if g not in (f, (f + 1) % folds)])
+            out.append((np.sort(train), np.sort(valid), np.sort(test)))
+    return out
+
+
+def errors_2d(method, data, index):
+    """[brdf_errors dict] of a fitted method's 2D predictions for materials `index` of `data`."""
+    out = []
+    for i in index:
+        if method.name == "oracle":
+            pred = method.predict_truth(data.tables_2d[i])
+        else:
+            pred = method.predict(data.slices[i], "2d")[0]
+        out.append(metrics.brdf_errors(pred, data.tables_2d[i]))
+    return out
+
+
+def lab_log(errs):
+    return float(np.mean([e["lab_log"] for e in errs]))
+
+
+def select(name, grid, train, valid, data, fixed=None):
+    """Grid search on validation LAB-log: -> (best fitted method, best params, [(params, err, s)])."""
+    keys = list(grid)
+    combos = [dict(zip(keys, vals)) for vals in np.array(np.meshgrid(*[range(len(grid[k]))
+              for k in keys], indexing="ij")).reshape(len(keys), -1).T.tolist()]
+    trials, best = [], None
+    for c in combos:
+        params = {k: grid[k][i] for k, i in c.items()} | (fixed or {})
+        t0 = time.perf_counter()
+        m = make_method(name, **params).fit(train)
+        fit_s = time.perf_counter() - t0
+        err = lab_log(errors_2d(m, data, valid))
+        trials.append({"params": params, "valid_lab_log": err, "fit_s": fit_s, "method": m})
+        if best is None or err < best["valid_lab_log"]:
+            best = trials[-1]
+    return best["method"], best["params"], trials
+
+
+def tune_baselines(training, seed=0):
+    """Hyperparameters for `flashbrdf train`: ashikhmin r0 on all, pca on a seeded 80/20 split."""
+    n = len(training)
+    order = np.random.default_rng(seed).permutation(n)
+    cut = max(1, n // 5)
+    valid, train = np.sort(order[:cut]), np.sort(order[cut:])
+    grid = {k: [v for v in vals if v is None or v < len(train)] for k, vals in PCA_GRID.items()}
+    _, pca_params, _ = select("pca", grid, training.subset(train), valid, training)
+    return {"pca": pca_params, "ashikhmin": make_method("ashikhmin").fit(training).get_params(),
+            "noll": {}, "chandraker": {}}
+
+
+def _measure(fn):
+    """Run fn() under tracemalloc: -> (result, seconds, peak MB)."""
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    result = fn()
+    seconds = time.perf_counter() - t0
+    peak = tracemalloc.get_traced_memory()[1] / 2**20
+    tracemalloc.stop()
+    return result, seconds, peak
+
+
+def run_experiment(k, split, data, cache, quick, costs, points, ablations):
+    """Fit every method on one split; 2D test errors; returns (record, fitted methods)."""
+    train_idx, valid_idx, test_idx = split
+    train = data.subset(train_idx)
+    train.valid_3d = RowsView(cache, train_idx) if cache is not None else None
+    n_train = len(train_idx)
+    fitted, chosen, record = {}, {}, {"experiment": k, "test": [data.names[i] for i in test_idx],
+                                      "errors_2d": {}}
+    measure = not costs  # tracemalloc on the first experiment only (it slows numpy a little)
+    grids = {"dsgplvm": QUICK_DS_GRID if quick else DS_GRID,
+             "pca": {kk: [v for v in vals if v is None or v < n_train] for kk, vals in PCA_GRID.items()},
+             "oracle": ORACLE_GRID}
+    for name in ("chandraker", "ashikhmin", "noll", "pca", "oracle", "dsgplvm"):
+        t0 = time.perf_counter()
+        if name in grids:
+            fit = lambda: select(name, grids[name], train, valid_idx, data)  # noqa: E731
+            (m, params, trials), _, peak = _measure(fit) if measure else (fit(), 0, None)
+        else:
+            (m, params, trials), peak = (make_method(name).fit(train), {}, []), None
+            if measure:
+                m, _, peak = _measure(lambda: make_method(name).fit(train))
+            params = m.get_params()
+        train_s = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        errs = errors_2d(m, data, test_idx)
+        infer_s = (time.perf_counter() - t0) / len(test_idx)
+        fitted[name], chosen[name], record["errors_2d"][name] = m, params, errs
+        c = costs.setdefault(name, {"train_s": [], "infer_2d_s": [], "infer_3d_s": None,
+                                    "peak_mb": None})
+        single_fit = [t["fit_s"] for t in trials if t["params"] == params] if trials else [train_s]
+        c["train_s"].append(single_fit[0] if single_fit else train_s)
+        c["infer_2d_s"].append(infer_s)
+        if peak is not None:
+            c["peak_mb"] = peak
+        for t in trials if k == 0 else []:
+            if name in ("dsgplvm", "pca"):
+                t0 = time.perf_counter()
+                e = lab_log(errors_2d(t["method"], data, test_idx))
+                s = (time.perf_counter() - t0) / len(test_idx)
+                label = ",".join(f"{a}={b}" for a, b in t["params"].items() if a not in ("seed",))
+                points.append({"method": name, "label": f"{name} {label}", "seconds": s, "error": e})
+        if k == 0 and name not in ("dsgplvm", "pca"):
+            points.append({"method": name, "label": name, "seconds": infer_s, "error": lab_log(errs)})
+    record["chosen"] = chosen
+    if ablations is not None:
+        entry = ablations.setdefault("dsgplvm (chosen q, beta)", {"errors": []})
+        entry["errors"] = entry["errors"] + record["errors_2d"]["dsgplvm"]
+        run_ablations(chosen["dsgplvm"], train, data, test_idx, ablations, k, points, quick)
+    return record, fitted
+
+
+def run_ablations(params, train, data, test_idx, ablations, k, points, quick=False):
+    """No prior (β = 0), log-RGB features, no back-constraints (latent by optimisation), ADM cycles."""
+    variants = {"no prior (beta=0)": {"beta": 0.0},
+                "log-RGB features": {"feature_space": "rgb"},
+                "no back-constraints (latent optimised at test time)": {"latent": "optimise"}}
+    if k == 0 and not quick:
+        variants |= {f"ADM cycles <= {c}": {"max_cycles": c} for c in (1, 5, 20)}
+    for label, change in variants.items():
+        try:
+            m = make_method("dsgplvm", **(params | change)).fit(train)
+        except TypeError as err:  # the model does not offer this switch
+            ablations.setdefault(label, {"skipped": str(err)})
+            continue
+        t0 = time.perf_counter()
+        errs = errors_2d(m, data, test_idx)
+        entry = ablations.setdefault(label, {})
+        entry["errors"] = entry.get("errors", []) + errs
+        if k == 0 and change and "max_cycles" in change:
+            points.append({"method": "dsgplvm", "label": f"dsgplvm {label}",
+                           "seconds": (time.perf_counter() - t0) / len(test_idx),
+                           "error": lab_log(errs)})
+
+
+def render_table2(args):
+    """Hook for the paper's Table 2 (`evaluate --render`, issue 5). The render stage supplies
+    render.table2(merl_dir, out_dir, predict) where predict(name, method) -> (90, 90, 180, 3) table."""
+    try:
+        from render import table2  # noqa: F401  (the render stage's public API, when it exists)
+    except ImportError:
+        raise NotImplementedError("evaluate --render (Table 2) needs render.table2") from None
+    raise NotImplementedError("evaluate --render: wiring to render.table2 is not built yet")
+
+
+def _mean_performing(records):
+    means = np.array([lab_log(r["errors_2d"]["dsgplvm"]) for r in records])
+    return int(np.argmin(np.abs(means - means.mean())))
+
+
+def _summary(records, key):
+    out = {}
+    for r in records:
+        for name, errs in r.get(key, {}).items():
+            out.setdefault(name, []).extend(errs)
+    return {name: summarise_errors(errs) for name, errs in out.items()}
+
+
+def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments_3d=None,
+                   time_budget=None, seed=0, command=None, keep_cache=False):
+    """Run the protocol on every MERL table in merl_dir; write table1.md/json and the plot."""
+    start = time.perf_counter()
+    if len(merl.list_merl(merl_dir)) < 5:
+        raise InputError(merl_dir, "evaluate needs at least 5 MERL tables")
+    data = TrainingSet.from_merl_dir(merl_dir)
+    n = len(data)
+    n_exp = 1 if quick else (experiments or 25)
+    all_splits = splits(n, -(-n_exp // 5), seed)[:n_exp]
+    n_3d = (1 if quick else 2) if experiments_3d is None else experiments_3d
+    os.makedirs(out_dir, exist_ok=True)
+    cache_file = os.path.join(out_dir, ".cache_valid_3d.f32")
+    cache = build_cache(data.paths, cache_file) if n_3d else None
+    command = command or "flashbrdf " + " ".join(sys.argv[1:])
+    notes = [f"{n} materials; {len(all_splits)} experiment(s) planned of "
+             f"{len(all_splits[0][0])} train / {len(all_splits[0][1])} validation / "
+             f"{len(all_splits[0][2])} test, seed {seed}."]
+    records, costs, points, ablations, per_exp_s = [], {}, [], {}, []
+    result = {"dataset": "MERL (NBRDF proxy)", "command": command, "notes": notes}
+    reserve_3d = 240.0 * n_3d
+    for k, split in enumerate(all_splits):
+        elapsed = time.perf_counter() - start
+        if (time_budget and records and
+                elapsed + np.mean(per_exp_s) + reserve_3d > time_budget):
+            notes.append(f"time budget {time_budget:.0f} s: stopped after {len(records)} of "
+                         f"{len(all_splits)} experiments (2D).")
+            break
+        t0 = time.perf_counter()
+        record, _ = run_experiment(k, split, data, cache, quick, costs, points,
+                                   ablations if (k < 5 or not time_budget) else None)
+        records.append(record)
+        per_exp_s.append(time.perf_counter() - t0)
+        print(f"experiment {k}: {per_exp_s[-1]:.1f} s, dsgplvm LAB-log "
+              f"{lab_log(record['errors_2d']['dsgplvm']):.3f}", flush=True)
+        _write(out_dir, result, records, costs, points, ablations, len(all_splits))
+    best = _mean_performing(records)
+    order = [best] + [i for i in range(len(records)) if i != best]
+    done_3d = 0
+    for k in order:
+        if done_3d >= n_3d:
+            break
+        if time_budget and done_3d and time.perf_counter() - start + reserve_3d / n_3d > time_budget:
+            notes.append(f"time budget: 3D metrics on {done_3d} experiment(s) only.")
+            break
+        t0 = time.perf_counter()
+        run_3d(records[k], all_splits[k], data, cache, costs, first=(done_3d == 0),
+               stride=5 if quick else 1)
+        done_3d += 1
+        reserve_3d = time.perf_counter() - t0
+        print(f"3D metrics, experiment {k}: {reserve_3d:.1f} s", flush=True)
+        _write(out_dir, result, records, costs, points, ablations, len(all_splits))
+    notes.append(f"3D metrics computed on {done_3d} experiment(s) (the mean-performing one first): "
+                 + ("every 5th phi_d bin only (--quick smoke run)." if quick else
+                    "every valid bin of every test table."))
+    notes.append(f"wall time {time.perf_counter() - start:.0f} s; peak RSS "
+                 f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB.")
+    _write(out_dir, result, records, costs, points, ablations, len(all_splits))
+    if not keep_cache and os.path.exists(cache_file):
+        os.remove(cache_file)
+    return result
+
+
+def run_3d(record, split, data, cache, costs, first, stride=1):
+    """Refit the chosen methods of one experiment and add its 3D errors to the record."""
+    train_idx, _, test_idx = split
+    train = data.subset(train_idx)
+    train.valid_3d = RowsView(cache, train_idx)
+    methods = {name: make_method(name, **params).fit(train)
+               for name, params in record["chosen"].items()}
+    slices = data.slices[test_idx]
+    if first:  # the CLI's streamed 3D inference time, one material
+        for name, m in methods.items():
+            if name != "oracle":
+                t0 = time.perf_counter()
+                m.predict(slices[0], "3d")
+                costs[name]["infer_3d_s"] = time.perf_counter() - t0
+    record["errors_3d"] = evaluate_3d(cache, train_idx, test_idx, methods, slices, stride=stride)
+
+
+def _write(out_dir, result, records, costs, points, ablations, planned):
+    result["protocol"] = (f"{len(records)} of {planned} planned experiments (5-fold splits of seeded "
+                          "permutations: 60/20/20 % train/validation/test); validation picks "
+                          "dsgplvm q, beta and pca/oracle hyperparameters by 2D LAB-log error.")
+    result["summary"] = {"2d": _summary(records, "errors_2d")}
+    s3 = _summary(records, "errors_3d")
+    if s3:
+        result["summary"]["3d"] = s3
+    mp = _mean_performing(records)
+    result["mean_performing"] = {"experiment": records[mp]["experiment"],
+                                 "summary": {"2d": {m: summarise_errors(e) for m, e in
+                                                    records[mp]["errors_2d"].items()}}}
+    result["costs"] = {m: {"train_s": float(np.mean(c["train_s"])),
+                           "infer_2d_s": float(np.mean(c["infer_2d_s"])),
+                           "infer_3d_s": c["infer_3d_s"], "peak_mb": c["peak_mb"]}
+                       for m, c in costs.items()}
+    result["ablations"] = {k: summarise_errors(v["errors"]) for k, v in ablations.items()
+                           if v.get("errors")}
+    result["ablations_skipped"] = {k: v["skipped"] for k, v in ablations.items() if "skipped" in v}
+    result["hyperparameters"] = [{"experiment": r["experiment"], "chosen": r["chosen"]}
+                                 for r in records]
+    result["runtime_points"] = points
+    result["per_experiment"] = [{"experiment": r["experiment"], "test": r["test"],
+                                 "errors_2d": r["errors_2d"], "errors_3d": r.get("errors_3d")}
+                                for r in records]
+    from infer.report import PAPER_TABLE1
+    result["paper_table1"] = PAPER_TABLE1
+    write_text(os.path.join(out_dir, "table1.json"), json.dumps(result, indent=1, default=str) + "\n")
+    write_markdown(os.path.join(out_dir, "table1.md"), result)
+    if points:
+        write_runtime_plot(os.path.join(out_dir, "error_vs_runtime.png"), points)
+
+
