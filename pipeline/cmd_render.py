@@ -33,7 +33,8 @@ def render(args):
     from render.images import write_exr, write_preview
     from render.scene_render import render_scene
 
-    spp = int(getattr(args, "spp", 64) or 64)
+    spp = getattr(args, "spp", None)
+    spp = 64 if spp is None else int(spp)
     if spp < 1:
         raise InputError("--spp", f"must be >= 1, got {spp}")
     scene = capture.load_scene(args.scene_dir)
@@ -41,7 +42,7 @@ def render(args):
     if not references:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'reference'")
     brdf = TabulatedBRDF(read_merl(args.brdf), interpolate=bool(getattr(args, "interpolate", False)))
-    seed = int(getattr(args, "seed", 0) or 0)
+    seed = int(getattr(args, "seed", None) or 0)
     report = {"brdf": str(Path(args.brdf).resolve()), "spp": spp, "seed": seed, "renders": []}
     # Render and load every reference first, write afterwards: bad input found part-way (an
     # unreadable envmap or photo) then leaves no output file behind.

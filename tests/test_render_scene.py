@@ -134,6 +134,8 @@ def test_bad_input(tmp_path, capsys, gold):
     _as_references(folder)
     assert main(["render", str(folder), "--brdf", str(tmp_path / "missing.binary"),
                  "--out", str(out)]) == 2
+    assert main(["render", str(folder), "--brdf", str(path), "--out", str(out),
+                 "--spp", "0"]) == 2
     # a second reference whose envmap is missing: found before anything is written
     scene = json.loads((folder / "scene.json").read_text())
     scene["photos"].append({"file": "env.exr", "role": "reference",
@@ -141,8 +143,8 @@ def test_bad_input(tmp_path, capsys, gold):
     (folder / "scene.json").write_text(json.dumps(scene))
     assert main(["render", str(folder), "--brdf", str(path), "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 3 and "reference" in err[0] and "missing.binary" in err[1]
-    assert "nowhere.hdr" in err[2]
+    assert len(err) == 4 and "reference" in err[0] and "missing.binary" in err[1]
+    assert "--spp" in err[2] and "nowhere.hdr" in err[3]
     assert not out.exists() or not any(out.iterdir())
 
 
