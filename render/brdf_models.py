@@ -205,11 +205,14 @@ class TabulatedBRDF(BRDFModel):
         if table.shape not in ((90, 90, 180, 3), (90, 90, 3)):
             raise ValueError(f"table must be (90,90,180,3) or (90,90,3), got {table.shape}")
         table = np.where(np.isfinite(table) & (table >= 0), table, np.nan)
-        self.table = table
+        self.three_d = table.ndim == 4
         self.interpolate = bool(interpolate)
+        # Only interpolation needs the NaN-marked table (brdf.lookup renormalises over data).
+        self.table = table if self.interpolate else None
         # Nearest-bin fast path: a flat (bins, 3) copy with no-data as 0 (same indexing as
         # brdf.angles.merl_bin_index, checked against brdf.lookup.evaluate_table in the tests).
-        self._flat = np.ascontiguousarray(np.nan_to_num(table, nan=0.0).reshape(-1, 3))
+        self._flat = (None if self.interpolate else
+                      np.ascontiguousarray(np.nan_to_num(table, nan=0.0).reshape(-1, 3)))
         self.cosine_fraction = float(cosine_fraction)
         lum = table @ np.array([0.2126, 0.7152, 0.0722])
         axes = tuple(range(1, lum.ndim))
@@ -239,7 +242,7 @@ class TabulatedBRDF(BRDFModel):
             value = evaluate_table(self.table, theta_h, theta_d, phi_d, interpolate=True)
             value = np.where(np.isfinite(value) & (value > 0), value, 0.0)
         else:
-            value = self._flat[merl_flat_index_local(wi, wo, self.table.ndim == 4)]
+            value = self._flat[merl_flat_index_local(wi, wo, self.three_d)]
         return np.where(above[..., None], value, 0.0)
 
     def _h_bin(self, cos_h):
