@@ -167,3 +167,25 @@ def test_analytic_brdf_reproduces_flash_photos_through_render_scene(tmp_path):
         reference = read_image(folder / photo.file.name)
         assert np.array_equal(mask, reference.any(axis=-1))
         assert np.allclose(image, reference, rtol=1e-5, atol=1e-7 * reference.max())
+
+
+def test_shadow_rays_cause_no_acne_on_a_convex_mesh(tmp_path):
+    # Forcing Embree shadow rays on a sphere (convex: nothing can shadow) must leave the envmap
+    # render unchanged up to the facets: directions just above the smooth shading horizon but
+    # below a flat triangle are blocked (measured <= 0.4 % on 4 % of the pixels).
+    import capture
+    from render import GGX, EnvMap, render_envmap
+    from synthetic import ggx_lambert
+    folder = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=5), ggx_lambert(),
+                                   pinhole_camera(32, 32, 300.0), [point_light()])
+    scene = capture.load_scene(folder)
+    mesh = capture.scene_intersector(scene)
+    surface = capture.surface_from_mesh(mesh, scene.camera)
+    env = EnvMap(np.random.default_rng(0).random((16, 32, 3)) * 3)
+    brdf = GGX(0.2, specular=[0.5] * 3, diffuse=[0.4] * 3)
+    args = (surface.points, surface.normals, surface.view_dirs, brdf, env)
+    free = render_envmap(*args, spp=64, seed=0)
+    shadowed = render_envmap(*args, spp=64, seed=0,
+                             occluded=lambda p, d, m: capture.occluded(mesh, p, d, m))
+    change = np.abs(shadowed - free).max(axis=-1) / free.max(axis=-1)
+    assert np.all(shadowed <= free + 1e-12) and change.max() < 0.01
