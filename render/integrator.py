@@ -97,8 +97,9 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
                   progress=None):
     """Environment-map lighting -> (P, 3).
 
-    spp: directions per pixel in total, split evenly between the `strategies` (each gets at
-    least one). Deterministic for a given seed, whatever the thread count.
+    spp: samples per pixel; as in pbrt's and Mitsuba's direct-lighting integrators, each sample
+    draws one direction from every strategy (one envmap and one BRDF direction with MIS).
+    Deterministic for a given seed, whatever the thread count.
     progress: a tqdm description string to show a progress bar, or None.
     """
     points = np.asarray(points, dtype=np.float64)
@@ -115,7 +116,7 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
         envmap = EnvMap(envmap.pixels, envmap.world_from_envmap, 1.0, compensate=False)
     if "envmap" in strategies and not getattr(envmap, "can_sample", True):
         strategies = tuple(x for x in strategies if x != "envmap") or ("brdf",)
-    per_strategy = max(1, int(spp) // len(strategies))
+    per_strategy = max(1, int(spp))
     pattern = sample_pattern(per_strategy, 2 * len(strategies), seed)
     step = max(1, SAMPLES_PER_CHUNK // (per_strategy * len(strategies)))
     starts = list(range(0, n_points, step))
