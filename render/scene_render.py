@@ -124,7 +124,7 @@ def sphere_view(size):
     return mask, normals, view
 
 
-def render_sphere(table, envmap_path, size=128, spp=256, seed=0, interpolate=False,
+def render_sphere(table, envmap_path, size=128, spp=64, seed=0, interpolate=False,
                   world_from_envmap=None, scale=1.0, threads=None, progress=None):
     """A unit sphere with a tabulated BRDF under an environment map (Table 2's renders).
 
