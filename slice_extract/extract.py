@@ -1,4 +1,4 @@
-"""extract_slice: from a capture folder (flash photos + known geometry) to rho(theta_h) at theta_d ~ 0.
+"""extract_slice: from a capture folder (flash photos + geometry) to rho(theta_h) at theta_d ~ 0.
 
 Steps: load and validate the scene; load the flash photos (ambient removed, divided by scale);
 trace one Embree ray per pixel that can see the mesh's bounding box (once per camera, shared by
