@@ -250,12 +250,17 @@ def is_convex(mesh):
 def surface_from_mesh(target, camera, pixel_mask=None):
     """Trace the camera's pixels (those in pixel_mask (H, W) bool, default all) against the mesh.
 
-    Returns a Surface holding only the pixels whose ray hits.
+    Returns a Surface holding only the pixels whose ray hits. Only pixels inside the projection
+    of the mesh's bounding box are traced (capture.pixel_box): the others cannot hit.
     """
+    from capture.camera import pixel_box
+    mi = _as_intersector(target)
+    r0, r1, c0, c1 = pixel_box(camera, mi.mesh.bounds)
     if pixel_mask is None:
-        pixel_mask = np.ones(camera.shape, dtype=bool)
-    rows, cols = np.nonzero(pixel_mask)
-    return surface_at_pixels(target, camera, rows, cols)
+        rows, cols = (a.ravel() for a in np.indices((r1 - r0, c1 - c0)))
+    else:
+        rows, cols = np.nonzero(pixel_mask[r0:r1, c0:c1])
+    return surface_at_pixels(mi, camera, rows + r0, cols + c0)
 
 
 def surface_at_pixels(target, camera, rows, cols, dtype=np.float64):

@@ -94,7 +94,7 @@ def _trace(scene, camera, intersector, chunk):
                                               cols[s:s + chunk], dtype=np.float32)
                     for s in range(0, len(rows), chunk)]
     for surface in surfaces:
-        mask[surface.rows, surface.cols] = True
+        mask.ravel()[surface.rows * camera.width + surface.cols] = True
     return surfaces, mask
 
 
