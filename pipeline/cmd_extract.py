@@ -35,10 +35,16 @@ def extract(args):
     from slice_extract import extract_slice
     options = _options(args)
     result = extract_slice(args.scene_dir, options)
-    out = Path(args.out)
+    write_extraction(args.out, args.scene_dir, result, options)
+    return 0
+
+
+def write_extraction(out, scene_dir, result, options):
+    """Write slice.csv (with provenance comments) and the JSON sidecar beside it, both or neither."""
+    out = Path(out)
     cov = result.coverage
     comments = [
-        f"flashbrdf extract {Path(args.scene_dir).resolve()}",
+        f"flashbrdf extract {Path(scene_dir).resolve()}",
         f"pixels used {cov['pixels_used']}; bins filled {cov['bins_filled']}/90; theta_h observed "
         f"{cov['theta_h_deg_observed'][0]:.3f}..{cov['theta_h_deg_observed'][1]:.3f} deg",
         "rejected " + ", ".join(f"{k} {v}" for k, v in result.rejected.items()),
@@ -59,4 +65,3 @@ def extract(args):
     except BaseException:
         out.unlink(missing_ok=True)  # never leave half of the output behind
         raise
-    return 0
