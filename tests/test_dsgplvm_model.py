@@ -93,10 +93,11 @@ def test_save_load_roundtrip(brdf_model, brdf_views, tmp_path):
 
 def test_generalises_on_synthetic_low_dimensional_data():
     # 40 training samples of a 2-D latent through smooth maps into two views; predict view 2 of 40
-    # held-out samples from view 1. Measured error / (error of the training mean): MEASURED.
+    # held-out samples from view 1. Measured MSE / (MSE of the training mean) with the defaults: 0.0027
+    # (linear ridge 1D -> 2D: 0.007; view_weighting="per_dim", which lets β = 50 dominate: 0.64).
     _, v1, v2 = latent_views(40, seed=0)
     _, t1, t2 = latent_views(40, seed=1)
     model = DSGPLVM(max_cycles=20).fit({"1d": v1, "2d": v2})
     pred, var = model.predict(t1, "2d")
     ratio = np.mean((pred - t2) ** 2) / np.mean((v2.mean(0) - t2) ** 2)
-    assert ratio < 0.2, ratio
+    assert ratio < 0.05, ratio
