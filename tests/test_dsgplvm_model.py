@@ -101,3 +101,23 @@ def test_generalises_on_synthetic_low_dimensional_data():
     pred, var = model.predict(t1, "2d")
     ratio = np.mean((pred - t2) ** 2) / np.mean((v2.mean(0) - t2) ** 2)
     assert ratio < 0.05, ratio
+
+
+def test_unstored_3d_view_predicts_through_weights(brdf_views, tmp_path):
+    # a "3d" view is not kept in memory nor saved by default; predict_weights still gives the GP mean
+    # as a combination of its training rows (read lazily by the caller)
+    f1, f2 = (f[:10] for f in brdf_views)
+    f3 = np.concatenate([f2, f2[:, ::-1]], axis=1).astype(np.float32)  # stand-in for a bigger view
+    model = DSGPLVM(max_cycles=5, views=("1d", "2d", "3d")).fit({"1d": f1, "2d": f2, "3d": f3})
+    assert model.view_data_["3d"].data is None
+    with pytest.raises(ValueError):
+        model.predict(brdf_views[0][N_TRAIN], "3d")
+    weights, var = model.predict_weights(brdf_views[0][N_TRAIN], "3d")
+    assert np.isfinite(weights @ f3).all() and var > 0
+    path = tmp_path / "m3.npz"
+    model.save(path)
+    loaded = DSGPLVM.load(path)
+    w2, v2 = loaded.predict_weights(brdf_views[0][N_TRAIN], "3d")
+    assert np.array_equal(weights, w2) and var == v2
+    with np.load(path) as stored:
+        assert "3d_data" not in stored.files and "2d_data" in stored.files
