@@ -27,7 +27,7 @@ from infer.report import summarise_errors, write_markdown, write_runtime_plot
 DS_GRID = {"q": [None], "beta": [50.0, 100.0]}
 PCA_GRID = {"n_components": [3, 6, 12, 24, None], "ridge": [1e-3, 1e-2, 1e-1, 1.0, 10.0]}
 ORACLE_GRID = {"ridge": [1e-6, 1e-2, 1.0]}
-QUICK_DS_GRID = {"q": [None], "beta": [50.0]}
+QUICK_DS_GRID = {"q": [None], "beta": [50.0], "max_cycles": [10]}  # smoke run: short ADM
 
 
 def splits(n, repetitions, seed=0, folds=5):
@@ -235,49 +235,51 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
     notes = [f"{n} materials; {len(all_splits)} experiment(s) planned of "
              f"{len(all_splits[0][0])} train / {len(all_splits[0][1])} validation / "
              f"{len(all_splits[0][2])} test, seed {seed}."]
-    records, costs, points, ablations, per_exp_s = [], {}, [], {}, []
-    result = {"dataset": "MERL (NBRDF proxy)", "command": command, "notes": notes}
-    per_3d_s = 900.0  # first guess of one experiment's 3D metrics on 2 shared cores
-    reserve_3d = per_3d_s * n_3d
-    for k, split in enumerate(all_splits):
-        elapsed = time.perf_counter() - start
-        if (time_budget and records and
-                elapsed + np.mean(per_exp_s) + reserve_3d > time_budget):
-            notes.append(f"time budget {time_budget:.0f} s: stopped after {len(records)} of "
-                         f"{len(all_splits)} experiments (2D).")
-            break
-        t0 = time.perf_counter()
-        record, _ = run_experiment(k, split, data, cache, quick, costs, points,
-                                   ablations if (k < 1 or not time_budget) else None)
-        records.append(record)
-        per_exp_s.append(time.perf_counter() - t0)
-        print(f"experiment {k}: {per_exp_s[-1]:.1f} s, dsgplvm LAB-log "
-              f"{lab_log(record['errors_2d']['dsgplvm']):.3f}", flush=True)
+    try:
+        records, costs, points, ablations, per_exp_s = [], {}, [], {}, []
+        result = {"dataset": "MERL (NBRDF proxy)", "command": command, "notes": notes}
+        per_3d_s = 900.0  # first guess of one experiment's 3D metrics on 2 shared cores
+        reserve_3d = per_3d_s * n_3d
+        for k, split in enumerate(all_splits):
+            elapsed = time.perf_counter() - start
+            if (time_budget and records and
+                    elapsed + np.mean(per_exp_s) + reserve_3d > time_budget):
+                notes.append(f"time budget {time_budget:.0f} s: stopped after {len(records)} of "
+                             f"{len(all_splits)} experiments (2D).")
+                break
+            t0 = time.perf_counter()
+            record, _ = run_experiment(k, split, data, cache, quick, costs, points,
+                                       ablations if (k < 1 or not time_budget) else None)
+            records.append(record)
+            per_exp_s.append(time.perf_counter() - t0)
+            print(f"experiment {k}: {per_exp_s[-1]:.1f} s, dsgplvm LAB-log "
+                  f"{lab_log(record['errors_2d']['dsgplvm']):.3f}", flush=True)
+            _write(out_dir, result, records, costs, points, ablations, len(all_splits))
+        best = _mean_performing(records)
+        order = [best] + [i for i in range(len(records)) if i != best]
+        done_3d = 0
+        for k in order:
+            if done_3d >= n_3d:
+                break
+            if time_budget and done_3d and time.perf_counter() - start + per_3d_s > time_budget:
+                notes.append(f"time budget: 3D metrics on {done_3d} experiment(s) only.")
+                break
+            t0 = time.perf_counter()
+            run_3d(records[k], all_splits[k], data, cache, costs, first=(done_3d == 0),
+                   stride=5 if quick else 1)
+            done_3d += 1
+            per_3d_s = time.perf_counter() - t0
+            print(f"3D metrics, experiment {k}: {per_3d_s:.1f} s", flush=True)
+            _write(out_dir, result, records, costs, points, ablations, len(all_splits))
+        notes.append(f"3D metrics computed on {done_3d} experiment(s) (the mean-performing one first): "
+                     + ("every 5th phi_d bin only (--quick smoke run)." if quick else
+                        "every valid bin of every test table."))
+        notes.append(f"wall time {time.perf_counter() - start:.0f} s; peak RSS "
+                     f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB.")
         _write(out_dir, result, records, costs, points, ablations, len(all_splits))
-    best = _mean_performing(records)
-    order = [best] + [i for i in range(len(records)) if i != best]
-    done_3d = 0
-    for k in order:
-        if done_3d >= n_3d:
-            break
-        if time_budget and done_3d and time.perf_counter() - start + per_3d_s > time_budget:
-            notes.append(f"time budget: 3D metrics on {done_3d} experiment(s) only.")
-            break
-        t0 = time.perf_counter()
-        run_3d(records[k], all_splits[k], data, cache, costs, first=(done_3d == 0),
-               stride=5 if quick else 1)
-        done_3d += 1
-        per_3d_s = time.perf_counter() - t0
-        print(f"3D metrics, experiment {k}: {per_3d_s:.1f} s", flush=True)
-        _write(out_dir, result, records, costs, points, ablations, len(all_splits))
-    notes.append(f"3D metrics computed on {done_3d} experiment(s) (the mean-performing one first): "
-                 + ("every 5th phi_d bin only (--quick smoke run)." if quick else
-                    "every valid bin of every test table."))
-    notes.append(f"wall time {time.perf_counter() - start:.0f} s; peak RSS "
-                 f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB.")
-    _write(out_dir, result, records, costs, points, ablations, len(all_splits))
-    if not keep_cache and os.path.exists(cache_file):
-        os.remove(cache_file)
+    finally:
+        if not keep_cache and os.path.exists(cache_file):
+            os.remove(cache_file)
     return result
 
 
