@@ -33,7 +33,7 @@ def train(args):
 def _uncertainty_summary(variance):
     if variance is None:
         return None
-    v = np.asarray(variance, float)
+    v = np.ravel(np.asarray(variance, float))
     v = v[np.isfinite(v)]
     if not v.size:
         return None
