@@ -3,4 +3,54 @@
 Takes a `scene.json` folder (see ../shared/spec/INTERFACES.md): camera, geometry and photos.
 Gives a validated scene description, float32 linear-RGB photos with per-pixel "usable" masks
 (ambient already subtracted from flash photos), camera rays, and ray-geometry hits (Embree).
+
+Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
+  load_scene(scene_dir) -> Scene(folder, camera, geometry, photos, json_path)
+  camera_rays(camera) -> origins (H, W, 3), directions (H, W, 3)
+  pixel_rays(camera, rows, cols) -> origins (N, 3), directions (N, 3)
+  view_directions(camera, points, rows=None, cols=None) -> (N, 3) toward the camera
+  project_points(camera, points) -> uv (N, 2), depth (N,)
+  load_mesh(path) -> (trimesh.Trimesh, has_vertex_normals)
+  MeshIntersector(mesh, use_vertex_normals=None)   # Embree scene, build once
+  scene_intersector(scene) -> MeshIntersector for the scene's mesh
+  intersect(mesh_or_intersector, origins, directions) -> Hits(hit, points, normals, face, distance)
+  occluded(mesh_or_intersector, points, directions, max_dist=None) -> (...) bool
+  is_convex(mesh_or_intersector) -> bool
+  surface_from_mesh(mesh_or_intersector, camera, pixel_mask=None) -> Surface
+  surface_at_pixels(mesh_or_intersector, camera, rows, cols) -> Surface (hits only)
+  pixel_box(camera, bounds) -> (row0, row1, col0, col1): pixels that can see a world box
+  surface_from_normal_map(geometry, camera, pixel_mask=None) -> Surface (points None)
+  load_normal_map(geometry, camera) -> normals_camera (H, W, 3), mask (H, W)
+  load_photo(path, encoding=None, saturation=None, shape=None) -> rgb (H, W, 3) f32, usable (H, W)
+  load_brackets(brackets, encoding=None, saturation=None, shape=None) -> rgb, usable
+  load_photo_entry(photo) -> rgb, usable   # a scene.json photo entry, unscaled
+  load_flash_images(scene) -> [FlashImage(photo, radiance, usable)]   # ambient removed, /scale
+  read_float_image(path) -> (H, W, 3) float32 via OpenImageIO
+  srgb_to_linear(values) -> linear
 """
+
+from capture.camera import camera_rays, pixel_box, pixel_rays, project_points, view_directions
+from capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex,
+                              load_mesh, load_normal_map, occluded, surface_at_pixels,
+                              surface_from_mesh, surface_from_normal_map)
+from capture.load import FlashImage, load_flash_images, load_photo_entry
+from capture.photo import load_brackets, load_photo, read_float_image, srgb_to_linear
+from capture.scene import Camera, Geometry, Light, Photo, Scene, load_scene
+
+
+def scene_intersector(scene):
+    """MeshIntersector for scene.geometry.mesh (InputError if the scene uses a normal map)."""
+    if scene.geometry.mesh is None:
+        from brdf.errors import InputError
+        raise InputError(f"{scene.json_path}: geometry", "has no mesh (it is a normal map)")
+    mesh, has_normals = load_mesh(scene.geometry.mesh)
+    return MeshIntersector(mesh, use_vertex_normals=has_normals)
+
+
+__all__ = [
+    "Camera", "FlashImage", "Geometry", "Hits", "Light", "MeshIntersector", "Photo", "Scene",
+    "Surface", "camera_rays", "intersect", "is_convex", "load_brackets", "load_flash_images",
+    "load_mesh", "load_normal_map", "load_photo", "load_photo_entry", "load_scene", "occluded",
+    "pixel_box", "pixel_rays", "project_points", "read_float_image", "scene_intersector", "srgb_to_linear",
+    "surface_at_pixels", "surface_from_mesh", "surface_from_normal_map", "view_directions",
+]

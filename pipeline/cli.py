@@ -42,12 +42,18 @@ def _parser():
     s = sub.add_parser("extract", help="extract the flash slice from a capture folder")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
     s.add_argument("--out", required=True, metavar="SLICE.csv")
+    s.add_argument("--max-theta-d", type=float, metavar="DEG",
+                   help="reject pixels with theta_d above this (default 5 degrees)")
+    s.add_argument("--min-cos", type=float, help="reject cos(theta_i|o) below this (default 0.1)")
 
     s = sub.add_parser("render", help="render every reference photo's lighting")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
     s.add_argument("--brdf", required=True, metavar="BRDF.binary")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     s.add_argument("--spp", type=int, default=64)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--interpolate", action="store_true",
+                   help="interpolate the BRDF table between bin centres (default: nearest bin)")
 
     s = sub.add_parser("compare", help="log-CIELAB Delta E between two images")
     s.add_argument("pred", metavar="PRED.exr")

@@ -3,4 +3,38 @@
 Takes a scene (camera, geometry, lights: point, directional, environment map) and a BRDF.
 Gives HDR images in the photos' pixel units (Monte Carlo with MIS for environment maps) and image
 comparisons (log-CIELAB Delta E, relative RMSE).
+
+Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
+  EnvMap(pixels, world_from_envmap=None, scale=1.0, compensate=True); EnvMap.from_file(path, ...)
+      .radiance(dirs) -> (..., 3); .sample(u (..., 2)) -> dirs, pdf; .pdf(dirs) -> (...)
+  read_envmap_pixels(path) -> (H, 2H, 3) float32
+  Lambert(albedo), GGX(alpha, specular, diffuse), TabulatedBRDF(table, interpolate=False)
+      .evaluate(wi, wo, normal) -> (..., 3) 1/sr; .evaluate_local / .sample_local / .pdf_local
+  render_point_light(points, normals, view, brdf, light_position, intensity_rgb, occluded=None)
+  render_directional_light(points, normals, view, brdf, direction, irradiance_rgb, occluded=None)
+  render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=None, ...) -> (P, 3)
+  render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True)
+      -> iterator of (photo, image (H, W, 3) float32 in photo units, mask (H, W))
+  render_sphere(table, envmap_path, size=128, spp=256, seed=0, ...) -> (size, size, 3) float32
+  table2(merl_dir, out_dir, predict, names=None, methods=METHODS, envmaps=None, size=128,
+         spp=64, seed=0, figure_materials=3) -> dict; writes table2.json/.md/.png
+      predict(name, method) -> (90, 90, 180, 3) table or None
+  compare_images(pred, ref, mask=None) -> (metrics dict, delta_e (H, W))
+  write_comparison(out_dir, pred, ref, mask=None, ...) -> metrics (compare.json + delta_e.png)
+  write_exr(path, rgb), read_image(path), read_mask(path, shape=None), write_preview(path, rgb)
 """
+
+from render.brdf_models import GGX, BRDFModel, Lambert, TabulatedBRDF
+from render.compare import compare_images, write_comparison, write_delta_e_png
+from render.envmap import EnvMap, read_envmap_pixels
+from render.images import read_image, read_mask, tonemap, write_exr, write_preview
+from render.integrator import render_directional_light, render_envmap, render_point_light
+from render.scene_render import SceneGeometry, render_scene, render_sphere, sphere_view
+from render.table2 import table2
+
+__all__ = [
+    "BRDFModel", "EnvMap", "GGX", "Lambert", "SceneGeometry", "TabulatedBRDF", "compare_images",
+    "read_envmap_pixels", "read_image", "read_mask", "render_directional_light", "render_envmap",
+    "render_point_light", "render_scene", "render_sphere", "sphere_view", "table2", "tonemap",
+    "write_comparison", "write_delta_e_png", "write_exr", "write_preview",
+]

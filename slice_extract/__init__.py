@@ -1,6 +1,19 @@
 """slice_extract: from flash pixels and known geometry to the 1D BRDF slice rho(theta_h).
 
-Takes a loaded capture (photos, masks, camera, geometry hits).
+Takes a capture folder (or capture.Scene): flash photos, camera, geometry.
 Gives the 90-bin theta_d ~ 0 slice with a robust per-bin estimate, sample counts, spread and a
-coverage report; written as the contract's `slice.csv` plus a JSON sidecar.
+coverage report; written as the contract's `slice.csv` plus a JSON sidecar (pipeline/cmd_extract).
+
+Public API:
+  extract_slice(scene_dir_or_scene, options=None) -> SliceResult(rho (90, 3), n (90,),
+      spread (90, 3), report dict: coverage, rejected, theta_d_deg, photos, timings_s)
+  ExtractOptions(max_theta_d_deg=5.0, min_cos=0.1, outlier_k=3.0, estimator="trimmed_mean")
+  robust_bins(bin_index, rho, k=3.0, ...) -> estimate, n, spread, inlier
+  half_diff_thetas(wi, wo, normal) -> theta_h, theta_d
 """
+
+from slice_extract.binning import robust_bins
+from slice_extract.extract import ExtractOptions, SliceResult, extract_slice
+from slice_extract.samples import half_diff_thetas
+
+__all__ = ["ExtractOptions", "SliceResult", "extract_slice", "half_diff_thetas", "robust_bins"]

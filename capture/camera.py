@@ -1,0 +1,144 @@
+"""Camera rays in the WORLD frame, one per pixel centre (contract camera conventions).
+
+Pinhole: OpenCV axes (x right, y down, z forward); pixel (u, v) = (column, row), integer values at
+pixel centres; u = fx X/Z + cx, v = fy Y/Z + cy.
+Orthographic: pixel (u, v) starts at camera-frame ((u - (W-1)/2) s, (v - (H-1)/2) s, 0), along +z.
+
+Lens distortion is handled by computing the exact ray of each *distorted* pixel centre (OpenCV's
+iterative undistortPoints), so photos are never resampled: a photo's pixel (v, u) and the ray for
+(v, u) describe the same scene point, and the render stage can produce images on the same grid.
+"""
+
+import cv2
+import numpy as np
+
+_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 40, 1e-10)
+
+
+def pixel_rays(camera, rows, cols):
+    """Rays through the given pixel centres.
+
+    rows, cols: (N,) pixel coordinates (v, u); integers are pixel centres.
+    Returns origins (N, 3) and unit directions (N, 3), float64, WORLD frame. Pinhole origins are
+    a read-only broadcast of the camera centre (no copy).
+    """
+    rows = np.asarray(rows, dtype=np.float64).ravel()
+    cols = np.asarray(cols, dtype=np.float64).ravel()
+    rot = camera.world_from_camera[:3, :3]
+    t = camera.world_from_camera[:3, 3]
+    if camera.model == "orthographic":
+        s = camera.pixel_size
+        local = np.stack([(cols - (camera.width - 1) / 2) * s, (rows - (camera.height - 1) / 2) * s,
+                          np.zeros_like(rows)], axis=-1)
+        origins = local @ rot.T + t
+        directions = np.broadcast_to(rot[:, 2], origins.shape)
+        return origins, directions
+    if camera.distortion is None:
+        x = (cols - camera.cx) / camera.fx
+        y = (rows - camera.cy) / camera.fy
+    else:
+        pts = np.stack([cols, rows], axis=-1).reshape(-1, 1, 2)
+        norm = cv2.undistortPoints(pts, camera.intrinsics, camera.distortion, R=None, P=None,
+                                   criteria=_UNDISTORT_CRITERIA).reshape(-1, 2)
+        x, y = norm[:, 0], norm[:, 1]
+    local = np.stack([x, y, np.ones_like(x)], axis=-1)
+    local /= np.linalg.norm(local, axis=-1, keepdims=True)
+    directions = local @ rot.T
+    origins = np.broadcast_to(t, directions.shape)
+    return origins, directions
+
+
+def embree_rays(camera, rows, cols, shift):
+    """float32 rays for Embree through pixel centres (rows, cols) (N,): origins - shift (N, 3)
+    and directions (N, 3), WORLD frame, NOT unit length (Embree does not need them unit; this is
+    the hot path of extraction, so the float64 work is left to the rays that hit)."""
+    if camera.model == "pinhole" and camera.distortion is None:
+        rot = camera.world_from_camera[:3, :3].astype(np.float32)
+        x = ((np.asarray(cols, np.float32) - np.float32(camera.cx)) / np.float32(camera.fx))
+        y = ((np.asarray(rows, np.float32) - np.float32(camera.cy)) / np.float32(camera.fy))
+        directions = np.empty((len(x), 3), dtype=np.float32)
+        directions[:] = rot[:, 2]
+        directions += x[:, None] * rot[:, 0]
+        directions += y[:, None] * rot[:, 1]
+        origins = np.empty_like(directions)
+        origins[:] = (camera.world_from_camera[:3, 3] - shift).astype(np.float32)
+        return origins, directions
+    origins, directions = pixel_rays(camera, rows, cols)
+    return (origins - shift).astype(np.float32), directions.astype(np.float32)
+
+
+def camera_rays(camera):
+    """One ray per pixel centre of `camera`.
+
+    Returns origins (H, W, 3) and unit directions (H, W, 3), float64, WORLD frame.
+    """
+    rows, cols = np.mgrid[0:camera.height, 0:camera.width]
+    origins, directions = pixel_rays(camera, rows, cols)
+    shape = (camera.height, camera.width, 3)
+    return origins.reshape(shape), directions.reshape(shape)
+
+
+def view_directions(camera, points, rows=None, cols=None):
+    """Unit directions from surface points toward the camera (omega_o), WORLD frame.
+
+    points: (N, 3) world points, or None (then rows/cols give the pixels: the reversed pixel rays,
+    which is exact for orthographic cameras and for points on the pixel's own ray).
+    """
+    if points is None:
+        return -pixel_rays(camera, rows, cols)[1]
+    points = np.asarray(points, dtype=np.float64)
+    if camera.model == "orthographic":
+        return np.broadcast_to(-camera.world_from_camera[:3, 2], points.shape).copy()
+    w = camera.world_from_camera[:3, 3] - points
+    return w / np.linalg.norm(w, axis=-1, keepdims=True)
+
+
+def project_points(camera, points):
+    """Project WORLD points to pixel coordinates.
+
+    points: (N, 3). Returns (N, 2) float64 (u, v) = (column, row), with lens distortion applied;
+    depth (N,) camera-frame z (points behind a pinhole camera get z <= 0).
+    """
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    camera_from_world = np.linalg.inv(camera.world_from_camera)
+    local = points @ camera_from_world[:3, :3].T + camera_from_world[:3, 3]
+    z = local[:, 2]
+    if camera.model == "orthographic":
+        s = camera.pixel_size
+        uv = np.stack([local[:, 0] / s + (camera.width - 1) / 2,
+                       local[:, 1] / s + (camera.height - 1) / 2], axis=-1)
+        return uv, z
+    if camera.distortion is None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            uv = np.stack([camera.fx * local[:, 0] / z + camera.cx,
+                           camera.fy * local[:, 1] / z + camera.cy], axis=-1)
+        return uv, z
+    uv, _ = cv2.projectPoints(local.reshape(-1, 1, 3), np.zeros(3), np.zeros(3),
+                              camera.intrinsics, camera.distortion)
+    return uv.reshape(-1, 2), z
+
+
+def pixel_box(camera, bounds, margin=2):
+    """Pixel rectangle that can see an axis-aligned WORLD box: rays outside it cannot hit.
+
+    bounds: (2, 3) [min, max] corners. Returns (row0, row1, col0, col1), half-open, clipped to
+    the image; the whole image when the box straddles a pinhole camera's z = 0 plane or the lens
+    is distorted (the projected corners then no longer bound the projection). The projection of
+    a box is the convex hull of its projected corners (perspective and affine maps keep convexity).
+    """
+    whole = (0, camera.height, 0, camera.width)
+    if camera.model == "pinhole" and camera.distortion is not None:
+        return whole
+    lo, hi = np.asarray(bounds, dtype=np.float64)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
+    uv, z = project_points(camera, corners)
+    if camera.model == "pinhole" and np.any(z <= 1e-9):
+        return whole
+    if camera.model == "orthographic" and np.all(z < 0):
+        return (0, 0, 0, 0)
+    c0, r0 = np.floor(uv.min(0)) - margin
+    c1, r1 = np.ceil(uv.max(0)) + margin + 1
+    clip = lambda v, top: int(min(max(v, 0), top))  # noqa: E731
+    return (clip(r0, camera.height), clip(r1, camera.height), clip(c0, camera.width),
+            clip(c1, camera.width))

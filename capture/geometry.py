@@ -1,0 +1,328 @@
+"""Known geometry: a mesh traced with Embree (embreex), or a camera-frame normal map with a mask.
+
+Shading normals (contract): the file's vertex normals interpolated barycentrically and
+renormalised, or the face normal when the file has none. Normals are kept as the file gives them,
+never flipped toward the viewer: a surface seen from its back shows up as cos(theta_o) < 0, which
+slice extraction rejects and reports ("backfacing"), so a wrongly wound mesh is diagnosed, not
+silently "fixed".
+
+Embree works in float32. The scene is re-centred on the mesh's bounding-box centre, and hit points
+are recomputed in float64 from Embree's barycentrics on the original vertices, so points sit on
+the triangle to float64 precision. Shadow rays start a small distance (1e-4 x the mesh's bounding
+box diagonal) along the ray, which clears float32 self-hits at cos(theta_i) >= 0.01.
+"""
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from brdf.errors import InputError
+
+_CHUNK = 1 << 21  # rays per Embree call: bounds temporary memory to ~100 MB
+_SHADOW_OFFSET = 1e-4  # x bounding-box diagonal
+
+
+@dataclass(frozen=True, eq=False)
+class Hits:
+    """First hits of a batch of rays; shapes follow the rays' leading shape (...).
+
+    hit (...) bool; points (..., 3) world; normals (..., 3) unit shading normals (0 where missed);
+    face (...) int face index, -1 where missed; distance (...) along the unit ray (inf if missed;
+    Embree's float32 value: points are the precise float64 hit positions).
+    """
+    hit: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    face: np.ndarray
+    distance: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class Surface:
+    """The visible surface under a set of pixels (only pixels that see the object).
+
+    rows, cols (N,) int pixel coordinates; points (N, 3) world or None (normal-map geometry has no
+    depth); normals (N, 3) unit world shading normals; view_dirs (N, 3) unit world directions
+    toward the camera (omega_o); face (N,) int or None.
+    """
+    rows: np.ndarray
+    cols: np.ndarray
+    points: np.ndarray
+    normals: np.ndarray
+    view_dirs: np.ndarray
+    face: np.ndarray = None
+
+
+def load_mesh(path):
+    """Read a mesh file (any format trimesh reads) as one trimesh.Trimesh, unprocessed.
+
+    Returns (mesh, has_vertex_normals). InputError if missing, unreadable or without faces.
+    """
+    import trimesh
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "mesh file not found")
+    try:
+        loaded = trimesh.load(str(path), process=False)
+    except Exception as err:  # trimesh raises many types for bad files
+        raise InputError(path, f"cannot read mesh: {err}") from None
+    # loaders hand file normals to the constructor, which caches them (force="mesh" and
+    # Trimesh.copy() drop that cache, so read it before anything else touches the mesh)
+    parts = ([loaded] if isinstance(loaded, trimesh.Trimesh) else
+             [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
+             if isinstance(loaded, trimesh.Scene) else [])
+    parts = [g for g in parts if len(g.faces)]
+    if not parts:
+        raise InputError(path, "no triangles in the mesh")
+    has_normals = all("vertex_normals" in g._cache.cache for g in parts)
+    if len(parts) == 1:
+        mesh = parts[0]
+    else:
+        offsets = np.cumsum([0] + [len(g.vertices) for g in parts[:-1]])
+        mesh = trimesh.Trimesh(
+            np.concatenate([g.vertices for g in parts]),
+            np.concatenate([g.faces + o for g, o in zip(parts, offsets)]),
+            vertex_normals=(np.concatenate([g.vertex_normals for g in parts])
+                            if has_normals else None), process=False)
+    if not np.all(np.isfinite(mesh.vertices)):
+        raise InputError(path, "mesh has non-finite vertex coordinates")
+    return mesh, has_normals
+
+
+class MeshIntersector:
+    """Embree (embreex) ray queries on a trimesh mesh. Build once, query many times.
+
+    mesh: trimesh.Trimesh (world units); use_vertex_normals: interpolate mesh.vertex_normals for
+    shading (pass load_mesh's has_vertex_normals), else use face normals.
+    """
+
+    def __init__(self, mesh, use_vertex_normals=None):
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+        self.mesh = mesh
+        if use_vertex_normals is None:
+            use_vertex_normals = "vertex_normals" in mesh._cache.cache
+        self.vertices = np.asarray(mesh.vertices, dtype=np.float64)
+        self.faces = np.asarray(mesh.faces, dtype=np.int64)
+        self.face_normals = np.asarray(mesh.face_normals, dtype=np.float64)
+        self.vertex_normals = (np.asarray(mesh.vertex_normals, dtype=np.float64)
+                               if use_vertex_normals else None)
+        self.centre = (self.vertices.min(0) + self.vertices.max(0)) / 2
+        # per-face corners (relative to the centre) and corner normals, float32: one gather per
+        # hit instead of two, at half the memory traffic (float32 is ~1e-7 of the mesh size)
+        self.corners = (self.vertices - self.centre)[self.faces].astype(np.float32)  # (F, 3, 3)
+        self.corner_normals = (None if self.vertex_normals is None
+                               else self.vertex_normals[self.faces].astype(np.float32))
+        self.scale = float(np.linalg.norm(self.vertices.max(0) - self.vertices.min(0))) or 1.0
+        self._scene = rtcore_scene.EmbreeScene()
+        TriangleMesh(scene=self._scene, vertices=(self.vertices - self.centre).astype(np.float32),
+                     indices=self.faces.astype(np.int32))
+
+    def raw_first_hit(self, origins, directions):
+        """Embree's own first-hit query: dict of primID (N,), u, v, tfar (float32). (N, 3) in."""
+        o = (np.asarray(origins, dtype=np.float64) - self.centre).astype(np.float32)
+        d = np.asarray(directions, dtype=np.float32)
+        return self._scene.run(o, d, output=1)
+
+    def is_convex(self):
+        return is_convex(self.mesh)
+
+
+def _as_intersector(target):
+    return target if isinstance(target, MeshIntersector) else MeshIntersector(target)
+
+
+def intersect(target, origins, directions):
+    """First hit of each ray with the mesh.
+
+    target: MeshIntersector or trimesh.Trimesh; origins, directions: (..., 3) world, directions
+    unit. Returns Hits with the rays' leading shape. No Python loop over rays (chunked Embree calls).
+    """
+    mi = _as_intersector(target)
+    directions = np.asarray(directions, dtype=np.float64)
+    lead = directions.shape[:-1]
+    d = directions.reshape(-1, 3)
+    o = np.broadcast_to(np.asarray(origins, dtype=np.float64), directions.shape).reshape(-1, 3)
+    n = len(d)
+    face = np.full(n, -1, dtype=np.int64)
+    bary = np.zeros((n, 2), dtype=np.float32)
+    distance = np.full(n, np.inf)
+    for s in range(0, n, _CHUNK):
+        r = mi.raw_first_hit(o[s:s + _CHUNK], d[s:s + _CHUNK])
+        face[s:s + _CHUNK] = r["primID"]
+        bary[s:s + _CHUNK, 0], bary[s:s + _CHUNK, 1] = r["u"], r["v"]
+        distance[s:s + _CHUNK] = r["tfar"]  # unit directions, unscaled scene: world units
+    hit = face >= 0
+    distance[~hit] = np.inf
+    points = np.zeros((n, 3))
+    normals = np.zeros((n, 3))
+    f = face[hit]
+    weights = _barycentric_weights(bary[hit, 0], bary[hit, 1])
+    points[hit] = _hit_points(mi, f, weights)
+    normals[hit] = _shading_normals(mi, f, weights)
+    return Hits(hit.reshape(lead), points.reshape(lead + (3,)), normals.reshape(lead + (3,)),
+                face.reshape(lead), distance.reshape(lead))
+
+
+def _barycentric_weights(u, v):
+    """(M, 3) float32 corner weights from Embree's (u, v) (M,): hit = w0 p0 + u p1 + v p2."""
+    u = np.asarray(u, dtype=np.float32).reshape(-1)
+    v = np.asarray(v, dtype=np.float32).reshape(-1)
+    w = np.empty((len(u), 3), dtype=np.float32)
+    w[:, 0], w[:, 1], w[:, 2] = 1 - u - v, u, v
+    return w
+
+
+def _interpolate(corner_values, face, weights):
+    """(M, 3) = sum_k weights[:, k] corner_values[face, k]."""
+    return np.einsum("mk,mkj->mj", weights, corner_values[face])
+
+
+def _hit_points(mi, face, weights):
+    """(M, 3) float64 world hit points."""
+    return _interpolate(mi.corners, face, weights).astype(np.float64) + mi.centre
+
+
+def _shading_normals(mi, face, weights):
+    """(M, 3) float64 unit shading normals at barycentric weights (M, 3) on faces (M,)."""
+    fn = mi.face_normals[face]
+    if mi.corner_normals is None:
+        return fn
+    n = _interpolate(mi.corner_normals, face, weights).astype(np.float64)
+    length = np.sqrt(np.einsum("ij,ij->i", n, n))
+    ok = length > 1e-6
+    n /= np.where(ok, length, 1.0)[:, None]
+    if not ok.all():
+        n[~ok] = fn[~ok]  # degenerate interpolated normal: fall back to the face's
+    return n
+
+
+def occluded(target, points, directions, max_dist=None):
+    """Whether the segment from each point along `directions` hits the mesh (shadow rays).
+
+    points, directions: (..., 3) world, directions unit; max_dist: (...) or scalar, the length
+    of the segment (the distance to a point light), None for a directional light (unbounded).
+    Returns (...) bool. Rays start 1e-4 x the mesh diagonal along the ray to clear self-hits.
+    """
+    mi = _as_intersector(target)
+    directions = np.asarray(directions, dtype=np.float64)
+    lead = directions.shape[:-1]
+    d = directions.reshape(-1, 3)
+    p = np.broadcast_to(np.asarray(points, dtype=np.float64), directions.shape).reshape(-1, 3)
+    eps = _SHADOW_OFFSET * mi.scale
+    o = p + eps * d
+    n = len(d)
+    if max_dist is None:
+        far = np.full(n, 1e30, dtype=np.float32)
+    else:
+        far = np.broadcast_to(np.asarray(max_dist, dtype=np.float64), lead).reshape(-1)
+        far = np.maximum(far - 2 * eps, 0).astype(np.float32)
+    blocked = np.zeros(n, dtype=bool)
+    for s in range(0, n, _CHUNK):
+        oc = (o[s:s + _CHUNK] - mi.centre).astype(np.float32)
+        r = mi._scene.run(oc, d[s:s + _CHUNK].astype(np.float32), dists=far[s:s + _CHUNK].copy(),
+                          query="OCCLUDED")
+        blocked[s:s + _CHUNK] = np.asarray(r) != -1
+    return blocked.reshape(lead)
+
+
+def is_convex(mesh):
+    """True when the mesh is convex (trimesh's test), so no point can shadow another front-facing
+    point: shadow rays can be skipped. Accepts a MeshIntersector too."""
+    mesh = mesh.mesh if isinstance(mesh, MeshIntersector) else mesh
+    return bool(mesh.is_convex)
+
+
+def surface_from_mesh(target, camera, pixel_mask=None):
+    """Trace the camera's pixels (those in pixel_mask (H, W) bool, default all) against the mesh.
+
+    Returns a Surface holding only the pixels whose ray hits.
+    """
+    if pixel_mask is None:
+        pixel_mask = np.ones(camera.shape, dtype=bool)
+    rows, cols = np.nonzero(pixel_mask)
+    return surface_at_pixels(target, camera, rows, cols)
+
+
+def surface_at_pixels(target, camera, rows, cols):
+    """Trace the rays of pixels (rows, cols) (N,) int against the mesh; a Surface of the hits.
+
+    The hot path of extraction: float32 rays straight into Embree, float64 geometry (points,
+    normals, view directions) only for the rays that hit.
+    """
+    from capture.camera import embree_rays
+    mi = _as_intersector(target)
+    rows, cols = np.asarray(rows), np.asarray(cols)
+    origins, directions = embree_rays(camera, rows, cols, mi.centre)
+    r = mi._scene.run(origins, directions, output=1)
+    face = r["primID"]
+    hit = face >= 0
+    rows, cols, face = rows[hit], cols[hit], face[hit].astype(np.int64)
+    weights = _barycentric_weights(r["u"][hit], r["v"][hit])
+    points = _hit_points(mi, face, weights)
+    normals = _shading_normals(mi, face, weights)
+    if camera.model == "orthographic":
+        view = np.broadcast_to(-camera.world_from_camera[:3, 2], points.shape)
+    else:
+        view = camera.world_from_camera[:3, 3] - points
+        view /= np.sqrt(np.einsum("ij,ij->i", view, view))[:, None]
+    return Surface(rows, cols, points, normals, view, face)
+
+
+def load_normal_map(geometry, camera):
+    """Read geometry.normal_map ((H, W, 3) camera-frame unit normals, .npy or .exr) and
+    geometry.mask (PNG, nonzero = object). Returns (normals_camera (H, W, 3) float64 unit,
+    mask (H, W) bool); pixels with a zero or non-finite normal are dropped from the mask."""
+    import cv2
+    from capture.photo import read_float_image
+    path = Path(geometry.normal_map)
+    if not path.is_file():
+        raise InputError(path, "normal map not found")
+    if path.suffix.lower() == ".npy":
+        try:
+            normals = np.load(path, allow_pickle=False)
+        except (OSError, ValueError) as err:
+            raise InputError(path, f"cannot read normal map: {err}") from None
+    else:
+        normals = read_float_image(path)
+    normals = np.asarray(normals, dtype=np.float64)
+    if normals.ndim != 3 or normals.shape[2] < 3:
+        raise InputError(path, f"expected an H x W x 3 normal map, got shape {normals.shape}")
+    normals = normals[..., :3]
+    if normals.shape[:2] != camera.shape:
+        raise InputError(path, f"normal map is {normals.shape[1]}x{normals.shape[0]} but the "
+                               f"camera is {camera.width}x{camera.height}")
+    mpath = Path(geometry.mask)
+    if not mpath.is_file():
+        raise InputError(mpath, "mask not found")
+    mask = cv2.imread(str(mpath), cv2.IMREAD_UNCHANGED)
+    if mask is None:
+        raise InputError(mpath, "cannot read mask image")
+    if mask.ndim == 3:
+        mask = mask.max(axis=2)
+    if mask.shape != camera.shape:
+        raise InputError(mpath, f"mask is {mask.shape[1]}x{mask.shape[0]} but the camera is "
+                                f"{camera.width}x{camera.height}")
+    length = np.linalg.norm(normals, axis=-1)
+    good = np.isfinite(length) & (length > 1e-6)
+    normals = np.where(good[..., None], normals / np.where(good, length, 1)[..., None], 0)
+    return normals, (mask > 0) & good
+
+
+def surface_from_normal_map(geometry, camera, pixel_mask=None):
+    """The Surface of normal-map geometry: no ray casting, no depth (points is None).
+
+    Normals go from the camera frame to world with world_from_camera; view directions are the
+    reversed pixel rays (exact for orthographic cameras; for a pinhole, the direction toward the
+    camera centre from any point on the pixel's ray).
+    """
+    from capture.camera import pixel_rays
+    normals_cam, mask = load_normal_map(geometry, camera)
+    if pixel_mask is not None:
+        mask = mask & pixel_mask
+    rows, cols = np.nonzero(mask)
+    rot = camera.world_from_camera[:3, :3]
+    normals = normals_cam[rows, cols] @ rot.T
+    view = -np.array(pixel_rays(camera, rows, cols)[1])
+    return Surface(rows, cols, None, normals, view, None)

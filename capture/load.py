@@ -1,0 +1,82 @@
+"""From a Scene to calibrated flash photos in the contract's pixel units.
+
+Pixel model (contract): pixel = (flash - ambient) / scale_flash. When the ambient photo sets its
+own `scale` explicitly, it is taken to be in its own units, so the ambient in flash units is
+ambient * scale_flash / scale_ambient; several ambient photos are averaged. Usability propagates:
+a pixel is usable only if usable in the flash photo and in every ambient photo. Values are never
+clamped: noise can make (flash - ambient) negative, which keeps per-bin estimates unbiased.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from brdf.errors import InputError
+from capture.photo import load_brackets, load_photo
+
+
+@dataclass(frozen=True, eq=False)
+class FlashImage:
+    """A flash photo ready for extraction: radiance (H, W, 3) float32 in pixel-model units,
+    usable (H, W) bool, clipped (H, W) bool (too bright to measure: right-censored, never usable),
+    and its Photo entry (light, camera, where)."""
+    photo: object
+    radiance: np.ndarray
+    usable: np.ndarray
+    clipped: np.ndarray
+
+
+def load_photo_entry(photo, return_clipped=False):
+    """Load one scene.json photo entry (file or brackets) at its camera's size, without scale.
+
+    Returns rgb (H, W, 3) float32 linear, usable (H, W) bool (and clipped, see load_photo).
+    """
+    shape = photo.camera.shape
+    if photo.file is not None:
+        return load_photo(photo.file, photo.encoding, photo.saturation, shape, return_clipped)
+    return load_brackets(photo.brackets, photo.encoding, photo.saturation, shape, return_clipped)
+
+
+def _ambient(scene, camera):
+    ambients = scene.photos_with_role("ambient")
+    if not ambients:
+        return None, None, None
+    total, usable = None, None
+    for a in ambients:
+        if a.camera.shape != camera.shape:
+            raise InputError(a.where, "ambient photo's camera differs in size from the flash's")
+        rgb, ok = load_photo_entry(a)
+        total = rgb if total is None else total + rgb
+        usable = ok if usable is None else usable & ok
+    scales = {a.scale if a.scale_given else None for a in ambients}
+    if len(scales) > 1:
+        raise InputError(ambients[1].where, "ambient photos must share one scale")
+    if len(ambients) > 1:
+        total /= np.float32(len(ambients))
+    return total, usable, scales.pop()
+
+
+def load_flash_images(scene):
+    """All flash photos of a scene with ambient subtracted and divided by their scale.
+
+    Returns a list of FlashImage. InputError when the scene has no flash photo.
+    """
+    flashes = scene.photos_with_role("flash")
+    if not flashes:
+        raise InputError(f"{scene.json_path}: photos", "no photo has role 'flash'")
+    out = []
+    ambient = None
+    for photo in flashes:
+        rgb, usable, clipped = load_photo_entry(photo, return_clipped=True)
+        if ambient is None and scene.photos_with_role("ambient"):
+            ambient = _ambient(scene, photo.camera)
+        if ambient is not None:
+            amb, amb_ok, amb_scale = ambient
+            factor = 1.0 if amb_scale is None else photo.scale / amb_scale
+            rgb -= amb if factor == 1.0 else np.float32(factor) * amb  # rgb is our own copy
+            usable &= amb_ok
+            clipped &= amb_ok
+        if photo.scale != 1.0:
+            rgb /= np.float32(photo.scale)
+        out.append(FlashImage(photo, rgb, usable, clipped))
+    return out

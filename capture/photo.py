@@ -1,0 +1,241 @@
+"""Photo loading: every photo becomes float32 linear RGB (H, W, 3) plus a "usable" mask (H, W).
+
+Formats (chosen by extension, then by the stored bit depth):
+- .exr .hdr (and float TIFF): OpenImageIO, values as stored; .pfm: parsed here (rows flipped to
+  top-first, which OpenImageIO does not do).
+- 16-bit .png/.tif: OpenCV IMREAD_UNCHANGED (imageio/Pillow silently drop to 8 bits), BGR->RGB,
+  code / 65535, linear unless encoding == "srgb".
+- 8-bit .png/.jpg/.tif: code / 255 through the inverse sRGB EOTF unless encoding == "linear".
+- camera RAW (.dng .cr2 .nef ...): rawpy (imported only here, lazily), see capture.raw.
+
+A pixel is unusable (never clamped, just flagged) when any channel is NaN/Inf, when any channel is
+at or above the clipping level (integer codes >= SATURATION_FRACTION x max code: sensors turn
+non-linear in the top few percent, and 12/14-bit data rescaled to 16 bits tops out below 65535;
+float images: photos[].saturation if given), or when it carries no signal: any channel at code 0
+for integer images (at the black level, so the true value is unknown), or no channel > 0 / any
+channel < 0 for float images (a float image has no code floor, so one dark channel is still data).
+"""
+
+from pathlib import Path
+
+import numpy as np
+
+from brdf.errors import InputError
+
+SATURATION_FRACTION = 0.98
+FLOAT_EXTENSIONS = (".exr", ".hdr", ".pfm")
+CV_EXTENSIONS = (".png", ".tif", ".tiff", ".jpg", ".jpeg")
+RAW_EXTENSIONS = (".dng", ".cr2", ".cr3", ".crw", ".nef", ".nrw", ".arw", ".srf", ".sr2", ".orf",
+                  ".rw2", ".raf", ".pef", ".srw", ".raw", ".rwl", ".3fr", ".erf", ".kdc", ".dcr",
+                  ".mrw", ".mos", ".iiq", ".x3f")
+
+
+def srgb_to_linear(values):
+    """Inverse sRGB EOTF (IEC 61966-2-1), exact piecewise form. values in [0, 1] -> linear."""
+    v = np.asarray(values, dtype=np.float32)
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def _to_rgb(img, path):
+    """(H, W) / (H, W, C) channel-last image -> (H, W, 3) RGB (grey replicated, alpha dropped)."""
+    if img.ndim == 2:
+        img = img[..., None]
+    if img.ndim != 3 or img.shape[2] == 0:
+        raise InputError(path, f"unexpected image shape {img.shape}")
+    if img.shape[2] in (1, 2):
+        return np.repeat(img[..., :1], 3, axis=2)
+    return img[..., :3]
+
+
+def read_float_image(path):
+    """Read an image through OpenImageIO as float32 (H, W, 3) RGB (channels R, G, B by name when
+    present). InputError naming the file when missing or unreadable."""
+    import OpenImageIO as oiio
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise InputError(path, f"cannot read image: {oiio.geterror() or 'unknown format'}")
+    try:
+        spec = inp.spec()
+        data = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+        if data is None:
+            raise InputError(path, f"cannot read image: {inp.geterror() or 'corrupt data'}")
+        names = [n.split(".")[-1].upper() for n in spec.channelnames]
+    finally:
+        inp.close()
+    data = np.asarray(data, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    if names[:3] == ["R", "G", "B"]:
+        data = data[..., :3]
+    elif all(c in names for c in "RGB"):
+        data = data[..., [names.index(c) for c in "RGB"]]
+    return _to_rgb(data, path)
+
+
+def read_pfm(path):
+    """Read a PFM (Portable Float Map) as float32 (H, W, 3), top row first.
+
+    Parsed here rather than through OpenImageIO, whose reader returns PFM rows in stored order
+    (the format stores them bottom to top). The scale's sign gives the byte order.
+    """
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            kind = f.readline().strip()
+            dims = f.readline().split()
+            while dims and dims[0].startswith(b"#"):
+                dims = f.readline().split()
+            width, height = int(dims[0]), int(dims[1])
+            scale = float(f.readline().strip())
+            data = np.fromfile(f, dtype="<f4" if scale < 0 else ">f4")
+    except (OSError, ValueError, IndexError) as err:
+        raise InputError(path, f"cannot read PFM image: {err}") from None
+    channels = {b"PF": 3, b"Pf": 1}.get(kind)
+    if channels is None or data.size < width * height * channels:
+        raise InputError(path, "cannot read PFM image: bad header or truncated data")
+    image = data[:width * height * channels].reshape(height, width, channels)[::-1]
+    return _to_rgb(np.ascontiguousarray(image, dtype=np.float32), path)
+
+
+def _float_masks(rgb, saturation):
+    """(usable, clipped) of a float image: +Inf or >= saturation is clipped, NaN is invalid.
+
+    Two reductions over the channels (NaN propagates through min/max), then per-pixel tests.
+    """
+    # elementwise over channel views: much faster than a reduction along a length-3 axis
+    low = np.minimum(np.minimum(rgb[..., 0], rgb[..., 1]), rgb[..., 2])
+    high = np.maximum(np.maximum(rgb[..., 0], rgb[..., 1]), rgb[..., 2])
+    ceiling = np.inf if saturation is None else saturation
+    with np.errstate(invalid="ignore"):
+        clipped = (high >= ceiling) & ~np.isnan(low)
+        usable = (low >= 0) & (high > 0) & (high < ceiling)
+    return usable, clipped
+
+
+def _read_cv(path, encoding):
+    import cv2
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise InputError(path, "cannot read image (corrupt or unsupported)")
+    if img.ndim == 3 and img.shape[2] >= 3:
+        img = img[..., [2, 1, 0]]  # BGR(A) -> RGB
+    img = _to_rgb(img, path)
+    if img.dtype in (np.uint8, np.uint16):
+        top = float(np.iinfo(img.dtype).max)
+        clipped = np.any(img >= SATURATION_FRACTION * top, axis=-1)
+        usable = np.all(img > 0, axis=-1) & ~clipped
+        rgb = img.astype(np.float32) / np.float32(top)
+        if encoding is None:
+            encoding = "srgb" if img.dtype == np.uint8 else "linear"
+        if encoding == "srgb":
+            rgb = srgb_to_linear(rgb)
+        return rgb, usable, clipped
+    if img.dtype in (np.float32, np.float64):
+        return img.astype(np.float32), None, None
+    raise InputError(path, f"unsupported pixel type {img.dtype} (expected 8/16-bit or float)")
+
+
+def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=False):
+    """Load one photo as linear RGB.
+
+    path: image file; encoding: "linear" | "srgb" | None (by format: 8-bit -> srgb, else linear);
+    saturation: clipping level for float images (linear units), None = no ceiling;
+    shape: expected (height, width), InputError naming the file when different.
+    Returns rgb (H, W, 3) float32 linear (unusable pixels keep their values), usable (H, W) bool,
+    and with return_clipped also clipped (H, W) bool: the unusable pixels that are unusable
+    because they are too bright (their true value is above the stored one: right-censored).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    ext = path.suffix.lower()
+    if ext in RAW_EXTENSIONS:
+        from capture.raw import load_raw
+        rgb, usable, clipped = load_raw(path)
+    elif ext in CV_EXTENSIONS:
+        rgb, usable, clipped = _read_cv(path, encoding)
+        if usable is None:
+            usable, clipped = _float_masks(rgb, saturation)
+    else:
+        rgb = read_pfm(path) if ext == ".pfm" else read_float_image(path)
+        if encoding == "srgb":
+            rgb = srgb_to_linear(rgb)
+        usable, clipped = _float_masks(rgb, saturation)
+    if shape is not None and rgb.shape[:2] != tuple(shape):
+        raise InputError(path, f"image is {rgb.shape[1]}x{rgb.shape[0]} but the camera is "
+                               f"{shape[1]}x{shape[0]}")
+    return (rgb, usable, clipped) if return_clipped else (rgb, usable)
+
+
+def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_clipped=False):
+    """Merge an exposure bracket [(path, exposure_s), ...] into one HDR photo.
+
+    8-bit brackets: OpenCV's Debevec camera-response calibration and a Debevec log-domain merge
+    (relative radiance: OpenCV normalises the response to 1 at code 128). Other (linear) brackets: per pixel, the maximum-likelihood
+    radiance for Poisson counts, sum(value) / sum(exposure) over the brackets where the pixel is
+    usable. A merged pixel is usable when at least one bracket saw it usable, clipped when every
+    bracket saw it clipped.
+    Returns rgb (H, W, 3) float32 in units per second of exposure, usable (H, W) bool (and
+    clipped (H, W) bool with return_clipped).
+    """
+    paths = [Path(p) for p, _ in brackets]
+    times = np.array([t for _, t in brackets], dtype=np.float32)
+    if all(p.suffix.lower() in CV_EXTENSIONS for p in paths):
+        import cv2
+        raw = [cv2.imread(str(p), cv2.IMREAD_UNCHANGED) if p.is_file() else None for p in paths]
+        for p, img in zip(paths, raw):
+            if img is None:
+                raise InputError(p, "file not found" if not p.is_file() else "cannot read image")
+        if all(img.dtype == np.uint8 for img in raw):
+            out = _merge_debevec(paths, raw, times, shape)
+            return out if return_clipped else out[:2]
+    loaded = [load_photo(p, encoding, saturation, shape, return_clipped=True) for p in paths]
+    total = np.zeros(loaded[0][0].shape, dtype=np.float64)
+    exposure = np.zeros(loaded[0][1].shape, dtype=np.float64)
+    clipped = np.ones(loaded[0][1].shape, dtype=bool)
+    for (rgb, usable, clip), t in zip(loaded, times):
+        if rgb.shape != total.shape:
+            raise InputError(paths[0], "bracket images differ in size")
+        total += np.where(usable[..., None], rgb, 0)
+        exposure += usable * float(t)
+        clipped &= clip
+    usable = exposure > 0
+    rgb = total / np.where(usable, exposure, 1)[..., None]
+    # pixels unusable in every bracket keep the shortest exposure's value, flagged unusable
+    shortest = loaded[int(np.argmin(times))][0] / times.min()
+    rgb = np.where(usable[..., None], rgb, shortest).astype(np.float32)
+    return (rgb, usable, clipped) if return_clipped else (rgb, usable)
+
+
+def _merge_debevec(paths, images, times, shape):
+    import cv2
+    for p, img in zip(paths, images):
+        if img.ndim != 3 or img.shape[2] != 3:
+            raise InputError(p, "8-bit brackets must be 3-channel colour images")
+        if img.shape != images[0].shape:
+            raise InputError(p, "bracket images differ in size")
+        if shape is not None and img.shape[:2] != tuple(shape):
+            raise InputError(p, f"image is {img.shape[1]}x{img.shape[0]} but the camera is "
+                                f"{shape[1]}x{shape[0]}")
+    # OpenCV's camera-response calibration (Debevec & Malik 1997), then the same log-domain
+    # weighted merge as cv2.MergeDebevec but with zero weight at and above the clipping code:
+    # MergeDebevec gives code 255 a weight of 1, which biases bright pixels low by up to ~15%.
+    response = cv2.createCalibrateDebevec(samples=300).process(images, times)[:, 0, ::-1]
+    log_response = np.log(np.maximum(response, 1e-30)).astype(np.float32)  # (256, 3) RGB
+    top = SATURATION_FRACTION * 255
+    codes = np.arange(256, dtype=np.float32)
+    weight_of = np.where((codes > 0) & (codes < top), np.minimum(codes, 255 - codes), 0)
+    total = np.zeros(images[0].shape, dtype=np.float32)
+    weights = np.zeros(images[0].shape, dtype=np.float32)
+    channel = np.arange(3)
+    for img, t in zip(images, times):
+        rgb = img[..., ::-1]
+        w = weight_of[rgb]
+        total += w * (log_response[rgb, channel] - np.log(t))
+        weights += w
+    usable = np.all(weights > 0, axis=-1)
+    hdr = np.exp(total / np.where(weights > 0, weights, 1)).astype(np.float32)
+    stack = np.stack(images)
+    clipped = np.all(np.any(stack >= top, axis=-1), axis=0) & ~usable
+    return np.ascontiguousarray(hdr), usable, clipped

@@ -1,0 +1,71 @@
+"""Camera RAW through rawpy (LibRaw): linear, no gamma, no auto-brightness, camera white balance,
+black and white levels honoured, output in linear sRGB primaries.
+
+Only this module imports rawpy, and only when a RAW file is loaded.
+
+Usable mask: a sensel at or above SATURATION_FRACTION of (white - black), or at or below its black
+level, taints every output pixel whose demosaic neighbourhood (5x5) contains it; output values
+clipped by LibRaw at 0 or 65535 are unusable too. The mask follows the same orientation flip
+LibRaw applies to the image.
+"""
+
+import numpy as np
+
+from brdf.errors import InputError
+from capture.photo import SATURATION_FRACTION
+
+_DEMOSAIC_REACH = 2  # sensels: AHD interpolation reads a 5x5 neighbourhood
+
+
+def _dilate(mask, reach):
+    import cv2
+    kernel = np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)
+    return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
+
+
+def _apply_flip(mask, flip):
+    """LibRaw's sizes.flip: 0 none, 3 = 180 deg, 5 = 90 deg CCW, 6 = 90 deg CW."""
+    if flip == 3:
+        return mask[::-1, ::-1]
+    if flip == 5:
+        return np.rot90(mask, 1)
+    if flip == 6:
+        return np.rot90(mask, -1)
+    return mask
+
+
+def load_raw(path):
+    """Decode a RAW file. Returns rgb (H, W, 3) float32 linear sRGB primaries, scaled so that the
+    white level maps to 1 before white balance, usable (H, W) bool, clipped (H, W) bool."""
+    import rawpy
+    try:
+        raw = rawpy.imread(str(path))
+    except (rawpy.LibRawError, OSError, ValueError) as err:
+        raise InputError(path, f"cannot read RAW file: {err}") from None
+    with raw:
+        try:
+            sensels = raw.raw_image_visible.astype(np.float64)
+            colours = raw.raw_colors_visible
+            black = np.asarray(raw.black_level_per_channel, dtype=np.float64)[colours]
+            white = float(raw.white_level)
+            high = sensels >= black + SATURATION_FRACTION * (white - black)
+            low = sensels <= black
+            flip = raw.sizes.flip
+            img = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=True,
+                                  output_bps=16, output_color=rawpy.ColorSpace.sRGB,
+                                  user_flip=None)
+        except rawpy.LibRawError as err:
+            raise InputError(path, f"cannot decode RAW file: {err}") from None
+    high = _to_output(high, flip, img.shape) | np.any(img >= 65535, axis=-1)
+    low = _to_output(low, flip, img.shape) | np.any(img == 0, axis=-1)
+    return img.astype(np.float32) / np.float32(65535), ~(high | low), high & ~low
+
+
+def _to_output(sensel_mask, flip, shape):
+    """A sensel mask, dilated over the demosaic reach, in the output image's orientation."""
+    mask = _apply_flip(_dilate(sensel_mask, _DEMOSAIC_REACH), flip)
+    if mask.shape != shape[:2]:  # LibRaw cropped or padded differently: resize nearest
+        import cv2
+        mask = cv2.resize(mask.astype(np.uint8), (shape[1], shape[0]),
+                          interpolation=cv2.INTER_NEAREST).astype(bool)
+    return mask

@@ -1,0 +1,308 @@
+"""Read and validate a capture folder's `scene.json` (contract: ../shared/spec/INTERFACES.md).
+
+Every bad field raises InputError naming the file and the field, e.g.
+"…/scene.json: photos[2].light.position: expected 3 numbers". Nothing here reads images or meshes;
+paths are resolved against the scene folder and checked only for presence when used.
+
+Additive fields (beyond the contract) accepted here:
+- photos[].camera: a per-photo camera (same schema as the top-level one); defaults to the scene's.
+- photos[].saturation: a linear value at or above which a pixel counts as clipped (float images
+  carry no code-value ceiling of their own).
+"""
+
+import json
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from brdf.errors import InputError
+
+CAMERA_MODELS = ("pinhole", "orthographic")
+ROLES = ("flash", "ambient", "reference")
+LIGHT_TYPES = ("point", "directional", "envmap")
+ENCODINGS = ("linear", "srgb")
+
+
+@dataclass(frozen=True, eq=False)
+class Camera:
+    """A camera. Pinhole: OpenCV axes and intrinsics (pixels); orthographic: pixel_size (m/px).
+
+    world_from_camera: (4, 4) float64 pose, camera frame -> world frame.
+    distortion: (5,) OpenCV [k1, k2, p1, p2, k3] or None (pinhole only).
+    """
+    model: str
+    width: int
+    height: int
+    world_from_camera: np.ndarray
+    fx: float = None
+    fy: float = None
+    cx: float = None
+    cy: float = None
+    distortion: np.ndarray = None
+    pixel_size: float = None
+
+    @property
+    def shape(self):
+        """(height, width): the numpy shape of one image channel."""
+        return (self.height, self.width)
+
+    @property
+    def intrinsics(self):
+        """(3, 3) OpenCV camera matrix K (pinhole only)."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def centre_world(self):
+        """(3,) camera-frame origin in world coordinates (the pinhole, or the ortho plane centre)."""
+        return self.world_from_camera[:3, 3].copy()
+
+    @property
+    def rotation(self):
+        """(3, 3) world_from_camera rotation part (columns: camera x, y, z axes in world)."""
+        return self.world_from_camera[:3, :3].copy()
+
+
+@dataclass(frozen=True, eq=False)
+class Light:
+    """A photo's light. Point: position (3,) in the CAMERA frame, intensity_rgb (3,) (W/sr units
+    of the photo). Directional: direction (3,) unit WORLD vector toward the light, irradiance_rgb
+    (3,). Envmap: file (Path), world_from_envmap (3, 3), scale."""
+    type: str
+    position: np.ndarray = None
+    intensity_rgb: np.ndarray = None
+    direction: np.ndarray = None
+    irradiance_rgb: np.ndarray = None
+    file: Path = None
+    world_from_envmap: np.ndarray = None
+    scale: float = 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class Photo:
+    """One entry of photos[]: either `file` or `brackets` ((path, exposure_s) pairs) is set.
+
+    `where` is the field path used in error messages ("…/scene.json: photos[2]").
+    `scale_given` says whether scene.json set `scale` explicitly (ambient subtraction uses it).
+    """
+    index: int
+    role: str
+    camera: Camera
+    where: str
+    file: Path = None
+    brackets: tuple = None
+    scale: float = 1.0
+    scale_given: bool = False
+    light: Light = None
+    encoding: str = None
+    saturation: float = None
+
+    @property
+    def stem(self):
+        """Name used for per-photo outputs: the file stem (first bracket's stem for brackets)."""
+        path = self.file if self.file is not None else self.brackets[0][0]
+        return Path(path).stem
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    """Either mesh (Path) or normal_map + mask (Paths)."""
+    mesh: Path = None
+    normal_map: Path = None
+    mask: Path = None
+
+
+@dataclass(frozen=True, eq=False)
+class Scene:
+    folder: Path
+    camera: Camera
+    geometry: Geometry
+    photos: list = field(default_factory=list)
+    json_path: Path = None
+
+    def photos_with_role(self, role):
+        """The photos whose role is `role`, in file order."""
+        return [p for p in self.photos if p.role == role]
+
+
+class _Fields:
+    """Typed access to one JSON object, raising InputError with the full field path."""
+
+    def __init__(self, json_path, prefix, obj):
+        self.json_path, self.prefix = json_path, prefix
+        if not isinstance(obj, dict):
+            self.fail("", "expected a JSON object")
+        self.obj = obj
+
+    def name(self, key):
+        return f"{self.prefix}.{key}" if self.prefix and key else (self.prefix or key)
+
+    def fail(self, key, problem):
+        raise InputError(f"{self.json_path}: {self.name(key)}" if self.name(key) else
+                         self.json_path, problem)
+
+    def has(self, key):
+        return key in self.obj and self.obj[key] is not None
+
+    def get(self, key, default=None):
+        return self.obj.get(key, default)
+
+    def sub(self, key):
+        if not self.has(key):
+            self.fail(key, "missing")
+        return _Fields(self.json_path, self.name(key), self.obj[key])
+
+    def number(self, key, default=None, positive=False, nonnegative=False):
+        if not self.has(key):
+            if default is not None:
+                return float(default)
+            self.fail(key, "missing")
+        v = self.obj[key]
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            self.fail(key, f"expected a finite number, got {v!r}")
+        if positive and v <= 0:
+            self.fail(key, f"expected a positive number, got {v!r}")
+        if nonnegative and v < 0:
+            self.fail(key, f"expected a non-negative number, got {v!r}")
+        return float(v)
+
+    def integer(self, key, minimum=1):
+        v = self.obj.get(key)
+        if v is None:
+            self.fail(key, "missing")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or v != int(v) or v < minimum:
+            self.fail(key, f"expected an integer >= {minimum}, got {v!r}")
+        return int(v)
+
+    def choice(self, key, choices, default=None):
+        v = self.obj.get(key, default)
+        if v is None:
+            self.fail(key, f"missing (one of {', '.join(choices)})")
+        if v not in choices:
+            self.fail(key, f"expected one of {', '.join(choices)}, got {v!r}")
+        return v
+
+    def array(self, key, shape, default=None, nonnegative=False):
+        """A numeric array of exactly `shape` (nested JSON lists) as float64."""
+        if not self.has(key):
+            if default is not None:
+                return np.array(default, dtype=float)
+            self.fail(key, "missing")
+        what = f"{shape[0]} numbers" if len(shape) == 1 else "a " + "x".join(map(str, shape)) + \
+            " matrix of numbers"
+        try:
+            a = np.array(self.obj[key], dtype=float)
+        except (TypeError, ValueError):
+            self.fail(key, f"expected {what}")
+        if a.shape != tuple(shape) or not np.all(np.isfinite(a)):
+            self.fail(key, f"expected {what}")
+        if nonnegative and np.any(a < 0):
+            self.fail(key, f"expected non-negative numbers, got {a.tolist()}")
+        return a
+
+    def path(self, key, folder):
+        v = self.obj.get(key)
+        if not isinstance(v, str) or not v:
+            self.fail(key, "expected a file name (string, relative to the scene folder)")
+        return (folder / v).resolve()
+
+
+def _camera(f):
+    model = f.choice("model", CAMERA_MODELS)
+    width, height = f.integer("width"), f.integer("height")
+    pose = f.array("world_from_camera", (4, 4))
+    if not np.allclose(pose[3], [0, 0, 0, 1], atol=1e-9):
+        f.fail("world_from_camera", "last row must be [0, 0, 0, 1]")
+    rot = pose[:3, :3]
+    if not np.allclose(rot.T @ rot, np.eye(3), atol=1e-4) or np.linalg.det(rot) < 0:
+        f.fail("world_from_camera", "rotation part must be orthonormal and right-handed")
+    if model == "orthographic":
+        return Camera(model, width, height, pose, pixel_size=f.number("pixel_size", positive=True))
+    distortion = None
+    if f.has("distortion"):
+        distortion = f.array("distortion", (5,))
+        if not np.any(distortion):
+            distortion = None
+    return Camera(model, width, height, pose, fx=f.number("fx", positive=True),
+                  fy=f.number("fy", positive=True), cx=f.number("cx"), cy=f.number("cy"),
+                  distortion=distortion)
+
+
+def _light(f, folder):
+    kind = f.choice("type", LIGHT_TYPES)
+    if kind == "point":
+        return Light(kind, position=f.array("position", (3,)),
+                     intensity_rgb=f.array("intensity_rgb", (3,), nonnegative=True))
+    if kind == "directional":
+        d = f.array("direction", (3,))
+        norm = np.linalg.norm(d)
+        if norm < 1e-9:
+            f.fail("direction", "must not be the zero vector")
+        return Light(kind, direction=d / norm,
+                     irradiance_rgb=f.array("irradiance_rgb", (3,), nonnegative=True))
+    return Light(kind, file=f.path("file", folder),
+                 world_from_envmap=f.array("world_from_envmap", (3, 3), default=np.eye(3)),
+                 scale=f.number("scale", default=1.0, nonnegative=True))
+
+
+def _photo(f, index, folder, camera):
+    role = f.choice("role", ROLES)
+    if f.has("file") == f.has("brackets"):
+        f.fail("", "needs exactly one of 'file' or 'brackets'")
+    file = brackets = None
+    if f.has("file"):
+        file = f.path("file", folder)
+    else:
+        items = f.get("brackets")
+        if not isinstance(items, list) or not items:
+            f.fail("brackets", "expected a non-empty list of {file, exposure_s}")
+        brackets = []
+        for k, item in enumerate(items):
+            b = _Fields(f.json_path, f.name(f"brackets[{k}]"), item)
+            brackets.append((b.path("file", folder), b.number("exposure_s", positive=True)))
+        brackets = tuple(brackets)
+    light = _light(f.sub("light"), folder) if f.has("light") else None
+    if role == "flash" and (light is None or light.type == "envmap"):
+        f.fail("light", "a flash photo needs a point or directional light")
+    encoding = f.choice("encoding", ENCODINGS) if f.has("encoding") else None
+    cam = _camera(f.sub("camera")) if f.has("camera") else camera
+    saturation = f.number("saturation", positive=True) if f.has("saturation") else None
+    return Photo(index=index, role=role, camera=cam, where=f"{f.json_path}: {f.prefix}",
+                 file=file, brackets=brackets, scale=f.number("scale", 1.0, positive=True),
+                 scale_given=f.has("scale"), light=light, encoding=encoding,
+                 saturation=saturation)
+
+
+def load_scene(scene_dir):
+    """Read `scene_dir/scene.json` into a validated Scene (no images or meshes are read).
+
+    scene_dir: folder path (or the scene.json path itself). Raises InputError on any bad field.
+    """
+    scene_dir = Path(scene_dir)
+    json_path = scene_dir if scene_dir.suffix.lower() == ".json" else scene_dir / "scene.json"
+    folder = json_path.parent.resolve()
+    if not json_path.is_file():
+        raise InputError(json_path, "not found (a scene folder needs a scene.json)")
+    try:
+        doc = json.loads(json_path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        raise InputError(json_path, f"not valid JSON: {err}") from None
+    root = _Fields(str(json_path), "", doc)
+    camera = _camera(root.sub("camera"))
+    g = root.sub("geometry")
+    if g.has("mesh") and (g.has("normal_map") or g.has("mask")):
+        g.fail("", "give either 'mesh' or 'normal_map' + 'mask', not both")
+    if g.has("mesh"):
+        geometry = Geometry(mesh=g.path("mesh", folder))
+    elif g.has("normal_map"):
+        geometry = Geometry(normal_map=g.path("normal_map", folder), mask=g.path("mask", folder))
+    else:
+        g.fail("", "needs 'mesh' or 'normal_map' + 'mask'")
+    items = root.get("photos")
+    if not isinstance(items, list) or not items:
+        root.fail("photos", "expected a non-empty list")
+    photos = [_photo(_Fields(str(json_path), f"photos[{i}]", p), i, folder, camera)
+              for i, p in enumerate(items)]
+    return Scene(folder=folder, camera=camera, geometry=geometry, photos=photos,
+                 json_path=json_path.resolve())

@@ -1,0 +1,55 @@
+"""`flashbrdf extract SCENE_DIR --out SLICE.csv`: the flash slice of a capture folder.
+
+Writes the contract's slice.csv (with provenance comments) and SLICE.json beside it (coverage,
+rejection counts, theta_d spread, timings). Nothing is written when extraction fails.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from brdf.atomic import write_text
+from brdf.errors import InputError
+from brdf.views import write_slice_csv
+
+
+def _options(args):
+    from slice_extract import ExtractOptions
+    max_theta_d = getattr(args, "max_theta_d", None)
+    min_cos = getattr(args, "min_cos", None)
+    if max_theta_d is not None and not 0 < max_theta_d <= 90:
+        raise InputError("--max-theta-d", f"expected degrees in (0, 90], got {max_theta_d}")
+    if min_cos is not None and not 0 <= min_cos < 1:
+        raise InputError("--min-cos", f"expected a value in [0, 1), got {min_cos}")
+    return ExtractOptions(
+        max_theta_d_deg=ExtractOptions.max_theta_d_deg if max_theta_d is None else max_theta_d,
+        min_cos=ExtractOptions.min_cos if min_cos is None else min_cos)
+
+
+def extract(args):
+    from slice_extract import extract_slice
+    options = _options(args)
+    result = extract_slice(args.scene_dir, options)
+    out = Path(args.out)
+    cov = result.coverage
+    comments = [
+        f"flashbrdf extract {Path(args.scene_dir).resolve()}",
+        f"pixels used {cov['pixels_used']}; bins filled {cov['bins_filled']}/90; theta_h observed "
+        f"{cov['theta_h_deg_observed'][0]:.3f}..{cov['theta_h_deg_observed'][1]:.3f} deg",
+        "rejected " + ", ".join(f"{k} {v}" for k, v in result.rejected.items()),
+        f"estimator {options.estimator} (MAD k={options.outlier_k}); max theta_d "
+        f"{options.max_theta_d_deg} deg; min cos {options.min_cos}",
+    ]
+    report = dict(result.report, slice_csv=str(out.resolve()),
+                  spread=[[None if not np.isfinite(v) else float(v) for v in row]
+                          for row in result.spread])
+    json_path = out.with_suffix(".json")
+    text = json.dumps(report, indent=1) + "\n"
+    write_slice_csv(out, result.rho, result.n, comments=comments)
+    try:
+        write_text(json_path, text)
+    except BaseException:
+        out.unlink(missing_ok=True)  # never leave half of the output behind
+        raise
+    return 0

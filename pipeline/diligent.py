@@ -1,0 +1,282 @@
+"""DiLiGenT photometric-stereo folders -> flashbrdf scene folders (the contract's import-diligent).
+
+Frames (pbrt-like, named):
+- DiLiGenT frame: x image right, y image up, z toward the camera (the dataset's own; its
+  light_directions.txt rows are unit vectors in it, from the object toward the light).
+- camera frame: OpenCV, x right, y down, z forward (the contract's), so
+  camera_from_diligent = diag(1, -1, -1), a 180-degree turn about x (det +1, right-handed).
+- world frame: we choose world = DiLiGenT frame, so the light directions are written unchanged
+  and world_from_camera = diag(1, -1, -1, 1).
+
+Photos: each 16-bit PNG k is divided by 65535 and by light_intensities.txt row k (RGB) and written
+as a linear float32 EXR, so the directional light has irradiance_rgb = (1, 1, 1) and the contract's
+pixel model reads pixel = rho * cos(theta_i) directly. Clipped pixels (65535 in any channel) are
+written as NaN: their true value is unknown, and NaN is the contract's "not a measurement".
+"""
+
+import contextlib
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from brdf.errors import InputError
+
+CAMERA_FROM_DILIGENT = np.diag([1.0, -1.0, -1.0])
+WORLD_FROM_CAMERA = np.diag([1.0, -1.0, -1.0, 1.0])  # world = DiLiGenT frame
+PNG16_MAX = 65535
+_NOT_PHOTOS = {"mask.png", "normal_gt.png"}
+
+
+@dataclass
+class DiligentObject:
+    """One DiLiGenT object folder, read and checked (nothing is loaded lazily except the photos).
+
+    photo_paths: list of K Paths, in light order (row k of the light files is photo k).
+    light_directions: (K, 3) unit vectors, DiLiGenT frame, object -> light.
+    light_intensities: (K, 3) RGB, > 0.
+    mask: (H, W) bool, object pixels with a valid normal.
+    normals: (H, W, 3) float64 unit normals, DiLiGenT frame (0 outside the mask).
+    """
+    folder: Path
+    photo_paths: list
+    light_directions: np.ndarray
+    light_intensities: np.ndarray
+    mask: np.ndarray
+    normals: np.ndarray
+
+
+def _require(folder, name):
+    path = folder / name
+    if not path.is_file():
+        raise InputError(path, "missing (a DiLiGenT object folder needs *.png, light_directions.txt, "
+                               "light_intensities.txt, mask.png and Normal_gt.mat)")
+    return path
+
+
+def _read_rows(path, what):
+    """(K, 3) float64 from a whitespace- or comma-separated text file; InputError if malformed."""
+    try:
+        text = path.read_text()
+        rows = np.loadtxt(path, delimiter="," if "," in text else None, ndmin=2)
+    except ValueError as err:
+        raise InputError(path, f"cannot read {what} as rows of 3 numbers ({err})") from None
+    if rows.ndim != 2 or rows.shape[1] != 3 or rows.shape[0] == 0:
+        raise InputError(path, f"expected K rows of 3 numbers ({what}), got shape {rows.shape}")
+    if not np.all(np.isfinite(rows)):
+        raise InputError(path, f"{what} contain non-finite values")
+    return rows
+
+
+def _photo_paths(folder):
+    """Photos in light order: filenames.txt when present (DiLiGenT ships it), else sorted *.png."""
+    listing = folder / "filenames.txt"
+    if listing.is_file():
+        names = [line.strip() for line in listing.read_text().splitlines() if line.strip()]
+        paths = [folder / name for name in names]
+        for path in paths:
+            if not path.is_file():
+                raise InputError(path, "listed in filenames.txt but missing")
+        return paths
+    paths = sorted(p for p in folder.glob("*.png") if p.name.lower() not in _NOT_PHOTOS)
+    if not paths:
+        raise InputError(folder, "no photos (*.png other than mask.png and Normal_gt.png)")
+    return paths
+
+
+def read_png16_rgb(path):
+    """Read a 16-bit PNG as (H, W, 3) uint16 RGB (OpenCV, BGR flipped); InputError if not 16-bit."""
+    import cv2
+    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise InputError(path, "cannot be read as an image")
+    if image.dtype != np.uint16:
+        raise InputError(path, f"expected a 16-bit linear PNG, got {image.dtype} "
+                               "(DiLiGenT photos are 16-bit)")
+    if image.ndim == 2:
+        image = np.repeat(image[..., None], 3, axis=2)
+    elif image.shape[2] == 4:
+        image = image[..., :3]
+    elif image.shape[2] != 3:
+        raise InputError(path, f"expected 1, 3 or 4 channels, got {image.shape[2]}")
+    return np.ascontiguousarray(image[..., ::-1])
+
+
+def _read_mask(path):
+    import cv2
+    mask = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    if mask is None:
+        raise InputError(path, "cannot be read as an image")
+    return mask.reshape(mask.shape[0], mask.shape[1], -1).max(axis=2) > 0
+
+
+def _read_normals(path):
+    import scipy.io
+    try:
+        mat = scipy.io.loadmat(os.fspath(path))
+    except Exception as err:  # scipy raises several types for corrupt .mat files
+        raise InputError(path, f"cannot be read as a MATLAB file ({err})") from None
+    if "Normal_gt" not in mat:
+        raise InputError(path, "has no variable 'Normal_gt'")
+    normals = np.asarray(mat["Normal_gt"], dtype=np.float64)
+    if normals.ndim != 3 or normals.shape[2] != 3:
+        raise InputError(path, f"Normal_gt must be H x W x 3, got shape {normals.shape}")
+    return normals
+
+
+def read_diligent(obj_dir):
+    """Read and check a DiLiGenT object folder -> DiligentObject. InputError on any bad input."""
+    folder = Path(obj_dir)
+    if not folder.is_dir():
+        raise InputError(folder, "not a folder")
+    directions = _read_rows(_require(folder, "light_directions.txt"), "light directions")
+    intensities = _read_rows(_require(folder, "light_intensities.txt"), "light intensities")
+    mask_path, normals_path = _require(folder, "mask.png"), _require(folder, "Normal_gt.mat")
+    photos = _photo_paths(folder)
+    if not (len(photos) == len(directions) == len(intensities)):
+        raise InputError(folder, f"{len(photos)} photos but {len(directions)} light directions and "
+                                 f"{len(intensities)} light intensities (need one row per photo)")
+    norm = np.linalg.norm(directions, axis=1)
+    if np.any(np.abs(norm - 1.0) > 0.05):
+        raise InputError(folder / "light_directions.txt", "rows must be unit vectors")
+    if np.any(intensities <= 0):
+        raise InputError(folder / "light_intensities.txt", "intensities must be > 0")
+    mask = _read_mask(mask_path)
+    normals = _read_normals(normals_path)
+    if normals.shape[:2] != mask.shape:
+        raise InputError(normals_path, f"size {normals.shape[1]}x{normals.shape[0]} differs from "
+                                       f"mask.png's {mask.shape[1]}x{mask.shape[0]}")
+    length = np.linalg.norm(normals, axis=2)
+    mask &= np.isfinite(length) & (length > 0.5)
+    if not mask.any():
+        raise InputError(mask_path, "no object pixel with a valid normal")
+    normals = np.where(mask[..., None], normals / np.where(mask, length, 1.0)[..., None], 0.0)
+    return DiligentObject(folder, photos, directions / norm[:, None], intensities, mask, normals)
+
+
+def normals_to_camera(normals_diligent):
+    """(..., 3) DiLiGenT-frame normals -> (..., 3) contract camera-frame normals (x, -y, -z)."""
+    return np.asarray(normals_diligent) @ CAMERA_FROM_DILIGENT.T
+
+
+def dumps_scene(scene):
+    """scene dict -> JSON text, indented, with every list of numbers on one line."""
+    import json
+    import re
+    text = json.dumps(scene, indent=1)
+    # Innermost lists hold only numbers: collapse each onto one line for a readable file.
+    number_list = re.compile(r"\[\s*(-?[\d.eE+-]+(?:,\s*-?[\d.eE+-]+)*)\s*\]")
+    return number_list.sub(lambda m: "[" + re.sub(r"\s+", " ", m.group(1)) + "]", text) + "\n"
+
+
+def write_exr(path, image):
+    """Write (H, W, 3) float32 linear RGB as a ZIP-compressed EXR at `path` (not atomic itself)."""
+    import OpenImageIO as oiio
+    image = np.ascontiguousarray(image, dtype=np.float32)
+    spec = oiio.ImageSpec(image.shape[1], image.shape[0], 3, "float")
+    spec.attribute("compression", "zip")
+    out = oiio.ImageOutput.create(os.fspath(path))
+    if out is None or not out.open(os.fspath(path), spec):
+        raise OSError(f"{path}: cannot write EXR ({oiio.geterror()})")
+    ok = out.write_image(image)
+    out.close()
+    if not ok:
+        raise OSError(f"{path}: cannot write EXR ({oiio.geterror()})")
+
+
+@contextlib.contextmanager
+def atomic_folder(target, marker="scene.json"):
+    """Yield a temporary folder beside `target`; on success it replaces `target` in one rename.
+
+    A previous output folder (one holding the file `marker`) at `target` is replaced; any other
+    non-empty folder or a file there is refused, so that nothing unrelated is ever deleted.
+    """
+    target = Path(target).absolute()
+    if target.exists():
+        if not target.is_dir():
+            raise InputError(target, "exists and is not a folder")
+        if any(target.iterdir()) and not (target / marker).is_file():
+            raise InputError(target, f"exists, is not empty and has no {marker}; refusing to "
+                                     "overwrite it")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent))
+    try:
+        yield tmp
+        old = None
+        if target.exists():
+            old = target.parent / f".{target.name}.old.{os.getpid()}"
+            os.replace(target, old)
+        os.replace(tmp, target)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+def import_diligent(obj_dir, flash_index, out_dir, progress=None):
+    """Write the contract scene folder for a DiLiGenT object; returns the scene dict.
+
+    flash_index: 1-based index of the photo used as the flash (directional light near the view).
+    progress: optional callable wrapping an iterable (e.g. tqdm) for the photo loop.
+    """
+    import json
+
+    import cv2
+
+    obj = read_diligent(obj_dir)
+    k_photos = len(obj.photo_paths)
+    if not 1 <= int(flash_index) <= k_photos:
+        raise InputError("--flash", f"index {flash_index} outside 1..{k_photos}")
+    height, width = obj.mask.shape
+    loop = progress(range(k_photos)) if progress else range(k_photos)
+    with atomic_folder(out_dir) as tmp:
+        photos = []
+        for k in loop:
+            src = obj.photo_paths[k]
+            raw = read_png16_rgb(src)
+            if raw.shape[:2] != (height, width):
+                raise InputError(src, f"size {raw.shape[1]}x{raw.shape[0]} differs from mask.png's "
+                                      f"{width}x{height}")
+            clipped = np.any(raw >= PNG16_MAX, axis=2)
+            linear = raw.astype(np.float32) / PNG16_MAX / obj.light_intensities[k].astype(np.float32)
+            linear[clipped] = np.nan
+            name = src.stem + ".exr"
+            write_exr(tmp / name, linear)
+            photos.append({
+                "file": name, "role": "flash" if k + 1 == int(flash_index) else "reference",
+                "scale": 1.0,
+                "light": {"type": "directional",
+                          "direction": [float(x) for x in obj.light_directions[k]],
+                          "irradiance_rgb": [1.0, 1.0, 1.0]},
+                "source": {"file": src.name, "index": k + 1,
+                           "divided_by_65535_and_intensity_rgb":
+                               [float(x) for x in obj.light_intensities[k]],
+                           "clipped_pixels_set_to_nan": int(clipped.sum())},
+            })
+        # The flash photo first: readers that take "the first flash" find it at once.
+        photos.sort(key=lambda p: p["role"] != "flash")
+        np.save(tmp / "normals.npy", normals_to_camera(obj.normals).astype(np.float32))
+        cv2.imwrite(os.fspath(tmp / "mask.png"), obj.mask.astype(np.uint8) * 255)
+        scene = {
+            "camera": {"model": "orthographic", "width": int(width), "height": int(height),
+                       "pixel_size": 1.0, "world_from_camera": WORLD_FROM_CAMERA.tolist()},
+            "geometry": {"normal_map": "normals.npy", "mask": "mask.png"},
+            "photos": photos,
+            "provenance": {
+                "importer": "flashbrdf import-diligent",
+                "source_folder": os.fspath(obj.folder.absolute()),
+                "flash_index": int(flash_index),
+                "world_frame": "DiLiGenT frame (x image right, y image up, z toward the camera); "
+                               "world_from_camera = diag(1,-1,-1,1)",
+                "photos": "16-bit PNG / 65535 / light_intensities.txt row (RGB), float32 EXR; "
+                          "clipped pixels (65535) are NaN",
+                "cite": "B. Shi et al., A Benchmark Dataset and Evaluation for Non-Lambertian and "
+                        "Uncalibrated Photometric Stereo, CVPR 2016 (research use only)",
+            },
+        }
+        (tmp / "scene.json").write_text(dumps_scene(scene), encoding="utf-8")
+    return scene

@@ -1,0 +1,301 @@
+"""OUT_DIR/report.md and OUT_DIR/report.json for `flashbrdf run` (and the benchmarks).
+
+Built from plain inputs, so any caller can use it:
+- stages: {name: seconds}, in run order.
+- observed: {"rho": (90,3) 1/sr NaN where empty, "n": (90,) int, "spread": (90,3) 1/sr or None}.
+- predictions: {method: {"table": (90,90,3) or (90,90,180,3) 1/sr, "variance": (90,90[,3]) or None,
+  "variance_label": str, "file": path}} (a bare table is accepted as the value too).
+- references: [{"photo", "method", "delta_e_log_mean", "rel_rmse", optional "delta_e_log_median",
+  "pixels", "render", "reference", "delta_e_map", "mask" (arrays or image paths), and any extra
+  JSON scalars such as "light_angle_deg"}]. A "compare" dict (compare.json) may carry the numbers.
+
+report.json follows the contract, {"stages": {name: seconds}, "references": [{"photo", "method",
+"delta_e_log_mean", "rel_rmse"}, ...]}, plus summary, slice, predictions, coverage, warnings and
+figures. Every file is written atomically; NaN is written as null.
+"""
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from brdf.atomic import write_text
+from pipeline import report_figures as figs
+
+HOW_TO_READ = """\
+**How to read the numbers.**
+- **ΔE log** (the paper's Table 2 metric, `delta_e_log_mean`): per pixel, take ln(1 + value) of the
+  render and of the reference photo, convert both to CIELAB (as linear sRGB, D65, Y = 1) and measure
+  the CIE76 colour distance ΔE*ab; then average over the object's pixels. The log makes highlights
+  and shadows count alike. Roughly: below 1 the two are indistinguishable, 1-3 is a close match
+  (the paper's DS-GPLVM averages 1.2-1.5 on MERL spheres under environment maps, the simpler
+  baselines 2-4), 3-10 is a visible brightness or colour difference, above 10 it looks like a
+  different material. Because of the log, values for dim images (pixel values << 1) are small:
+  compare methods on the same scene, not across scenes.
+- **rel_rmse**: the root-mean-square pixel difference divided by the RMS of the reference (0 is
+  perfect, 1 means the error is as large as the signal). It is dominated by the brightest pixels,
+  i.e. by the highlights.
+- **Observed vs predicted.** A flash photo measures only the θd = 0 slice ρ(θh) of the BRDF. Every
+  value at θd > 0, and every θh bin with no observed pixels, is predicted by the method from what
+  it learned on MERL materials, not measured.
+"""
+
+
+def _clean(value):
+    """JSON-safe copy: numpy -> Python, NaN/inf -> None, paths -> str."""
+    if isinstance(value, dict):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _clean(value.tolist())
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    return value
+
+
+def _fmt(x, digits=2):
+    return "–" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
+
+
+def read_image(source):
+    """An array passes through; a path is read: EXR/HDR/PFM via OpenImageIO, else OpenCV (RGB)."""
+    if source is None or isinstance(source, np.ndarray):
+        return source
+    path = Path(source)
+    if path.suffix.lower() in (".exr", ".hdr", ".pfm"):
+        import OpenImageIO as oiio
+        inp = oiio.ImageInput.open(os.fspath(path))
+        if inp is None:
+            return None
+        image = inp.read_image("float")
+        inp.close()
+        return image[..., :3] if image.ndim == 3 else image
+    import cv2
+    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        return None
+    return image[..., 2::-1] if image.ndim == 3 else image
+
+
+def image_errors(render, reference, mask=None):
+    """(delta_e_map (H,W) NaN outside, delta_e_log_mean, delta_e_log_median, rel_rmse, pixels).
+
+    Over `mask` (nonzero = object) when given, else over pixels where both images are finite and
+    nonzero (the contract's compare rule). rel_rmse = ||render - ref|| / ||ref|| over those pixels.
+    """
+    from brdf.metrics import delta_e_log
+    render, reference = np.asarray(render, float), np.asarray(reference, float)
+    finite = np.all(np.isfinite(render), -1) & np.all(np.isfinite(reference), -1)
+    if mask is not None:
+        valid = finite & (np.asarray(mask).reshape(finite.shape[0], finite.shape[1], -1).max(-1) > 0)
+    else:
+        valid = finite & (np.any(render != 0, -1) | np.any(reference != 0, -1))
+    de = np.full(valid.shape, np.nan)
+    de[valid] = delta_e_log(render[valid], reference[valid])
+    if not valid.any():
+        return de, float("nan"), float("nan"), float("nan"), 0
+    diff = render[valid] - reference[valid]
+    rel = float(np.sqrt(np.mean(diff ** 2) / max(np.mean(reference[valid] ** 2), 1e-300)))
+    return de, float(np.mean(de[valid])), float(np.median(de[valid])), rel, int(valid.sum())
+
+
+def coverage(theta_h_deg, observed):
+    """(coverage dict, warnings list) from the observed slice: which theta_h the flash photo saw."""
+    n = np.asarray(observed["n"])
+    seen = (n > 0) & np.all(np.isfinite(observed["rho"]), axis=1)
+    if not seen.any():
+        return {"bins_observed": 0, "samples": 0}, [
+            "no θh bin was observed: the whole prediction comes from the prior"]
+    edges = 90.0 * (np.arange(91) / 90.0) ** 2  # theta_h bin edges in degrees (square-root spacing)
+    first, last = int(np.argmax(seen)), int(len(seen) - 1 - np.argmax(seen[::-1]))
+    info = {"bins_observed": int(seen.sum()), "samples": int(n[seen].sum()),
+            "theta_h_observed_deg": [float(edges[first]), float(edges[last + 1])]}
+    warnings = []
+    if last < 89:
+        warnings.append(f"θh above {edges[last + 1]:.0f}° not observed: the prediction there comes "
+                        "from the prior")
+    if first > 0:
+        warnings.append(f"θh below {edges[first]:.1f}° not observed (the specular peak): the peak "
+                        "height comes from the prior")
+    gaps = int((~seen[first:last + 1]).sum())
+    if gaps:
+        warnings.append(f"{gaps} θh bins inside the observed range are empty: interpolated by the "
+                        "method")
+    thin = int((seen & (n < 5)).sum())
+    if thin:
+        warnings.append(f"{thin} observed θh bins rest on fewer than 5 pixels: noisy")
+    return info, warnings
+
+
+def _table_2d(table):
+    table = np.asarray(table, dtype=float)
+    if table.ndim == 4:
+        from brdf.views import table_2d
+        return table_2d(table)
+    return table
+
+
+def _reference_rows(references, fig_dir, max_figures):
+    """Numbers per (photo, method), and one figure per photo (up to max_figures)."""
+    rows, by_photo = [], {}
+    for ref in references:
+        row = {k: v for k, v in ref.items()
+               if k not in ("render", "reference", "delta_e_map", "mask", "compare")}
+        row.update({k: ref["compare"][k] for k in ("delta_e_log_mean", "delta_e_log_median",
+                                                   "rel_rmse", "pixels")
+                    if k in ref.get("compare", {}) and k not in ref})
+        render, reference = read_image(ref.get("render")), read_image(ref.get("reference"))
+        de_map = ref.get("delta_e_map")
+        de_map = read_image(de_map) if isinstance(de_map, (str, os.PathLike)) else de_map
+        if render is not None and reference is not None and (
+                "delta_e_log_mean" not in row or de_map is None):
+            mask = read_image(ref.get("mask"))
+            de, mean, median, rel, pixels = image_errors(render, reference, mask)
+            de_map = de if de_map is None else de_map
+            for key, value in (("delta_e_log_mean", mean), ("delta_e_log_median", median),
+                               ("rel_rmse", rel), ("pixels", pixels)):
+                row.setdefault(key, value)
+        row.setdefault("delta_e_log_mean", float("nan"))
+        row.setdefault("rel_rmse", float("nan"))
+        rows.append(row)
+        entry = by_photo.setdefault(row["photo"], {"reference": None, "renders": {}, "maps": {},
+                                                   "means": {}})
+        entry["reference"] = reference if reference is not None else entry["reference"]
+        entry["renders"][row["method"]] = render
+        entry["maps"][row["method"]] = de_map
+        entry["means"][row["method"]] = row["delta_e_log_mean"]
+    figures = {}
+    for photo, entry in list(by_photo.items())[:max_figures]:
+        if entry["reference"] is None and all(r is None for r in entry["renders"].values()):
+            continue
+        name = f"ref_{Path(str(photo)).stem}.png"
+        figs.reference_figure(fig_dir / name, photo, entry["reference"], entry["renders"],
+                              entry["maps"], entry["means"])
+        figures[photo] = f"figures/{name}"
+    return rows, figures, len(by_photo)
+
+
+def _summary(rows):
+    from brdf.metrics import summarise
+    out = {}
+    for method in dict.fromkeys(r["method"] for r in rows):
+        mine = [r for r in rows if r["method"] == method]
+        out[method] = {key: summarise([r[key] for r in mine])
+                       for key in ("delta_e_log_mean", "rel_rmse")}
+        out[method]["references"] = len(mine)
+    return out
+
+
+def write_report(out_dir, *, stages, references=(), observed=None, predictions=None, warnings=(),
+                 title="flashbrdf report", notes=(), max_reference_figures=24, x_key=None,
+                 x_label=None):
+    """Write OUT_DIR/report.md, OUT_DIR/report.json and OUT_DIR/figures/*.png; return the JSON dict."""
+    from brdf.merl import theta_h_centres
+    out_dir = Path(out_dir)
+    fig_dir = out_dir / "figures"
+    fig_dir.mkdir(parents=True, exist_ok=True)
+    theta_h_deg = np.degrees(theta_h_centres())
+    predictions = {m: (p if isinstance(p, dict) else {"table": p})
+                   for m, p in (predictions or {}).items()}
+    tables = {m: _table_2d(p["table"]) for m, p in predictions.items()}
+    figures, warnings = {}, list(warnings)
+    cover = None
+    if observed is not None:
+        observed = {k: (None if v is None else np.asarray(v, float)) for k, v in observed.items()}
+        cover, auto = coverage(theta_h_deg, observed)
+        warnings = auto + [w for w in warnings if w not in auto]
+    if observed is not None or tables:
+        figs.slice_plot(fig_dir / "slice.png", theta_h_deg, observed,
+                        {m: t[:, 0, :] for m, t in tables.items()})
+        figures["slice"] = "figures/slice.png"
+    for method, p in predictions.items():
+        figs.brdf_images(fig_dir / f"brdf_{method}.png", method, tables[method], p.get("variance"),
+                         p.get("variance_label", "uncertainty"))
+        figures[f"brdf_{method}"] = f"figures/brdf_{method}.png"
+    rows, ref_figures, n_photos = _reference_rows(references, fig_dir, max_reference_figures)
+    if rows:
+        x_key = x_key if x_key and all(x_key in r for r in rows) else None
+        figs.error_plot(fig_dir / "errors.png", rows, x_key, x_label or x_key or "reference photo")
+        figures["errors"] = "figures/errors.png"
+    report = _clean({
+        "title": title,
+        "stages": {k: float(v) for k, v in stages.items()},
+        "references": rows,
+        "summary": _summary(rows),
+        "slice": None if observed is None else {
+            "theta_h_deg": theta_h_deg, "rho": observed["rho"], "n": observed["n"],
+            "spread": observed.get("spread")},
+        "predictions": {m: {"theta_d0": tables[m][:, 0, :], "file": p.get("file"),
+                            "variance_mean": (float(np.nanmean(p["variance"]))
+                                              if p.get("variance") is not None else None)}
+                        for m, p in predictions.items()},
+        "coverage": cover, "warnings": warnings, "notes": list(notes),
+        "figures": {**figures, "references": ref_figures},
+        "total_seconds": float(sum(stages.values())),
+    })
+    import json
+    write_text(out_dir / "report.json", json.dumps(report, indent=1) + "\n")
+    write_text(out_dir / "report.md", _markdown(report, n_photos))
+    return report
+
+
+def _markdown(report, n_photos):
+    lines = [f"# {report['title']}", ""]
+    summary = report["summary"]
+    if summary:
+        lines += ["## Summary", "", "| method | references | ΔE log mean (mean / median over "
+                  "references) | rel_rmse (mean / median) |", "|---|---|---|---|"]
+        for method, s in summary.items():
+            lines.append(f"| {method} | {s['references']} | {_fmt(s['delta_e_log_mean']['mean'])} / "
+                         f"{_fmt(s['delta_e_log_mean']['median'])} | {_fmt(s['rel_rmse']['mean'], 3)}"
+                         f" / {_fmt(s['rel_rmse']['median'], 3)} |")
+        lines.append("")
+    lines += [HOW_TO_READ]
+    for note in report["notes"]:
+        lines += [note, ""]
+    if report["warnings"]:
+        lines += ["## Coverage warnings", ""] + [f"- {w}" for w in report["warnings"]] + [""]
+    figures = report["figures"]
+    if "slice" in figures:
+        cover = report["coverage"]
+        lines += ["## The observed slice and the predictions at θd = 0", ""]
+        if cover and cover.get("bins_observed"):
+            lo, hi = cover["theta_h_observed_deg"]
+            lines += [f"The flash photo filled {cover['bins_observed']} of 90 θh bins "
+                      f"({cover['samples']} pixels), covering θh {lo:.1f}°–{hi:.1f}°. Dots are the "
+                      "observed bins (bars: spread), lines each method's prediction.", ""]
+        lines += [f"![slice]({figures['slice']})", ""]
+    brdf_figs = [k for k in figures if k.startswith("brdf_")]
+    if brdf_figs:
+        lines += ["## Predicted BRDFs (θh × θd, per channel)", "",
+                  "log10 ρ with θd across and θh down (square-root bin scale); only the θd = 0 "
+                  "column was measured. Where the method has one, its uncertainty is beside it.", ""]
+        lines += [f"![{k}]({figures[k]})" for k in brdf_figs] + [""]
+    if report["references"]:
+        lines += ["## Renders against reference photos", "", f"![errors]({figures['errors']})", "",
+                  "| photo | method | ΔE log mean | ΔE log median | rel_rmse | pixels |",
+                  "|---|---|---|---|---|---|"]
+        for r in report["references"]:
+            lines.append(f"| {r['photo']} | {r['method']} | {_fmt(r.get('delta_e_log_mean'))} | "
+                         f"{_fmt(r.get('delta_e_log_median'))} | {_fmt(r.get('rel_rmse'), 3)} | "
+                         f"{r.get('pixels', '–')} |")
+        lines.append("")
+        shown = figures["references"]
+        if shown:
+            lines += ["Each row: the reference photo, then per method its render (same exposure) "
+                      "and the per-pixel ΔE log map.", ""]
+            lines += [f"![{photo}]({path})" for photo, path in shown.items()] + [""]
+        if len(shown) < n_photos:
+            lines += [f"({n_photos - len(shown)} more references are in report.json only.)", ""]
+    lines += ["## Stage timings", "", "| stage | seconds |", "|---|---|"]
+    lines += [f"| {k} | {v:.2f} |" for k, v in report["stages"].items()]
+    lines += [f"| **total** | **{report['total_seconds']:.2f}** |", ""]
+    return "\n".join(lines)

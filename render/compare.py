@@ -1,0 +1,87 @@
+"""Image comparison: per-pixel log-CIELAB Delta E*ab (Table 2's metric) and relative RMSE.
+
+Measured over a mask, or, without one, over the pixels where both images are finite and nonzero
+(contract, `compare`):
+    delta_e_log = Delta E*ab(Lab(ln(1 + pred)), Lab(ln(1 + ref)))   per pixel (brdf.metrics)
+    rel_rmse    = sqrt(sum (pred - ref)^2 / sum ref^2)              over the pixels and channels
+"""
+
+import json
+import os
+
+import numpy as np
+
+from brdf.atomic import atomic_path, write_text
+from brdf.metrics import delta_e_log
+
+COMPARE_JSON = "compare.json"
+DELTA_E_PNG = "delta_e.png"
+
+
+def comparison_mask(pred, ref, mask=None):
+    """(H, W) bool of the pixels compared: mask (if given) and both finite; without a mask,
+    also both nonzero (any channel)."""
+    finite = np.all(np.isfinite(pred), axis=-1) & np.all(np.isfinite(ref), axis=-1)
+    if mask is not None:
+        return np.asarray(mask, dtype=bool) & finite
+    return finite & np.any(pred != 0, axis=-1) & np.any(ref != 0, axis=-1)
+
+
+def compare_images(pred, ref, mask=None):
+    """Compare two (H, W, 3) linear images.
+
+    Returns (metrics, delta_e): metrics = {"delta_e_log_mean", "delta_e_log_median",
+    "rel_rmse", "pixels"} (None for the means when no pixel qualifies) and delta_e (H, W)
+    with NaN outside the compared pixels.
+    """
+    pred = np.asarray(pred, dtype=np.float64)
+    ref = np.asarray(ref, dtype=np.float64)
+    if pred.shape != ref.shape:
+        raise ValueError(f"image shapes differ: {pred.shape} vs {ref.shape}")
+    used = comparison_mask(pred, ref, mask)
+    delta_e = np.full(used.shape, np.nan)
+    count = int(used.sum())
+    if count == 0:
+        return ({"delta_e_log_mean": None, "delta_e_log_median": None, "rel_rmse": None,
+                 "pixels": 0}, delta_e)
+    p, r = pred[used], ref[used]
+    delta_e[used] = delta_e_log(p, r)
+    ref_energy = float(np.sum(r * r))
+    rel_rmse = float(np.sqrt(np.sum((p - r) ** 2) / ref_energy)) if ref_energy > 0 else None
+    return ({"delta_e_log_mean": float(np.mean(delta_e[used])),
+             "delta_e_log_median": float(np.median(delta_e[used])),
+             "rel_rmse": rel_rmse,
+             "pixels": count}, delta_e)
+
+
+def write_delta_e_png(path, delta_e, title="log-CIELAB $\\Delta E^*_{ab}$", vmax=None):
+    """False-colour Delta E map with a colour bar; NaN (not compared) pixels are grey."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    finite = delta_e[np.isfinite(delta_e)]
+    if vmax is None:
+        vmax = float(np.percentile(finite, 99)) if finite.size else 1.0
+    vmax = max(vmax, 1e-6)
+    h, w = delta_e.shape
+    fig, ax = plt.subplots(figsize=(5.5, 5.5 * h / max(w, 1) * 0.9 + 0.6), dpi=100)
+    cmap = matplotlib.colormaps["inferno"].with_extremes(bad=(0.5, 0.5, 0.5))
+    im = ax.imshow(np.ma.masked_invalid(delta_e), cmap=cmap, vmin=0.0, vmax=vmax,
+                   interpolation="nearest")
+    ax.set_axis_off()
+    ax.set_title(title)
+    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="$\\Delta E^*_{ab}$")
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, format="png", bbox_inches="tight")
+    plt.close(fig)
+
+
+def write_comparison(out_dir, pred, ref, mask=None, json_name=COMPARE_JSON,
+                     png_name=DELTA_E_PNG):
+    """Compare and write OUT_DIR/compare.json (+ the Delta E PNG). Returns the metrics dict."""
+    metrics, delta_e = compare_images(pred, ref, mask)
+    os.makedirs(out_dir, exist_ok=True)
+    if png_name:
+        write_delta_e_png(os.path.join(out_dir, png_name), delta_e)
+    write_text(os.path.join(out_dir, json_name), json.dumps(metrics, indent=2) + "\n")
+    return metrics

@@ -1,0 +1,217 @@
+"""Lat-long environment maps: radiance lookup and luminance importance sampling.
+
+Convention (contract, INTERFACES.md "Envmaps"): a W x H map (W = 2H); pixel (row i, column j)
+holds the radiance arriving from the envmap-frame direction
+    d = (sin phi sin theta, cos theta, -cos phi sin theta),
+    theta = pi (i + 0.5) / H,  phi = 2 pi (j + 0.5) / W - pi,
+i.e. u = 0.5 + atan2(d.x, -d.z) / 2pi, v = arccos(d.y) / pi. A world direction w reads the map at
+d = world_from_envmap^T w, times `scale`; bilinear between pixel centres, wrapping in u.
+
+The sampler is a 2D piecewise-constant distribution over pixels (rows by their marginal, then
+columns within the row), weighted by luminance times the pixel's exact solid angle (the sin theta
+weighting, integrated over the pixel's row); within a pixel the direction is uniform in solid
+angle, so the solid-angle pdf is constant over a pixel: pdf = P(pixel) / Omega(pixel).
+
+With `compensate` (default) the luminance is replaced by max(0, luminance - mean luminance), MIS
+compensation (Karlik et al. 2019): the BRDF strategy already covers the map's constant part, so
+the envmap strategy only spends samples on what is brighter than average. A map with nothing above
+its mean (a constant map) then has no envmap strategy at all (`can_sample` is False) and the
+integrator uses BRDF sampling alone, which is unbiased because the BRDF samplers cover the whole
+hemisphere where rho cos > 0.
+"""
+
+import os
+
+import numpy as np
+
+from brdf.errors import InputError
+
+# Rec. 709 / linear sRGB luminance weights.
+LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722])
+
+
+def read_envmap_pixels(path):
+    """Read a lat-long map -> (H, W, 3) float32 linear RGB. InputError if unreadable or not 2:1."""
+    import OpenImageIO as oiio
+    path = os.fspath(path)
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise InputError(path, f"cannot read environment map ({oiio.geterror().strip()})")
+    try:
+        spec = inp.spec()
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+    finally:
+        inp.close()
+    if pixels is None:
+        raise InputError(path, "cannot decode environment map")
+    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    if spec.width != 2 * spec.height:
+        raise InputError(path, f"environment map must be lat-long with width = 2 x height, "
+                               f"got {spec.width}x{spec.height}")
+    if spec.nchannels == 1:
+        pixels = np.repeat(pixels, 3, axis=2)
+    elif spec.nchannels >= 3:
+        pixels = pixels[..., :3]
+    else:
+        raise InputError(path, f"environment map has {spec.nchannels} channels, need 1 or >= 3")
+    if not np.all(np.isfinite(pixels)):
+        raise InputError(path, "environment map holds non-finite values")
+    return np.maximum(pixels, 0.0)
+
+
+def envmap_direction(i, j, height, width):
+    """Envmap-frame unit direction (..., 3) for (fractional) row i, column j (pixel centres at .5
+    offsets are i, j integers + 0.5 here: pass i + 0.5 for a centre)."""
+    theta = np.pi * np.asarray(i, dtype=np.float64) / height
+    phi = 2.0 * np.pi * np.asarray(j, dtype=np.float64) / width - np.pi
+    st = np.sin(theta)
+    return np.stack([np.sin(phi) * st, np.cos(theta), -np.cos(phi) * st], axis=-1)
+
+
+def envmap_uv(d):
+    """(u, v) in [0,1] for envmap-frame directions d (..., 3) (contract formula)."""
+    u = 0.5 + np.arctan2(d[..., 0], -d[..., 2]) / (2.0 * np.pi)
+    v = np.arccos(np.minimum(np.maximum(d[..., 1], -1.0), 1.0)) / np.pi
+    return u, v
+
+
+def _bilinear_patch_max(lum):
+    """(H, W) max of the bilinear radiance over each pixel's footprint.
+
+    Bilinear interpolation between pixel centres spreads a hot pixel into its neighbours'
+    footprints; weighting the sampler by the footprint's maximum (attained at its centre, edge
+    midpoints or corners) keeps L / pdf bounded there and so avoids fireflies next to a sun.
+    """
+    padded = np.pad(lum, ((1, 1), (0, 0)), mode="edge")                      # clamp in v
+    padded = np.concatenate([padded[:, -1:], padded, padded[:, :1]], axis=1)  # wrap in u
+    h, w = lum.shape
+
+    def shifted(di, dj):
+        return padded[1 + di:1 + di + h, 1 + dj:1 + dj + w]
+
+    best = lum.copy()
+    for di, dj in ((-1, 0), (1, 0), (0, -1), (0, 1)):                 # edge midpoints
+        best = np.maximum(best, 0.5 * (lum + shifted(di, dj)))
+    for di, dj in ((-1, -1), (-1, 1), (1, -1), (1, 1)):               # corners
+        best = np.maximum(best, 0.25 * (lum + shifted(di, 0) + shifted(0, dj) + shifted(di, dj)))
+    return best
+
+
+class EnvMap:
+    """A lat-long environment light with a luminance importance sampler.
+
+    pixels: (H, W, 3) radiance (W/sr/m^2 or photo units), H x 2H.
+    world_from_envmap: (3, 3) rotation; scale: float multiplier.
+    """
+
+    def __init__(self, pixels, world_from_envmap=None, scale=1.0, compensate=True):
+        pixels = np.asarray(pixels, dtype=np.float64)
+        if pixels.ndim != 3 or pixels.shape[2] != 3 or pixels.shape[1] != 2 * pixels.shape[0]:
+            raise ValueError(f"envmap pixels must be (H, 2H, 3), got {pixels.shape}")
+        self.pixels = np.maximum(pixels, 0.0) * float(scale)
+        self.height, self.width = pixels.shape[:2]
+        rot = np.eye(3) if world_from_envmap is None else np.asarray(world_from_envmap, float)
+        self.world_from_envmap = rot
+        self.compensate = bool(compensate)
+        self._identity = bool(np.array_equal(rot, np.eye(3)))
+        if self.height < 2:
+            raise ValueError("envmap needs at least 2 rows")
+        # Flat (H * (W + 2), 3) copy with one wrapped column on each side for bilinear lookups.
+        wrapped = np.concatenate([self.pixels[:, -1:], self.pixels, self.pixels[:, :1]], axis=1)
+        self._padded = np.ascontiguousarray(wrapped.reshape(-1, 3))
+        self._build_sampler()
+
+    @classmethod
+    def from_file(cls, path, world_from_envmap=None, scale=1.0, compensate=True):
+        return cls(read_envmap_pixels(path), world_from_envmap, scale, compensate)
+
+    # -- radiance ---------------------------------------------------------------------------
+    def radiance(self, world_dirs):
+        """L(w) (..., 3) for unit world directions (..., 3): bilinear between pixel centres."""
+        d = self._to_envmap(world_dirs)
+        u, v = envmap_uv(d)
+        h, w = self.height, self.width
+        x = u * w + 0.5                      # column coordinate in the wrap-padded map
+        y = np.minimum(np.maximum(v * h - 0.5, 0.0), h - 1.0)  # clamp at the poles
+        x0 = np.minimum(np.maximum(np.floor(x), 0.0), w)
+        y0 = np.minimum(np.floor(y), h - 2.0)
+        fx = (x - x0)[..., None]
+        fy = (y - y0)[..., None]
+        flat = y0.astype(np.intp) * (w + 2) + x0.astype(np.intp)
+        p = self._padded
+        top = np.take(p, flat, axis=0)
+        top += (np.take(p, flat + 1, axis=0) - top) * fx
+        bottom = np.take(p, flat + (w + 2), axis=0)
+        bottom += (np.take(p, flat + (w + 3), axis=0) - bottom) * fx
+        return top + (bottom - top) * fy
+
+    def _to_envmap(self, world_dirs):
+        d = np.asarray(world_dirs, dtype=np.float64)
+        return d if self._identity else d @ self.world_from_envmap  # = R^T w
+
+    # -- importance sampling ----------------------------------------------------------------
+    def _build_sampler(self):
+        h, w = self.height, self.width
+        edges = np.cos(np.pi * np.arange(h + 1) / h)          # cos theta at row edges
+        self._row_solid_angle = (edges[:-1] - edges[1:]) * (2.0 * np.pi / w)  # per pixel, (H,)
+        self._cos_edges = edges
+        lum = _bilinear_patch_max(self.pixels @ LUMINANCE_RGB)
+        if self.compensate:
+            mean = (lum * self._row_solid_angle[:, None]).sum() / (4.0 * np.pi)
+            # Relative slack so a constant map does not sample its rounding noise.
+            lum = np.maximum(lum - mean * (1.0 + 1e-6), 0.0)
+        weight = lum * self._row_solid_angle[:, None]
+        total = weight.sum()
+        self.can_sample = bool(total > 0)
+        if not total > 0:
+            # An all-black map: sample uniformly so the pdf stays a valid density.
+            weight = np.broadcast_to(self._row_solid_angle[:, None], (h, w)).copy()
+            total = weight.sum()
+        self._pixel_prob = weight / total                      # (H, W), sums to 1
+        row_prob = self._pixel_prob.sum(axis=1)
+        self._row_cdf = np.concatenate([[0.0], np.cumsum(row_prob)])
+        self._row_cdf /= self._row_cdf[-1]
+        col = np.cumsum(self._pixel_prob, axis=1)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            col = col / col[:, -1:]
+        col[~np.isfinite(col)] = (np.arange(1, w + 1) / w)[None].repeat(h, 0)[~np.isfinite(col)]
+        self._col_cdf = np.concatenate([np.zeros((h, 1)), col], axis=1)  # (H, W+1)
+        self._col_cdf_flat = self._col_cdf.ravel()
+        self._col_edges_flat = (np.arange(h)[:, None] + self._col_cdf[:, 1:]).ravel()
+        self._pdf_table = (self._pixel_prob / self._row_solid_angle[:, None]).ravel()  # 1/sr
+
+    def sample(self, u):
+        """Directions by luminance. u: (..., 2) uniforms in [0,1).
+
+        Returns world directions (..., 3) and their solid-angle pdf (...). The fractional parts
+        of u inside the chosen row/column are reused, so stratified u stay stratified.
+        """
+        u = np.asarray(u, dtype=np.float64)
+        top = np.nextafter(1.0, 0)
+        u1 = np.minimum(np.maximum(u[..., 0], 0.0), top)
+        u2 = np.minimum(np.maximum(u[..., 1], 0.0), top)
+        row = np.minimum(np.searchsorted(self._row_cdf, u1, side="right") - 1, self.height - 1)
+        row = np.maximum(row, 0)
+        lo, hi = self._row_cdf[row], self._row_cdf[row + 1]
+        fy = np.minimum(np.maximum((u1 - lo) / np.maximum(hi - lo, 1e-300), 0.0), 1.0)
+        # Column within the row: one searchsorted over all rows, row r's CDF shifted by r.
+        idx = np.searchsorted(self._col_edges_flat, row + u2, side="right")
+        col = np.maximum(np.minimum(idx - row * self.width, self.width - 1), 0)
+        flat = row * (self.width + 1) + col
+        clo = np.take(self._col_cdf_flat, flat)
+        chi = np.take(self._col_cdf_flat, flat + 1)
+        fx = np.minimum(np.maximum((u2 - clo) / np.maximum(chi - clo, 1e-300), 0.0), 1.0)
+        # Uniform in solid angle within the pixel: cos theta linear, phi linear.
+        cos_t = self._cos_edges[row] + fy * (self._cos_edges[row + 1] - self._cos_edges[row])
+        sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t ** 2))
+        phi = 2.0 * np.pi * (col + fx) / self.width - np.pi
+        d = np.stack([np.sin(phi) * sin_t, cos_t, -np.cos(phi) * sin_t], axis=-1)
+        pdf = np.take(self._pdf_table, row * self.width + col)
+        return (d if self._identity else d @ self.world_from_envmap.T), pdf
+
+    def pdf(self, world_dirs):
+        """Solid-angle pdf (...) of `sample` for unit world directions (..., 3)."""
+        u, v = envmap_uv(self._to_envmap(world_dirs))
+        col = np.minimum(np.maximum(u * self.width, 0.0), self.width - 1.0).astype(np.intp)
+        row = np.minimum(np.maximum(v * self.height, 0.0), self.height - 1.0).astype(np.intp)
+        return np.take(self._pdf_table, row * self.width + col)

@@ -1,0 +1,121 @@
+"""Image files: HDR EXR in/out (OpenImageIO, float32) and tone-mapped PNG previews.
+
+Every writer is atomic (brdf.atomic.atomic_path): no partial file is ever left behind.
+"""
+
+import os
+
+import numpy as np
+
+from brdf.atomic import atomic_path
+from brdf.errors import InputError
+
+
+def write_exr(path, rgb):
+    """Write (H, W, 3) linear RGB as a float32 OpenEXR file."""
+    import OpenImageIO as oiio
+    rgb = np.ascontiguousarray(np.asarray(rgb, dtype=np.float32))
+    if rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise ValueError(f"write_exr needs (H, W, 3), got {rgb.shape}")
+    with atomic_path(path) as tmp:
+        spec = oiio.ImageSpec(rgb.shape[1], rgb.shape[0], 3, oiio.FLOAT)
+        out = oiio.ImageOutput.create(tmp)
+        if out is None or not out.open(tmp, spec):
+            raise OSError(f"{path}: cannot write EXR ({oiio.geterror().strip()})")
+        try:
+            if not out.write_image(rgb):
+                raise OSError(f"{path}: cannot write EXR ({out.geterror().strip()})")
+        finally:
+            out.close()
+
+
+def read_image(path):
+    """Read a linear HDR image (.exr, .hdr, .pfm, ...) -> (H, W, 3) float32.
+
+    Single-channel images are repeated to RGB; alpha and extra channels are dropped.
+    InputError when the file is missing or unreadable.
+    """
+    import OpenImageIO as oiio
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise InputError(path, "no such image file")
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise InputError(path, f"cannot read image ({oiio.geterror().strip()})")
+    try:
+        spec = inp.spec()
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+    finally:
+        inp.close()
+    if pixels is None:
+        raise InputError(path, "cannot decode image")
+    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    if spec.nchannels in (1, 2):
+        return np.repeat(pixels[..., :1], 3, axis=2)
+    return np.ascontiguousarray(pixels[..., :3])
+
+
+def tonemap(rgb, exposure=None):
+    """(H, W, 3) linear -> (H, W, 3) uint8 sRGB preview.
+
+    `exposure` multiplies the image first; by default the 99th percentile of the finite,
+    positive luminances maps to 1 (so one hot pixel does not blacken the preview). Then
+    Reinhard-style x / (1 + x/4) soft clip and the sRGB transfer curve.
+    """
+    rgb = np.nan_to_num(np.asarray(rgb, dtype=np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    rgb = np.maximum(rgb, 0.0)
+    if exposure is None:
+        lum = rgb @ np.array([0.2126, 0.7152, 0.0722])
+        positive = lum[lum > 0]
+        exposure = 1.0 / np.percentile(positive, 99) if positive.size else 1.0
+    x = rgb * exposure
+    x = x / (1.0 + x / 4.0) * 1.25          # maps 1 -> 1, compresses highlights smoothly
+    x = np.clip(x, 0.0, 1.0)
+    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    return (np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8)
+
+
+def write_png(path, rgb8):
+    """Write (H, W, 3) or (H, W, 4) uint8 as PNG, atomically."""
+    import OpenImageIO as oiio
+    rgb8 = np.ascontiguousarray(rgb8, dtype=np.uint8)
+    with atomic_path(path) as tmp:
+        spec = oiio.ImageSpec(rgb8.shape[1], rgb8.shape[0], rgb8.shape[2], oiio.UINT8)
+        out = oiio.ImageOutput.create(tmp)
+        if out is None or not out.open(tmp, spec):
+            raise OSError(f"{path}: cannot write PNG ({oiio.geterror().strip()})")
+        try:
+            out.write_image(rgb8)
+        finally:
+            out.close()
+
+
+def write_preview(path, rgb, exposure=None):
+    """Tone-mapped PNG preview of a linear image."""
+    write_png(path, tonemap(rgb, exposure))
+
+
+def read_mask(path, shape=None):
+    """A PNG (or any image) mask -> (H, W) bool, nonzero = True. InputError if unreadable or
+    (with `shape`) of the wrong size."""
+    import OpenImageIO as oiio
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        raise InputError(path, "no such mask file")
+    inp = oiio.ImageInput.open(path)
+    if inp is None:
+        raise InputError(path, f"cannot read mask ({oiio.geterror().strip()})")
+    try:
+        spec = inp.spec()
+        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
+    finally:
+        inp.close()
+    if pixels is None:
+        raise InputError(path, "cannot decode mask")
+    pixels = np.asarray(pixels).reshape(spec.height, spec.width, spec.nchannels)
+    channels = pixels[..., :3] if spec.nchannels >= 3 else pixels[..., :1]
+    mask = np.any(channels > 0, axis=-1)
+    if shape is not None and mask.shape != tuple(shape[:2]):
+        raise InputError(path, f"mask is {mask.shape[1]}x{mask.shape[0]}, "
+                               f"image is {shape[1]}x{shape[0]}")
+    return mask

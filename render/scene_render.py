@@ -1,0 +1,136 @@
+"""Render a capture folder's reference lightings, and a lone sphere for Table 2.
+
+Scenes come from capture (its public API only). For each camera the primary rays are cast once
+(capture.surface_from_mesh, or capture.surface_from_normal_map without ray casting) and reused for
+every lighting seen from that camera. Shadow rays go through Embree only for non-convex meshes.
+"""
+
+import numpy as np
+
+from brdf.errors import InputError
+from render.envmap import EnvMap
+from render.integrator import render_directional_light, render_envmap, render_point_light
+
+
+def _camera_key(camera):
+    return (camera.model, camera.width, camera.height, camera.fx, camera.fy, camera.cx,
+            camera.cy, camera.pixel_size, np.asarray(camera.world_from_camera).tobytes(),
+            None if camera.distortion is None else np.asarray(camera.distortion).tobytes())
+
+
+class SceneGeometry:
+    """A scene's geometry with cached per-camera primary hits (capture.Surface)."""
+
+    def __init__(self, scene):
+        import capture
+        self.scene = scene
+        self._surfaces = {}
+        if scene.geometry.mesh is not None:
+            self.intersector = capture.scene_intersector(scene)
+            self.convex = capture.is_convex(self.intersector)
+        else:
+            self.intersector, self.convex = None, True
+
+    def surface(self, camera):
+        """capture.Surface of the pixels that see the object, cast once per camera."""
+        import capture
+        key = _camera_key(camera)
+        if key not in self._surfaces:
+            if self.intersector is not None:
+                self._surfaces[key] = capture.surface_from_mesh(self.intersector, camera)
+            else:
+                self._surfaces[key] = capture.surface_from_normal_map(self.scene.geometry, camera)
+        return self._surfaces[key]
+
+    def occluder(self):
+        """The integrator's shadow-ray callback, or None (convex mesh or normal map)."""
+        if self.convex or self.intersector is None:
+            return None
+        import capture
+        mi = self.intersector
+        return lambda points, dirs, max_dist: capture.occluded(mi, points, dirs, max_dist)
+
+
+def render_surface(surface, camera, light, brdf, spp=64, seed=0, occluded=None, envmaps=None,
+                   progress=None, where="light"):
+    """Pixel-model values (N, 3) of a capture.Surface under one capture.Light (unscaled)."""
+    points = surface.points
+    if light.type == "point":
+        if points is None:
+            raise InputError(where, "a point light needs mesh geometry (a normal map has no depth)")
+        rot, origin = camera.world_from_camera[:3, :3], camera.world_from_camera[:3, 3]
+        position = rot @ np.asarray(light.position, float) + origin   # camera frame -> world
+        return render_point_light(points, surface.normals, surface.view_dirs, brdf, position,
+                                  light.intensity_rgb, occluded)
+    if points is None:
+        points = np.zeros_like(surface.normals)
+    if light.type == "directional":
+        return render_directional_light(points, surface.normals, surface.view_dirs, brdf,
+                                        light.direction, light.irradiance_rgb, occluded)
+    if light.type == "envmap":
+        key = (str(light.file), np.asarray(light.world_from_envmap).tobytes(), light.scale)
+        envmaps = {} if envmaps is None else envmaps
+        if key not in envmaps:
+            envmaps[key] = EnvMap.from_file(light.file, light.world_from_envmap, light.scale)
+        return render_envmap(points, surface.normals, surface.view_dirs, brdf, envmaps[key],
+                             spp=spp, seed=seed, occluded=occluded, progress=progress)
+    raise InputError(where, f"unknown light type {light.type!r}")
+
+
+def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True):
+    """Render every `reference` photo's lighting (or the given photos) from its camera.
+
+    scene: capture.Scene; brdf: a render.brdf_models model. Yields (photo, image, mask) per photo:
+    image (H, W, 3) float32 in the photo's own pixel units (the pixel model times the photo's
+    `scale`), 0 where the pixel misses the geometry; mask (H, W) bool of the pixels that see it.
+    """
+    photos = scene.photos_with_role("reference") if photos is None else photos
+    geometry = SceneGeometry(scene)
+    occluded = geometry.occluder()
+    envmaps = {}
+    for photo in photos:
+        camera = photo.camera
+        if photo.light is None:
+            raise InputError(photo.where, "a reference photo needs a light to render")
+        surface = geometry.surface(camera)
+        values = render_surface(surface, camera, photo.light, brdf, spp, seed, occluded, envmaps,
+                                progress=f"render {photo.stem}" if progress else None,
+                                where=f"{photo.where}.light")
+        image = np.zeros(camera.shape + (3,), dtype=np.float32)
+        image[surface.rows, surface.cols] = values * photo.scale
+        mask = np.zeros(camera.shape, dtype=bool)
+        mask[surface.rows, surface.cols] = True
+        yield photo, image, mask
+
+
+def sphere_view(size):
+    """An orthographic view of the unit sphere at the origin, camera looking along world -z
+    (image right = +x, up = +y). Returns mask (size, size) bool, normals (N, 3), view (N, 3)."""
+    c = (np.arange(size) - (size - 1) / 2) / (size / 2)   # pixel centres, sphere fills the frame
+    y, x = -c[:, None] * np.ones(size)[None], np.ones(size)[:, None] * c[None]
+    r2 = x * x + y * y
+    mask = r2 < 1.0
+    normals = np.stack([x, y, np.sqrt(np.maximum(0.0, 1.0 - r2))], axis=-1)[mask]
+    view = np.broadcast_to([0.0, 0.0, 1.0], normals.shape)
+    return mask, normals, view
+
+
+def render_sphere(table, envmap_path, size=128, spp=256, seed=0, interpolate=False,
+                  world_from_envmap=None, scale=1.0, threads=None, progress=None):
+    """A unit sphere with a tabulated BRDF under an environment map (Table 2's renders).
+
+    table: (90, 90, 180, 3) or (90, 90, 3) in 1/sr (NaN/negative = no data) or a
+    render.brdf_models BRDF; envmap_path: lat-long map (or an EnvMap). Orthographic camera
+    looking along -z (see sphere_view); no shadowing (a sphere is convex).
+    Returns (size, size, 3) float32, 0 off the sphere.
+    """
+    from render.brdf_models import TabulatedBRDF
+    brdf = table if hasattr(table, "evaluate_local") else TabulatedBRDF(table, interpolate)
+    envmap = envmap_path if isinstance(envmap_path, EnvMap) else \
+        EnvMap.from_file(envmap_path, world_from_envmap, scale)
+    mask, normals, view = sphere_view(size)
+    values = render_envmap(normals, normals, view, brdf, envmap, spp=spp, seed=seed,
+                           threads=threads, progress=progress)
+    image = np.zeros((size, size, 3), dtype=np.float32)
+    image[mask] = values
+    return image

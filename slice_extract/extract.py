@@ -1,0 +1,208 @@
+"""extract_slice: from a capture folder (flash photos + known geometry) to rho(theta_h) at theta_d ~ 0.
+
+Steps: load and validate the scene; load the flash photos (ambient removed, divided by scale);
+trace one Embree ray per usable pixel (only pixels whose ray can reach the mesh's bounding box);
+per pixel compute omega_o, omega_i, theta_h, theta_d and rho from the pixel model
+(slice_extract.samples); pool the samples of all flash photos; bin them into the 90 MERL theta_h
+bins with a robust estimate (slice_extract.binning).
+
+Default thresholds:
+- min_cos = 0.1: below it (84 deg) tiny normal errors swing cos(theta) by large factors.
+- max_theta_d_deg = 5: a real flash sits a few cm from the lens (3 cm at 1 m is theta_d = 0.86 deg;
+  DiLiGenT's nearest lights give 2.2 to 2.9 deg). Within 5 deg Fresnel is flat ((1 - cos 5 deg)^5
+  ~ 1e-12) and the slice stays the theta_d ~ 0 slice of the paper; raise it only knowingly.
+"""
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from brdf.angles import merl_bin_index
+from brdf.errors import InputError
+from brdf.merl import N_THETA_H, theta_h_centres
+from slice_extract.binning import robust_bins
+from slice_extract.samples import REASONS, light_setup, photo_samples
+
+
+@dataclass(frozen=True)
+class ExtractOptions:
+    max_theta_d_deg: float = 5.0
+    min_cos: float = 0.1
+    outlier_k: float = 3.0
+    estimator: str = "trimmed_mean"  # or "median"
+    shadow_rays: bool = True  # False only to diagnose (or to show what shadows would cost)
+    chunk_pixels: int = 1 << 20  # pixels traced per batch: bounds memory, keeps arrays in cache
+
+
+@dataclass(eq=False)
+class SliceResult:
+    """rho (90, 3) 1/sr NaN where empty; n (90,) int; spread (90, 3) robust sigma per bin;
+    report: JSON-ready dict (coverage, rejected, theta_d_deg, timings_s, options, photos)."""
+    rho: np.ndarray
+    n: np.ndarray
+    spread: np.ndarray
+    report: dict = field(default_factory=dict)
+
+    @property
+    def coverage(self):
+        return self.report["coverage"]
+
+    @property
+    def rejected(self):
+        return self.report["rejected"]
+
+    @property
+    def timings(self):
+        return self.report["timings_s"]
+
+
+def _stats_deg(values):
+    if len(values) == 0:
+        return None
+    d = np.degrees(values)
+    return {"min": float(d.min()), "median": float(np.median(d)), "mean": float(d.mean()),
+            "p95": float(np.percentile(d, 95)), "max": float(d.max())}
+
+
+class _Clock:
+    def __init__(self):
+        self.t = {}
+
+    def add(self, key, start):
+        self.t[key] = self.t.get(key, 0.0) + time.perf_counter() - start
+        return time.perf_counter()
+
+
+def _surface_batches(scene, camera, usable_any, intersector, chunk):
+    """Yield capture.Surface batches over the usable pixels of `camera`."""
+    import capture
+    if intersector is None:
+        yield capture.surface_from_normal_map(scene.geometry, camera, usable_any)
+        return
+    r0, r1, c0, c1 = capture.pixel_box(camera, intersector.mesh.bounds)
+    box = np.zeros(camera.shape, dtype=bool)
+    box[r0:r1, c0:c1] = True
+    flat = np.flatnonzero(usable_any & box)
+    for s in range(0, len(flat), chunk):
+        rows, cols = np.divmod(flat[s:s + chunk], camera.width)
+        yield capture.surface_at_pixels(intersector, camera, rows, cols)
+
+
+def _no_sample_error(scene, per_photo):
+    totals = {k: sum(p[k] for p in per_photo) for k in per_photo[0] if k != "photo"}
+    photo = scene.photos_with_role("flash")[0]
+    if totals["usable"] == 0:
+        where = photo.file or photo.brackets[0][0]
+        clipped = f" ({totals['clipped']} clipped, over-exposed)" if totals["clipped"] else ""
+        return InputError(where, f"no usable pixel: the photo is black, clipped or non-finite"
+                                 f"{clipped}")
+    if totals["on_surface"] == 0:
+        return InputError(f"{scene.json_path}: geometry", "no usable pixel sees the object: the "
+                          "camera does not see the geometry (check world_from_camera and units)")
+    worst = max(REASONS, key=lambda k: totals[k])
+    return InputError(f"{scene.json_path}: photos", f"no pixel passed the tests (rejected: "
+                      f"{', '.join(f'{k} {totals[k]}' for k in REASONS)}; mostly '{worst}')")
+
+
+def extract_slice(scene, options=None):
+    """The flash slice of a capture folder.
+
+    scene: scene folder path or capture.Scene; options: ExtractOptions (defaults above).
+    Returns SliceResult. InputError (exit 2) for bad input or when no pixel gives a sample.
+    """
+    import capture
+    options = options or ExtractOptions()
+    clock, start, t0 = _Clock(), time.perf_counter(), time.perf_counter()
+    if not isinstance(scene, capture.Scene):
+        scene = capture.load_scene(scene)
+    normal_map = scene.geometry.mesh is None
+    for photo in scene.photos_with_role("flash"):
+        if normal_map and photo.light.type == "point":
+            raise InputError(f"{photo.where}.light.type", "a point light needs surface depth, "
+                             "which normal-map geometry lacks: use a mesh or a directional light")
+    t = clock.add("load_scene", t0)
+    images = capture.load_flash_images(scene)
+    t = clock.add("load_photos", t)
+    intersector = None if normal_map else capture.scene_intersector(scene)
+    needs_shadows = options.shadow_rays and not normal_map and not all(
+        light_setup(img.photo).at_viewpoint for img in images)
+    # convexity costs a face-adjacency pass: only ask when a shadow ray could be needed
+    convex = needs_shadows and capture.is_convex(intersector)
+    t = clock.add("load_mesh", t)
+
+    parts, per_photo = [], []
+    groups = {}
+    for k, img in enumerate(images):
+        groups.setdefault(id(img.photo.camera), []).append(k)
+    for members in groups.values():
+        camera = images[members[0]].photo.camera
+        usable_any = np.logical_or.reduce([images[k].usable | images[k].clipped
+                                           for k in members])
+        lights = {k: light_setup(images[k].photo) for k in members}
+        stats = {k: dict(photo=images[k].photo.stem, usable=int(images[k].usable.sum()),
+                         clipped=int(images[k].clipped.sum()), on_surface=0,
+                         **dict.fromkeys(REASONS, 0)) for k in members}
+        for surface in _surface_batches(scene, camera, usable_any, intersector,
+                                        options.chunk_pixels):
+            t = clock.add("trace", t)
+            for k in members:
+                skip = not needs_shadows or convex or lights[k].at_viewpoint
+                shadow = None if skip else intersector
+                got = photo_samples(images[k].radiance, images[k].usable, surface, lights[k],
+                                    options, shadow, images[k].clipped)
+                stats[k]["on_surface"] += got.n_usable
+                for reason, count in got.rejected.items():
+                    stats[k][reason] += count
+                parts.append(got)
+            t = clock.add("samples", t)
+        per_photo.extend(stats[k] for k in members)
+
+    theta_h = np.concatenate([p.theta_h for p in parts]) if parts else np.zeros(0)
+    theta_d = np.concatenate([p.theta_d for p in parts]) if parts else np.zeros(0)
+    rho = np.concatenate([p.rho for p in parts]) if parts else np.zeros((0, 3))
+    censored = np.concatenate([p.censored for p in parts]) if parts else np.zeros(0, bool)
+    if not np.any(~censored):
+        raise _no_sample_error(scene, per_photo)
+    bins = merl_bin_index(theta_h, 0.0, 0.0)[0]
+    estimate, n, spread, inlier = robust_bins(bins, rho, censored, theta_h, k=options.outlier_k,
+                                              estimator=options.estimator)
+    if not np.any(n):
+        raise InputError(f"{scene.json_path}: photos", "every observed theta_h bin is more than "
+                         "half clipped (over-exposed): no bin can be estimated")
+    clock.add("binning", t)
+    clock.t["total"] = time.perf_counter() - start
+    report = _report(scene, options, per_photo, theta_h, theta_d, inlier, n, clock.t,
+                     np.bincount(bins[censored], minlength=N_THETA_H), censored)
+    return SliceResult(estimate, n, spread, report)
+
+
+def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin_clipped,
+            censored):
+    total_pixels = sum(p.camera.width * p.camera.height for p in scene.photos_with_role("flash"))
+    rejected = {"unusable": total_pixels - sum(p["usable"] + p["clipped"] for p in per_photo),
+                "clipped": sum(p["clipped"] for p in per_photo),
+                "miss": sum(p["usable"] - p["on_surface"] for p in per_photo)}
+    rejected.update({k: sum(p[k] for p in per_photo) for k in REASONS})
+    rejected["outlier"] = int(np.count_nonzero(~inlier & ~censored))
+    filled = np.flatnonzero(n > 0)
+    used = theta_h[inlier]
+    centres = np.degrees(theta_h_centres())
+    coverage = {
+        "theta_h_deg_observed": [float(np.degrees(used.min())), float(np.degrees(used.max()))],
+        "bins_filled": int(len(filled)),
+        "first_bin": int(filled[0]), "last_bin": int(filled[-1]),
+        "theta_h_deg_filled": [float(centres[filled[0]]), float(centres[filled[-1]])],
+        "empty_bins": [int(i) for i in np.flatnonzero(n == 0)],
+        "clipped_per_bin": {int(i): int(bin_clipped[i]) for i in np.flatnonzero(bin_clipped)},
+        "pixels_total": int(total_pixels), "pixels_used": int(inlier.sum()),
+    }
+    return {"scene": str(scene.json_path),
+            "options": {k: getattr(options, k) for k in ("max_theta_d_deg", "min_cos",
+                                                         "outlier_k", "estimator")},
+            "coverage": coverage, "rejected": {k: int(v) for k, v in rejected.items()},
+            "theta_d_deg": _stats_deg(theta_d[inlier]), "photos": per_photo,
+            "n": [int(v) for v in n], "timings_s": {k: round(v, 4) for k, v in timings.items()}}
+
+
+

@@ -1,0 +1,180 @@
+"""capture: photo formats, usable/clipped masks, brackets, RAW, ambient removal, real files."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+import capture
+from brdf.errors import InputError
+from conftest import shared_path
+from synthetic import write_exr
+
+
+def test_exr_roundtrip_and_masks(tmp_path):
+    img = np.full((4, 5, 3), 0.5, np.float32)
+    img[0, 0] = [np.nan, 1, 1]
+    img[0, 1] = [np.inf, 1, 1]
+    img[0, 2] = [-0.1, 1, 1]
+    img[0, 3] = 0.0
+    img[0, 4] = [0.0, 0.2, 0.0]  # one dark channel is still data in a float image
+    img[1, 0] = [7.0, 1, 1]
+    write_exr(tmp_path / "a.exr", img)
+    rgb, usable, clipped = capture.load_photo(tmp_path / "a.exr", saturation=5.0,
+                                              return_clipped=True)
+    assert rgb.dtype == np.float32 and rgb.shape == (4, 5, 3)
+    assert np.array_equal(rgb[1:], img[1:]) and rgb[1, 0, 0] == 7.0  # never clamped
+    assert usable.tolist()[0] == [False, False, False, False, True]
+    assert not usable[1, 0] and clipped[1, 0] and clipped[0, 1] and not clipped[0, 0]
+    assert usable[1:].sum() == 14
+
+
+def test_pfm_rows_are_top_first(tmp_path):
+    img = np.zeros((4, 5, 3), np.float32)
+    img[0, :, 0] = 1.0
+    with open(tmp_path / "a.pfm", "wb") as f:  # PFM stores rows bottom to top
+        f.write(b"PF\n5 4\n-1.0\n" + img[::-1].astype("<f4").tobytes())
+    rgb, _ = capture.load_photo(tmp_path / "a.pfm")
+    assert np.array_equal(rgb, img)
+
+
+def test_png16_is_linear_16_bit(tmp_path):
+    codes = np.array([[[0, 100, 200], [1000, 30000, 65535], [12345, 54321, 60000]]], np.uint16)
+    cv2.imwrite(str(tmp_path / "a.png"), codes[..., ::-1])
+    rgb, usable, clipped = capture.load_photo(tmp_path / "a.png", return_clipped=True)
+    assert np.allclose(rgb * 65535, codes, atol=1e-2)  # linear, all 16 bits kept
+    # code 0 is at the black level; >= 98% of 65535 (64224) is clipped
+    assert usable.tolist() == [[False, False, True]] and clipped.tolist() == [[False, True, False]]
+
+
+def test_png8_srgb_decoding(tmp_path):
+    codes = np.array([[[10, 128, 255], [200, 1, 64]]], np.uint8)
+    cv2.imwrite(str(tmp_path / "a.png"), codes[..., ::-1])
+    rgb, usable = capture.load_photo(tmp_path / "a.png", encoding="srgb")
+    c = codes / 255.0
+    expected = np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+    assert np.allclose(rgb, expected, atol=1e-6)
+    assert usable.tolist() == [[False, True]]  # 255 is clipped
+    linear, _ = capture.load_photo(tmp_path / "a.png", encoding="linear")
+    assert np.allclose(linear, c, atol=1e-6)
+
+
+def test_linear_brackets_recover_radiance(tmp_path):
+    """16-bit brackets 1/16 s and 1 s of radiance up to 12 per second: the long one clips the
+    bright half, the short one is coarse in the dark; the merge keeps each where it is usable."""
+    radiance = np.geomspace(0.01, 12, 300).reshape(20, 15, 1).repeat(3, -1)
+    entries = []
+    for k, t in enumerate((1 / 16, 1.0)):
+        codes = np.clip(np.round(radiance * t * 65535 / 1.0), 0, 65535).astype(np.uint16)
+        cv2.imwrite(str(tmp_path / f"b{k}.png"), codes[..., ::-1])
+        entries.append((tmp_path / f"b{k}.png", t))
+    rgb, usable = capture.load_brackets(entries)
+    assert usable.all()
+    # worst case: a pixel seen only at 1/16 s with code ~ 0.01 / 16 * 65535 = 41 -> 1.2% rounding
+    assert np.abs(rgb / radiance - 1).max() < 0.013
+
+
+def test_8bit_brackets_debevec(tmp_path):
+    rng = np.random.default_rng(1)
+    radiance = np.exp(rng.uniform(np.log(0.01), np.log(10), (64, 64, 3)))
+    c = np.clip(radiance[None] * np.array([1 / 64, 1 / 16, 1 / 4, 1])[:, None, None, None], 0, 1)
+    srgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+    entries = []
+    for k, t in enumerate((1 / 64, 1 / 16, 1 / 4, 1.0)):
+        cv2.imwrite(str(tmp_path / f"b{k}.jpg.png"), np.round(srgb[k] * 255).astype(np.uint8)
+                    [..., ::-1])
+        entries.append((tmp_path / f"b{k}.jpg.png", t))
+    rgb, usable = capture.load_brackets(entries)
+    ratio = rgb[usable] / radiance[usable]
+    # radiance is relative (OpenCV fixes the response's scale), but must be linear: the ratio to
+    # the truth is one constant up to 8-bit quantisation (~2%) over 3 decades
+    assert usable.mean() > 0.99
+    assert np.percentile(ratio, 99) / np.percentile(ratio, 1) < 1.08
+
+
+def test_size_missing_and_corrupt_files(tmp_path):
+    write_exr(tmp_path / "a.exr", np.ones((4, 5, 3)))
+    with pytest.raises(InputError, match=r"a.exr: image is 5x4 but the camera is 6x4"):
+        capture.load_photo(tmp_path / "a.exr", shape=(4, 6))
+    with pytest.raises(InputError, match="none.exr: file not found"):
+        capture.load_photo(tmp_path / "none.exr")
+    (tmp_path / "bad.exr").write_bytes(b"not an exr")
+    with pytest.raises(InputError, match="bad.exr: cannot read image"):
+        capture.load_photo(tmp_path / "bad.exr")
+    (tmp_path / "bad.png").write_bytes(b"\x89PNG broken")
+    with pytest.raises(InputError, match="bad.png: cannot read image"):
+        capture.load_photo(tmp_path / "bad.png")
+    (tmp_path / "bad.dng").write_bytes(b"II*\x00 broken")
+    with pytest.raises(InputError, match="bad.dng: cannot read RAW"):
+        capture.load_photo(tmp_path / "bad.dng")
+
+
+def test_exr_loading_never_imports_rawpy(tmp_path):
+    write_exr(tmp_path / "a.exr", np.ones((2, 2, 3)))
+    code = ("import sys, capture; capture.load_photo(sys.argv[1]); "
+            "print('rawpy' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code, str(tmp_path / "a.exr")],
+                         capture_output=True, text=True, check=True,
+                         cwd=Path(__file__).resolve().parents[1])
+    assert out.stdout.strip() == "False"
+
+
+def test_ambient_subtraction_and_scale(tmp_path):
+    flash = np.full((3, 4, 3), 0.9, np.float32)
+    flash[0, 0] = np.nan
+    ambient = np.full((3, 4, 3), 0.1, np.float32)
+    ambient[1, 1] = np.inf
+    write_exr(tmp_path / "f.exr", flash)
+    write_exr(tmp_path / "a.exr", ambient)
+    doc = {"camera": {"model": "orthographic", "width": 4, "height": 3, "pixel_size": 1,
+                      "world_from_camera": np.eye(4).tolist()},
+           "geometry": {"mesh": "m.ply"},
+           "photos": [{"file": "f.exr", "role": "flash", "scale": 4.0,
+                       "light": {"type": "directional", "direction": [0, 0, -1],
+                                 "irradiance_rgb": [1, 1, 1]}},
+                      {"file": "a.exr", "role": "ambient"}]}
+    (tmp_path / "scene.json").write_text(json.dumps(doc))
+    (img,) = capture.load_flash_images(capture.load_scene(tmp_path))
+    assert np.allclose(img.radiance[2, 2], 0.2)  # (0.9 - 0.1) / 4
+    assert not img.usable[0, 0] and not img.usable[1, 1] and img.usable.sum() == 10
+    # an ambient photo with its own scale is in its own units: flash/4 - ambient/0.5
+    doc["photos"][1]["scale"] = 0.5
+    (tmp_path / "scene.json").write_text(json.dumps(doc))
+    (img,) = capture.load_flash_images(capture.load_scene(tmp_path))
+    assert np.allclose(img.radiance[2, 2], 0.9 / 4 - 0.1 / 0.5)
+
+
+GREY_PATCHES = {"white": 704, "n8": 814, "n6.5": 924}  # columns on row 930 (found by eye)
+
+
+def test_colorchart_dng_grey_patches_neutral():
+    """The real Canon DNG decodes linearly: after white balancing on the N8 grey patch, the
+    white and N6.5 patches are neutral within 5% (a gamma, a wrong black level or clipping would
+    tint them). The camera's as-shot balance itself does not neutralise this scene, which is lit
+    by warm light (its grey patches come out with R/G ~ 2.2)."""
+    path = shared_path("data", "real", "raw", "colorchart.dng")
+    rgb, usable = capture.load_photo(path)
+    assert rgb.shape == (1156, 1734, 3) and rgb.dtype == np.float32
+    means = {name: rgb[915:945, x - 15:x + 15].reshape(-1, 3).mean(0)
+             for name, x in GREY_PATCHES.items()}
+    assert all(usable[915:945, x - 15:x + 15].all() for x in GREY_PATCHES.values())
+    gains = means["n8"].mean() / means["n8"]
+    for name in ("white", "n6.5"):
+        balanced = means[name] * gains
+        assert np.abs(balanced / balanced.mean() - 1).max() < 0.05, name
+    # linear: white (~90% reflectance) over N6.5 (~36%) is about 2.5 (a gamma would give ~1.5)
+    assert 2.0 < means["white"].mean() / means["n6.5"].mean() < 3.0
+
+
+def test_diligent_png_loads_as_16_bit():
+    path = shared_path("data", "real", "diligent-ball", "001.png")
+    rgb, usable = capture.load_photo(path)
+    assert rgb.shape == (512, 612, 3)
+    codes = np.round(rgb * 65535).astype(np.int64)
+    # 8-bit data widened to 16 bits would only hold multiples of 257
+    assert np.count_nonzero(codes % 257) > 0.5 * codes.size
+    assert codes.max() <= 65535 and not usable[np.any(codes >= 65535, axis=-1)].any()

@@ -1,0 +1,193 @@
+"""capture: scene.json validation, camera conventions, Embree hits and shadow rays."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+import capture
+from brdf.errors import InputError
+from synthetic import box_mesh, combine, pinhole_camera, sphere_mesh, torus_mesh
+
+
+def _write(folder, doc):
+    (folder / "scene.json").write_text(json.dumps(doc))
+    return folder
+
+
+def _doc(**camera):
+    cam = pinhole_camera(64, 48, 50.0)
+    cam.update(camera)
+    return {"camera": cam, "geometry": {"mesh": "object.ply"},
+            "photos": [{"file": "f.exr", "role": "flash",
+                        "light": {"type": "point", "position": [0.03, 0, 0],
+                                  "intensity_rgb": [1, 2, 3]}},
+                       {"file": "a.exr", "role": "ambient", "scale": 2},
+                       {"brackets": [{"file": "r1.png", "exposure_s": 0.01}], "role": "reference",
+                        "light": {"type": "envmap", "file": "env.hdr"}}]}
+
+
+def test_load_scene_fields(tmp_path):
+    scene = capture.load_scene(_write(tmp_path, _doc()))
+    assert scene.camera.model == "pinhole" and scene.camera.shape == (48, 64)
+    assert scene.camera.cx == 31.5 and scene.geometry.mesh == tmp_path / "object.ply"
+    flash, ambient, ref = scene.photos
+    assert np.array_equal(flash.light.position, [0.03, 0, 0]) and flash.scale == 1.0
+    assert ambient.scale == 2.0 and ambient.scale_given and not flash.scale_given
+    assert ref.brackets == ((tmp_path / "r1.png", 0.01),) and ref.stem == "r1"
+    assert np.array_equal(ref.light.world_from_envmap, np.eye(3))
+    assert scene.photos_with_role("flash") == [flash]
+
+
+@pytest.mark.parametrize("edit, field", [
+    (lambda d: d["camera"].update(model="fisheye"), "camera.model"),
+    (lambda d: d["camera"].pop("fx"), "camera.fx"),
+    (lambda d: d["camera"].update(width=0), "camera.width"),
+    (lambda d: d["camera"].update(world_from_camera=[[1, 0, 0], [0, 1, 0]]),
+     "camera.world_from_camera"),
+    (lambda d: d["camera"].update(world_from_camera=np.diag([2, 1, 1, 1]).tolist()),
+     "camera.world_from_camera"),
+    (lambda d: d["camera"].update(distortion=[0.1, 0.2]), "camera.distortion"),
+    (lambda d: d.update(geometry={}), "geometry"),
+    (lambda d: d["photos"][0]["light"].update(position=[0, 0]), "photos[0].light.position"),
+    (lambda d: d["photos"][0]["light"].update(intensity_rgb=[1, -1, 1]),
+     "photos[0].light.intensity_rgb"),
+    (lambda d: d["photos"][0].update(role="key"), "photos[0].role"),
+    (lambda d: d["photos"][0].pop("light"), "photos[0].light"),
+    (lambda d: d["photos"][1].update(scale="x"), "photos[1].scale"),
+    (lambda d: d["photos"][2]["brackets"][0].pop("exposure_s"),
+     "photos[2].brackets[0].exposure_s"),
+    (lambda d: d["photos"][0].update(brackets=[]), "photos[0]"),
+    (lambda d: d.update(photos=[]), "photos"),
+])
+def test_bad_fields_name_file_and_field(tmp_path, edit, field):
+    doc = _doc()
+    edit(doc)
+    with pytest.raises(InputError) as err:
+        capture.load_scene(_write(tmp_path, doc))
+    assert str(err.value).startswith(f"{tmp_path / 'scene.json'}: {field}:")
+
+
+def test_missing_and_broken_json(tmp_path):
+    with pytest.raises(InputError, match="scene.json: not found"):
+        capture.load_scene(tmp_path)
+    (tmp_path / "scene.json").write_text("{")
+    with pytest.raises(InputError, match="not valid JSON"):
+        capture.load_scene(tmp_path)
+
+
+def _camera(tmp_path, **camera):
+    return capture.load_scene(_write(tmp_path, _doc(**camera))).camera
+
+
+def test_pinhole_rays_follow_opencv_convention(tmp_path):
+    pose = np.eye(4)
+    pose[:3, :3] = cv2.Rodrigues(np.array([0.1, -0.2, 0.3]))[0]
+    pose[:3, 3] = [0.5, -1, 2]
+    cam = _camera(tmp_path, world_from_camera=pose.tolist(), fx=50.0, fy=60.0, cx=30.0, cy=20.0)
+    origins, dirs = capture.camera_rays(cam)
+    assert dirs.shape == (48, 64, 3) and np.allclose(np.linalg.norm(dirs, axis=-1), 1)
+    assert np.allclose(origins, pose[:3, 3])
+    # the principal point's ray is the camera's +z axis in world
+    assert np.allclose(dirs[20, 30], pose[:3, 2])
+    # pixel (u, v) = (column, row): u = fx X / Z + cx in the camera frame
+    local = dirs[7, 41] @ pose[:3, :3]
+    assert np.allclose([50 * local[0] / local[2] + 30, 60 * local[1] / local[2] + 20], [41, 7])
+    uv, depth = capture.project_points(cam, origins[7, 41] + 3 * dirs[7, 41])
+    assert np.allclose(uv, [[41, 7]]) and depth[0] > 0
+
+
+def test_distorted_rays_reproject_through_opencv(tmp_path):
+    cam = _camera(tmp_path, distortion=[-0.25, 0.08, 0.001, -0.002, 0.01])
+    origins, dirs = capture.camera_rays(cam)
+    points = (origins + 2.0 * dirs).reshape(-1, 3)
+    uv, _ = cv2.projectPoints(points, np.zeros(3), np.zeros(3), cam.intrinsics, cam.distortion)
+    rows, cols = np.mgrid[0:48, 0:64]
+    assert np.abs(uv.reshape(-1, 2) - np.stack([cols.ravel(), rows.ravel()], -1)).max() < 1e-6
+    # and distortion moves the corner rays (barrel: k1 < 0 pushes them outward)
+    plain = capture.camera_rays(_camera(tmp_path))[1]
+    assert np.degrees(np.arccos(np.dot(plain[0, 0], dirs[0, 0]))) > 0.5
+
+
+def test_orthographic_rays(tmp_path):
+    doc = _doc()
+    doc["camera"] = {"model": "orthographic", "width": 5, "height": 3, "pixel_size": 0.01,
+                     "world_from_camera": np.eye(4).tolist()}
+    cam = capture.load_scene(_write(tmp_path, doc)).camera
+    origins, dirs = capture.camera_rays(cam)
+    assert np.allclose(origins[0, 0], [-0.02, -0.01, 0]) and np.allclose(origins[2, 4],
+                                                                          [0.02, 0.01, 0])
+    assert np.allclose(dirs, [0, 0, 1])
+
+
+def _sphere_rays(tmp_path):
+    cam = _camera(tmp_path, width=96, height=96, fx=300.0, fy=300.0, cx=47.5, cy=47.5)
+    return cam, *capture.camera_rays(cam)
+
+
+def test_intersect_matches_analytic_sphere(tmp_path):
+    cam, origins, dirs = _sphere_rays(tmp_path)
+    mesh = sphere_mesh(radius=0.1, centre=(0, 0, 1), subdivisions=5)
+    hits = capture.intersect(capture.MeshIntersector(mesh), origins, dirs)
+    b = np.einsum("...i,...i", dirs, origins - [0, 0, 1])
+    disc = b ** 2 - (np.sum((origins - [0, 0, 1]) ** 2, -1) - 0.01)
+    inside = disc > 0
+    t = -b - np.sqrt(np.clip(disc, 0, None))
+    exact = origins + t[..., None] * dirs
+    # only rim pixels may differ (the mesh is inscribed in the sphere)
+    assert np.count_nonzero(inside != hits.hit) <= 0.02 * inside.sum()
+    core = inside & hits.hit & (t < 0.93)  # incidence < 46 deg, away from the rim
+    # icosphere level 5: edges ~ 3.8 mm (up to ~1.2x that), sagitta ~ edge^2 / (8 r) <= 26 um
+    # radially, / cos(46 deg) along the ray: <= 37 um
+    assert np.abs(hits.points[core] - exact[core]).max() < 4e-5
+    normal = (exact - [0, 0, 1]) / 0.1
+    angle = np.degrees(np.arccos(np.clip(np.sum(normal[core] * hits.normals[core], -1), -1, 1)))
+    assert angle.max() < 0.1  # interpolated vertex normals are nearly exact
+    assert np.all(hits.face[~hits.hit] == -1) and np.all(np.isinf(hits.distance[~hits.hit]))
+
+
+def test_face_normals_when_file_has_none(tmp_path):
+    import trimesh
+    trimesh.creation.icosphere(3, radius=0.1).export(tmp_path / "plain.obj", include_normals=False)
+    mesh, has_normals = capture.load_mesh(tmp_path / "plain.obj")
+    assert not has_normals
+    mesh.apply_translation([0, 0, 1])
+    mi = capture.MeshIntersector(mesh, use_vertex_normals=has_normals)
+    cam, origins, dirs = _sphere_rays(tmp_path)
+    hits = capture.intersect(mi, origins, dirs)
+    assert np.allclose(hits.normals[hits.hit], mesh.face_normals[hits.face[hits.hit]])
+
+
+def test_mesh_file_normals_are_used(tmp_path):
+    sphere_mesh().export(tmp_path / "s.ply", vertex_normal=True)
+    _, has_normals = capture.load_mesh(tmp_path / "s.ply")
+    assert has_normals
+    with pytest.raises(InputError, match="mesh file not found"):
+        capture.load_mesh(tmp_path / "none.ply")
+    (tmp_path / "bad.ply").write_text("ply\nnonsense\n")
+    with pytest.raises(InputError, match="bad.ply"):
+        capture.load_mesh(tmp_path / "bad.ply")
+
+
+def test_occluded_and_convexity():
+    sphere = sphere_mesh(radius=0.1, centre=(0, 0, 1))
+    blocker = box_mesh((0.1, 0.1, 0.02), (0, 0, 0.5))
+    mi = capture.MeshIntersector(combine(sphere, blocker))
+    top = np.array([[0, 0, 0.9]])  # sphere's front pole
+    up = np.array([[0, 0, -1.0]])
+    assert capture.occluded(mi, top, up, max_dist=0.9)[0]  # the box is in between
+    assert not capture.occluded(mi, top, up, max_dist=0.3)[0]  # the light is before the box
+    side = np.array([[1.0, 0, 0]])
+    assert not capture.occluded(mi, np.array([[0.1, 0, 1]]), side)[0]
+    assert capture.is_convex(sphere) and not capture.is_convex(torus_mesh())
+
+
+def test_pixel_box_covers_every_hit(tmp_path):
+    cam, origins, dirs = _sphere_rays(tmp_path)
+    mesh = sphere_mesh(radius=0.05, centre=(0.05, -0.03, 0.8))
+    hits = capture.intersect(mesh, origins, dirs)
+    r0, r1, c0, c1 = capture.pixel_box(cam, mesh.bounds)
+    rows, cols = np.nonzero(hits.hit)
+    assert rows.min() >= r0 and rows.max() < r1 and cols.min() >= c0 and cols.max() < c1
+    assert (r1 - r0) * (c1 - c0) < 0.5 * 96 * 96  # and it does cull

@@ -1,0 +1,135 @@
+"""slice_extract on synthetic renders with a known BRDF (tests/synthetic.py).
+
+Geometry reach (256 x 256 pinhole, f = 1000 px, sphere r = 0.1 m at 1 m): the sphere's image has a
+radius of ~100 px and one pixel spans ~0.5 deg of surface normal near the specular point. The image
+centre (127.5, 127.5) falls between four pixels, each 0.71 px from it, so theta_h below ~0.4 deg
+(bins 0-5) is never sampled, and bins up to ~20 hold fewer than 20 pixels. At the rim the grazing
+test (cos < 0.1, i.e. theta > 84.26 deg) ends the range inside bin 87 ([84.1, 86.0) deg): bins 88
+and 89 cannot be reached by any flash capture with the default min_cos.
+"""
+
+import numpy as np
+import pytest
+
+from slice_extract import ExtractOptions, extract_slice
+from synthetic import (box_mesh, combine, ggx_lambert, pinhole_camera, point_light, render,
+                       sphere_mesh, table_brdf, true_slice, write_synthetic_scene)
+
+GGX = ggx_lambert()
+TRUE = true_slice(GGX)
+
+
+def _errors(result, truth, n_min=20):
+    ok = (result.n >= n_min) & np.all(np.isfinite(truth), axis=1)
+    rel = np.max(np.abs(result.rho / truth - 1), axis=1)
+    return rel[ok], ok
+
+
+@pytest.fixture(scope="module")
+def clean_sphere(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("clean")
+    return write_synthetic_scene(folder, sphere_mesh(), GGX, pinhole_camera(), [point_light()])
+
+
+def test_colocated_noise_free_within_1pct(clean_sphere):
+    result = extract_slice(clean_sphere)
+    rel, ok = _errors(result, TRUE)
+    assert ok.sum() >= 60
+    assert np.median(rel) < 0.01
+    # reach stated in the module docstring
+    assert result.n[88] == 0 and result.n[89] == 0 and result.n[87] > 0
+    assert np.all(result.n[:6] == 0) and result.n[6] > 0
+    assert result.report["theta_d_deg"]["max"] < 1e-6  # co-located: omega_i == omega_o
+
+
+def test_flash_offset_3cm_within_1pct(tmp_path):
+    folder = write_synthetic_scene(tmp_path, sphere_mesh(), GGX, pinhole_camera(),
+                                   [point_light([0.03, 0, 0])])
+    result = extract_slice(folder)
+    rel, _ = _errors(result, TRUE)
+    assert np.median(rel) < 0.01
+    # theta_d = half the angle between the camera and the flash seen from ~0.9-1 m:
+    # 0.5 atan(0.03 / 0.9..1.0) = 0.86..0.95 deg
+    assert 0.8 < result.report["theta_d_deg"]["median"] < 1.0
+
+
+def test_poisson_noise_1000_photons_within_3pct(tmp_path):
+    folder = write_synthetic_scene(tmp_path, sphere_mesh(), GGX, pinhole_camera(),
+                                   [point_light()], photons=1000, seed=3)
+    rel, _ = _errors(extract_slice(folder), TRUE)
+    # per-pixel noise ~ 1/sqrt(1000) = 3%; a bin of n >= 20 averages it to <= 0.7%
+    assert np.median(rel) < 0.03
+
+
+@pytest.mark.parametrize("offset", [0.0, 0.03])
+def test_merl_proxy_table(tmp_path, merl_proxy, offset):
+    from brdf.merl import read_merl
+    from brdf.views import flash_slice
+    table = read_merl(merl_proxy("gold-metallic-paint"))
+    truth, _ = flash_slice(table)
+    folder = write_synthetic_scene(tmp_path, sphere_mesh(), table_brdf(table), pinhole_camera(),
+                                   [point_light([offset, 0, 0])])
+    rel, _ = _errors(extract_slice(folder), truth)
+    # nearest-bin lookup renders a staircase; phi_d at theta_d bin 0 varies by up to 7% in this
+    # table, while the true slice averages it: 1% on the median bin is the issue's target
+    assert np.median(rel) < 0.01
+
+
+def test_shadowed_pixels_are_rejected(tmp_path):
+    """A box between an offset flash and the sphere casts a shadow; with ambient light the
+    shadowed pixels are usable but dark, so only the shadow rays (or MAD) can remove them."""
+    mesh = combine(sphere_mesh(), box_mesh((0.2, 0.1, 0.05), (-0.1, -0.07, 0.85)))
+    light = point_light([-0.1, -0.05, 0])
+    folder = write_synthetic_scene(tmp_path, mesh, GGX, pinhole_camera(), [light], ambient=0.05)
+    lit = render(mesh, GGX, pinhole_camera(), light, shadows=True).max(-1) > 0
+    unshadowed = render(mesh, GGX, pinhole_camera(), light, shadows=False).max(-1) > 0
+    in_shadow = int(np.count_nonzero(unshadowed & ~lit))
+    result = extract_slice(folder)
+    assert result.rejected["outlier"] == 0
+    # shadowed pixels the grazing test did not already drop; the renderer's shadow ray and
+    # capture's differ only at the shadow's edge
+    assert 0.8 * in_shadow <= result.rejected["shadowed"] <= in_shadow
+    rel, _ = _errors(result, TRUE)
+    assert np.median(rel) < 0.01  # theta_d ~ 3.5 deg here: still the theta_d ~ 0 slice
+    # without shadow rays the same pixels must surface as outliers, not as data
+    blind = extract_slice(folder, ExtractOptions(shadow_rays=False))
+    assert blind.rejected["shadowed"] == 0
+    assert blind.rejected["outlier"] >= result.rejected["shadowed"]
+
+
+def test_salt_and_pepper_moves_no_bin_more_than_2pct(tmp_path, clean_sphere):
+    rng = np.random.default_rng(7)
+
+    def corrupt(image, k):
+        image = image.copy()
+        hit = rng.random(image.shape[:2]) < 0.005
+        dead = rng.random(image.shape[:2]) < 0.5
+        image[hit & dead] = 0.0
+        image[hit & ~dead] = 10 * image.max()
+        return image
+
+    folder = write_synthetic_scene(tmp_path, sphere_mesh(), GGX, pinhole_camera(),
+                                   [point_light()], post=corrupt)
+    clean, noisy = extract_slice(clean_sphere), extract_slice(folder)
+    ok = (clean.n >= 20) & (noisy.n > 0)
+    assert ok.sum() >= 60
+    assert np.max(np.abs(noisy.rho[ok] / clean.rho[ok] - 1)) < 0.02
+    assert noisy.rejected["outlier"] > 0
+
+
+def test_saturated_highlight_leaves_bins_empty_not_biased(tmp_path):
+    white = 0.8  # 16-bit PNG code 65535 = 0.8: the specular peak clips
+    folder = write_synthetic_scene(tmp_path, sphere_mesh(), GGX, pinhole_camera(),
+                                   [point_light()], photo_format="png16", white=white)
+    result = extract_slice(folder)
+    assert result.rejected["clipped"] > 500
+    # a bin whose pixels clip even at the farthest sphere point (r <= 1 m, I = 1) is empty
+    from brdf.merl import theta_h_centres
+    pixel_far = TRUE.max(axis=1) * np.cos(theta_h_centres())
+    surely_clipped = pixel_far > white
+    assert surely_clipped.sum() >= 10
+    assert np.all(result.n[surely_clipped] == 0)
+    assert np.all(np.isnan(result.rho[surely_clipped]))
+    # every bin that is still estimated is unbiased (the clipped ones are censored, not dropped)
+    rel, _ = _errors(result, TRUE, n_min=5)
+    assert np.all(rel < 0.02)

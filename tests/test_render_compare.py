@@ -1,0 +1,87 @@
+"""compare: log-CIELAB Delta E and relative RMSE on hand-computed images; the compare command."""
+
+import json
+
+import numpy as np
+import pytest
+
+from pipeline.cli import main
+from render.compare import compare_images
+from render.images import read_image, write_exr, write_png
+
+
+def _lstar(y):
+    """CIE 1976 L* of luminance y (white Y = 1), by hand."""
+    d = 6 / 29
+    f = np.where(y > d ** 3, np.cbrt(y), y / (3 * d * d) + 4 / 29)
+    return 116 * f - 16
+
+
+def test_grey_images_by_hand():
+    ref = np.full((4, 5, 3), 0.5)
+    pred = np.full((4, 5, 3), 1.0)
+    metrics, delta_e = compare_images(pred, ref)
+    # grey stays grey in CIELAB (a* = b* = 0), so Delta E is the L* step of ln(1 + value)
+    expected = _lstar(np.log(2.0)) - _lstar(np.log(1.5))
+    assert np.allclose(delta_e, expected, rtol=1e-6)   # the sRGB matrix rounds white to ~1e-9
+    assert metrics["delta_e_log_mean"] == pytest.approx(expected, rel=1e-6)
+    assert metrics["delta_e_log_median"] == pytest.approx(expected, rel=1e-6)
+    assert metrics["rel_rmse"] == pytest.approx(1.0, rel=1e-12)      # pred = 2 ref
+    assert metrics["pixels"] == 20
+    same, _ = compare_images(ref, ref)
+    assert same["delta_e_log_mean"] == 0 and same["rel_rmse"] == 0
+
+
+def test_valid_pixels_and_mask():
+    ref = np.full((2, 3, 3), 0.5)
+    pred = np.full((2, 3, 3), 0.5)
+    pred[0, 0] = 0.0            # zero in pred: not compared without a mask
+    ref[0, 1] = np.nan          # non-finite: never compared
+    pred[1, 2] = 1.0            # the only differing compared pixel
+    metrics, delta_e = compare_images(pred, ref)
+    assert metrics["pixels"] == 4
+    step = _lstar(np.log(2.0)) - _lstar(np.log(1.5))
+    assert metrics["delta_e_log_mean"] == pytest.approx(step / 4)
+    assert metrics["delta_e_log_median"] == pytest.approx(0.0, abs=1e-12)
+    assert metrics["rel_rmse"] == pytest.approx(np.sqrt(3 * 0.25 / (4 * 3 * 0.25)))
+    assert np.isnan(delta_e[0, 0]) and np.isnan(delta_e[0, 1])
+    mask = np.zeros((2, 3), bool)
+    mask[0, 0] = mask[1, 2] = True   # with a mask, the zero pixel counts (as a real error)
+    metrics, _ = compare_images(pred, ref, mask)
+    assert metrics["pixels"] == 2
+    zero_step = _lstar(np.log(1.5)) - _lstar(0.0)
+    assert metrics["delta_e_log_mean"] == pytest.approx((step + zero_step) / 2)
+    empty, _ = compare_images(np.zeros((2, 2, 3)), np.zeros((2, 2, 3)))
+    assert empty["pixels"] == 0 and empty["delta_e_log_mean"] is None
+
+
+def test_compare_command(tmp_path, capsys):
+    rng = np.random.default_rng(0)
+    ref = rng.random((16, 20, 3)).astype(np.float32) + 0.1
+    pred = ref * 1.1
+    write_exr(tmp_path / "pred.exr", pred)
+    write_exr(tmp_path / "ref.exr", ref)
+    assert np.array_equal(read_image(tmp_path / "pred.exr"), pred)
+    mask = np.zeros((16, 20, 3), np.uint8)
+    mask[4:12, 5:15] = 255
+    write_png(tmp_path / "mask.png", mask)
+    out = tmp_path / "out"
+    assert main(["compare", str(tmp_path / "pred.exr"), str(tmp_path / "ref.exr"),
+                 "--mask", str(tmp_path / "mask.png"), "--out", str(out)]) == 0
+    result = json.loads((out / "compare.json").read_text())
+    assert set(result) >= {"delta_e_log_mean", "delta_e_log_median", "rel_rmse", "pixels"}
+    assert result["pixels"] == 80
+    assert result["rel_rmse"] == pytest.approx(0.1, rel=1e-5)
+    expected, _ = compare_images(pred, ref, mask[..., 0] > 0)
+    assert result["delta_e_log_mean"] == pytest.approx(expected["delta_e_log_mean"])
+    assert (out / "delta_e.png").stat().st_size > 1000
+    # bad input: exit 2, one line naming the file, nothing written
+    bad = tmp_path / "bad"
+    write_exr(tmp_path / "small.exr", ref[:8])
+    assert main(["compare", str(tmp_path / "pred.exr"), str(tmp_path / "small.exr"),
+                 "--out", str(bad)]) == 2
+    assert main(["compare", str(tmp_path / "nope.exr"), str(tmp_path / "ref.exr"),
+                 "--out", str(bad)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 2 and "small.exr" in err[0] and "nope.exr" in err[1]
+    assert not bad.exists() or not any(bad.iterdir())

@@ -1,0 +1,116 @@
+"""pipeline.report on synthetic inputs: files, contract keys, numbers that round-trip and are right."""
+
+import json
+
+import numpy as np
+import pytest
+
+from brdf.merl import theta_h_centres
+from pipeline.report import coverage, image_errors, write_report
+
+
+def _slice_and_tables():
+    theta_h = theta_h_centres()
+    lobe = np.exp(-(theta_h / 0.1) ** 2)[:, None]
+    rho = 0.05 * np.array([1.0, 0.8, 0.6]) + 2.0 * lobe * np.array([1.0, 1.0, 1.0])
+    n = np.where(np.degrees(theta_h) < 40.0, 50, 0)   # bins 0..59 seen: theta_h edge 40 deg
+    observed = {"rho": np.where(n[:, None] > 0, rho, np.nan), "n": n, "spread": 0.1 * rho}
+    table = np.repeat(rho[:, None, :], 90, axis=1)      # (90, 90, 3), constant over theta_d
+    return observed, {"dsgplvm": {"table": table, "variance": np.full((90, 90, 3), 0.2),
+                                  "variance_label": "posterior std"},
+                      "pca": table * 1.2}
+
+
+def _images():
+    rng = np.random.default_rng(1)
+    reference = rng.uniform(0.05, 2.0, (24, 32, 3))
+    mask = np.zeros((24, 32), np.uint8)
+    mask[4:20, 6:26] = 255
+    return reference, mask
+
+
+def test_report_files_keys_and_numbers(tmp_path):
+    observed, predictions = _slice_and_tables()
+    reference, mask = _images()
+    given = {"delta_e_log_mean": 3.25, "delta_e_log_median": 3.0, "rel_rmse": 0.125, "pixels": 320}
+    refs = [{"photo": "ref_a.exr", "method": "dsgplvm", "render": reference * 1.1,
+             "reference": reference, "mask": mask, "light_angle_deg": 12.0},
+            {"photo": "ref_a.exr", "method": "pca", "compare": given, "render": reference * 0.5,
+             "reference": reference, "light_angle_deg": 12.0},
+            {"photo": "ref_b.exr", "method": "dsgplvm", "delta_e_log_mean": 1.5, "rel_rmse": 0.02,
+             "light_angle_deg": 30.0}]
+    stages = {"extract": 1.25, "infer": 2.5, "render": 0.75, "compare": 0.125}
+    report = write_report(tmp_path / "out", stages=stages, references=refs, observed=observed,
+                          predictions=predictions, x_key="light_angle_deg")
+    out = tmp_path / "out"
+    for name in ("report.md", "report.json", "figures/slice.png", "figures/brdf_dsgplvm.png",
+                 "figures/brdf_pca.png", "figures/errors.png", "figures/ref_ref_a.png"):
+        assert (out / name).is_file() and (out / name).stat().st_size > 0, name
+    assert not list(out.rglob("*.part*"))  # atomic writes leave no temp files
+
+    loaded = json.loads((out / "report.json").read_text())
+    assert loaded == json.loads(json.dumps(report))
+    assert loaded["stages"] == stages  # exact round trip (binary fractions)
+    assert [set(r) >= {"photo", "method", "delta_e_log_mean", "rel_rmse"}
+            for r in loaded["references"]] == [True] * 3
+    by = {(r["photo"], r["method"]): r for r in loaded["references"]}
+    # Numbers handed in (directly or as compare.json) come back unchanged...
+    assert {k: by["ref_a.exr", "pca"][k] for k in given} == given
+    assert by["ref_b.exr", "dsgplvm"]["delta_e_log_mean"] == 1.5
+    assert by["ref_a.exr", "dsgplvm"]["light_angle_deg"] == 12.0
+    # ...and computed ones are right: a render 10% too bright has rel_rmse exactly 0.1, over the
+    # 16 x 20 = 320 mask pixels, and Delta E log equal to colour-science's own CIE76 value.
+    computed = by["ref_a.exr", "dsgplvm"]
+    assert computed["pixels"] == 320
+    assert computed["rel_rmse"] == pytest.approx(0.1, rel=1e-9)
+    colour = pytest.importorskip("colour")
+    inside = reference[4:20, 6:26].reshape(-1, 3)
+
+    def lab(x):
+        xyz = colour.RGB_to_XYZ(np.log1p(x), colour.RGB_COLOURSPACES["sRGB"],
+                                apply_cctf_decoding=False)
+        return colour.XYZ_to_Lab(xyz, colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"])
+    expected = np.mean(np.linalg.norm(lab(inside * 1.1) - lab(inside), axis=1))
+    assert computed["delta_e_log_mean"] == pytest.approx(expected, rel=1e-3)
+
+    summary = loaded["summary"]["dsgplvm"]
+    assert summary["references"] == 2
+    assert summary["rel_rmse"]["mean"] == pytest.approx((0.1 + 0.02) / 2, rel=1e-9)
+    # Coverage: bins with theta_h < 40 deg were observed, so the report says the rest is prior.
+    assert "θh above 40° not observed: the prediction there comes from the prior" in loaded["warnings"]
+    assert loaded["coverage"]["bins_observed"] == 60 and loaded["coverage"]["samples"] == 3000
+    assert loaded["slice"]["rho"][70] == [None, None, None]  # NaN is null in JSON
+    np.testing.assert_allclose(loaded["predictions"]["pca"]["theta_d0"],
+                               predictions["pca"][:, 0, :])
+    md = (out / "report.md").read_text()
+    for needle in ("How to read the numbers", "θh above 40° not observed", "![slice](figures/slice.png)",
+                   "figures/ref_ref_a.png", "| **total** | **4.62** |", "| ref_b.exr | dsgplvm | 1.50 |"):
+        assert needle in md, needle
+
+
+def test_report_without_references_or_slice(tmp_path):
+    report = write_report(tmp_path, stages={"extract": 0.5})
+    assert report["references"] == [] and report["stages"] == {"extract": 0.5}
+    assert (tmp_path / "report.md").is_file() and "Stage timings" in (tmp_path / "report.md").read_text()
+
+
+def test_coverage_full_and_empty():
+    theta_h = np.degrees(theta_h_centres())
+    full, warnings = coverage(theta_h, {"rho": np.ones((90, 3)), "n": np.full(90, 10)})
+    assert warnings == [] and full["theta_h_observed_deg"] == [0.0, 90.0]
+    n = np.full(90, 10)
+    n[[0, 1, 30]] = 0
+    info, warnings = coverage(theta_h, {"rho": np.ones((90, 3)), "n": n})
+    assert info["bins_observed"] == 87 and len(warnings) == 2  # the peak, and one gap
+    _, warnings = coverage(theta_h, {"rho": np.full((90, 3), np.nan), "n": np.zeros(90)})
+    assert "prior" in warnings[0]
+
+
+def test_image_errors_without_mask_uses_finite_nonzero_pixels():
+    reference, _ = _images()
+    render = reference.copy()
+    render[0, 0] = np.nan
+    reference[1, 1] = 0.0
+    render[1, 1] = 0.0
+    _, mean, median, rel, pixels = image_errors(render, reference)
+    assert pixels == 24 * 32 - 2 and mean == 0.0 and rel == 0.0
