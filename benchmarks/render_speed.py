@@ -1,7 +1,9 @@
 """Render speed and convergence of the environment-map integrator (a benchmark, not a test).
 
 1. Speed: a 512 x 512 sphere (orthographic, unit sphere filling the frame) with a 3D MERL table
-   under `pisa`, at 16, 64, 256 and 1024 directions per pixel (target: 64 spp < 20 s, 2 cores).
+   under `pisa`, at 16, 64, 256 and 1024 samples per pixel (target: 64 spp < 20 s, 2 cores).
+   One sample = one envmap direction + one BRDF direction, combined by MIS (pbrt/Mitsuba's
+   convention); a single strategy alone draws one direction per sample.
 2. Error against run time: relative RMSE of each spp against a converged render (many spp) of
    the same view at a smaller size (the error is a per-pixel statistic, so size only sets cost).
 3. Variance against spp under the very high dynamic range maps grace (peak ~3500) and

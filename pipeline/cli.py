@@ -45,6 +45,8 @@ def _parser():
     s.add_argument("--max-theta-d", type=float, metavar="DEG",
                    help="reject pixels with theta_d above this (default 5 degrees)")
     s.add_argument("--min-cos", type=float, help="reject cos(theta_i|o) below this (default 0.1)")
+    s.add_argument("--silhouette-px", type=int, metavar="PX",
+                   help="reject pixels this close to the object's outline (default 1)")
 
     s = sub.add_parser("render", help="render every reference photo's lighting")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
@@ -66,6 +68,7 @@ def _parser():
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     s.add_argument("--model", metavar="MODEL.npz")
     s.add_argument("--methods", default="dsgplvm")
+    s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
 
     s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
     s.add_argument("--merl-dir", required=True, metavar="DIR")

@@ -97,8 +97,9 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
                   progress=None):
     """Environment-map lighting -> (P, 3).
 
-    spp: directions per pixel in total, split evenly between the `strategies` (each gets at
-    least one). Deterministic for a given seed, whatever the thread count.
+    spp: samples per pixel; as in pbrt's and Mitsuba's direct-lighting integrators, each sample
+    draws one direction from every strategy (one envmap and one BRDF direction with MIS).
+    Deterministic for a given seed, whatever the thread count.
     progress: a tqdm description string to show a progress bar, or None.
     """
     points = np.asarray(points, dtype=np.float64)
@@ -115,7 +116,7 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
         envmap = EnvMap(envmap.pixels, envmap.world_from_envmap, 1.0, compensate=False)
     if "envmap" in strategies and not getattr(envmap, "can_sample", True):
         strategies = tuple(x for x in strategies if x != "envmap") or ("brdf",)
-    per_strategy = max(1, int(spp) // len(strategies))
+    per_strategy = max(1, int(spp))
     pattern = sample_pattern(per_strategy, 2 * len(strategies), seed)
     step = max(1, SAMPLES_PER_CHUNK // (per_strategy * len(strategies)))
     starts = list(range(0, n_points, step))
@@ -153,7 +154,7 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
     return out
 
 
-def _mis_weight_denominator(pdf_this, pdf_other, heuristic):
+def _mis_factor(pdf_this, pdf_other, heuristic):
     """f L cos / pdf_this * w(this)  ==  f L cos * factor; returns factor (balance or power)."""
     if heuristic == "balance":
         return 1.0 / np.maximum(pdf_this + pdf_other, 1e-300)
@@ -175,13 +176,13 @@ def _envmap_chunk(points, normals, view, brdf, envmap, u, occluded, heuristic, s
             wi_w, pdf_env = envmap.sample(uk)
             wi_l = to_local(wi_w, *tb)
             pdf_brdf = brdf.pdf_local(wi_l, wo_l) if "brdf" in strategies else 0.0
-            factor = (_mis_weight_denominator(pdf_env, pdf_brdf, heuristic)
+            factor = (_mis_factor(pdf_env, pdf_brdf, heuristic)
                       if "brdf" in strategies else 1.0 / np.maximum(pdf_env, 1e-300))
         elif strategy == "brdf":
             wi_l, pdf_brdf = brdf.sample_local(wo_l, uk)
             wi_w = to_world(wi_l, *tb)
             pdf_env = envmap.pdf(wi_w) if "envmap" in strategies else 0.0
-            factor = (_mis_weight_denominator(pdf_brdf, pdf_env, heuristic)
+            factor = (_mis_factor(pdf_brdf, pdf_env, heuristic)
                       if "envmap" in strategies else 1.0 / np.maximum(pdf_brdf, 1e-300))
         else:
             raise ValueError(f"unknown strategy {strategy!r}")
