@@ -184,14 +184,29 @@ def run_ablations(chosen, train, data, test_idx, ablations, k, points, quick=Fal
                            "error": lab_log(errs)})
 
 
-def render_table2(args):
-    """Hook for the paper's Table 2 (`evaluate --render`, issue 5). The render stage supplies
-    render.table2(merl_dir, out_dir, predict) where predict(name, method) -> (90, 90, 180, 3) table."""
-    try:
-        from render import table2  # noqa: F401  (the render stage's public API, when it exists)
-    except ImportError:
-        raise NotImplementedError("evaluate --render (Table 2) needs render.table2") from None
-    raise NotImplementedError("evaluate --render: wiring to render.table2 is not built yet")
+def experiment_predictor(merl_dir, result, view="2d", seed=0):
+    """(names, predict) for the paper's Table 2 (render.table2): the test materials of Table 1's
+    mean-performing experiment, each method refitted on that experiment's training set with its
+    chosen hyperparameters. predict(name, method) -> table ((90, 90, 3) for view "2d", 3D streamed
+    from merl_dir for "3d"), the oracle from the true 2D table, or None for unknown methods."""
+    k = result["mean_performing"]["experiment"]
+    data = TrainingSet.from_merl_dir(merl_dir)
+    train_idx, _, test_idx = splits(len(data), k // 5 + 1, seed)[k]
+    train = data.subset(train_idx)
+    chosen = result["hyperparameters"][k]["chosen"]
+    fitted = {}
+
+    def predict(name, method):
+        if method not in chosen or name not in data.names:
+            return None
+        if method not in fitted:
+            fitted[method] = make_method(method, **chosen[method]).fit(train)
+        i = data.names.index(name)
+        if method == "oracle":
+            return fitted[method].predict_truth(data.tables_2d[i]) if view == "2d" else None
+        return fitted[method].predict(data.slices[i], view)[0]
+
+    return [data.names[i] for i in test_idx], predict
 
 
 def _mean_performing(records):
