@@ -127,3 +127,14 @@ def test_normal_map_orthographic_directional(tmp_path):
     ok = result.n >= 20
     assert ok.sum() >= 50
     assert np.median(np.abs(result.rho[ok] / truth[ok] - 1)) < 0.01
+
+
+def test_silhouette_mask_is_the_outline_ring_not_the_frame():
+    from slice_extract import silhouette_mask
+    obj = np.zeros((9, 12), bool)
+    obj[2:7, 2:7] = True  # a 5x5 object
+    obj[:, 9:] = True  # an object cut by the image frame
+    ring = silhouette_mask(obj, 1)
+    assert ring[2:7, 2:7].sum() == 16 and not ring[3:6, 3:6].any()
+    assert ring[:, 9].all() and not ring[:, 10:].any()  # frame side kept
+    assert not silhouette_mask(obj, 0).any()
