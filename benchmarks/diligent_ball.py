@@ -41,11 +41,15 @@ def _load_scene(scene_dir):
 def _slice(scene_dir, scene, mask, normals, view, work, log):
     from brdf.views import read_slice_csv, write_slice_csv
     from pipeline.report import read_image
+    from brdf.errors import InputError
     rc, err, seconds = run_cli(["extract", scene_dir, "--out", work / "slice.csv"])
     if rc == 0:
-        rho, n = read_slice_csv(work / "slice.csv")
-        return {"rho": rho, "n": n, "spread": None}, "extract stage", seconds
-    log(f"extract stage unavailable (exit {rc}): using the benchmark's direct extraction")
+        try:
+            rho, n = read_slice_csv(work / "slice.csv")
+            return {"rho": rho, "n": n, "spread": None}, "extract stage", seconds
+        except InputError as bad:  # the stage wrote a slice its own reader rejects
+            rc, err = 1, str(bad)
+    log(f"extract stage unusable (exit {rc}: {err}): using the benchmark's direct extraction")
     start = time.perf_counter()
     flash = next(p for p in scene["photos"] if p["role"] == "flash")
     pixels = read_image(scene_dir / flash["file"])[mask]

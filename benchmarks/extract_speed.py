@@ -36,10 +36,10 @@ def _embree_time(scene_dir, rows_cols=None):
     origins, dirs = capture.pixel_rays(cam, rows, cols)
     o = (np.ascontiguousarray(origins) - mi.centre).astype(np.float32)
     d = dirs.astype(np.float32)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     for s in range(0, len(d), 1 << 21):
-        mi._scene.run(o[s:s + (1 << 21)], d[s:s + (1 << 21)], output=1)
-    return time.perf_counter() - start, len(d)
+        mi.embree_first_hit(o[s:s + (1 << 21)], d[s:s + (1 << 21)])
+    return time.perf_counter() - start, time.process_time() - cpu, len(d)
 
 
 def main():
@@ -57,7 +57,8 @@ def main():
     focal = 9000.0 * args.width / 4000
     camera = pinhole_camera(args.width, args.height, focal)
     results = {"pixels": args.width * args.height, "faces": int(len(mesh.faces)),
-               "cpu_count": os.cpu_count(), "configs": {}}
+               "cpu_count": os.cpu_count(), "load_average_at_start": os.getloadavg(),
+               "configs": {}}
     with tempfile.TemporaryDirectory() as tmp:
         for name, offset in (("colocated", 0.0), ("offset_3cm_shadow_rays", 0.03)):
             folder = Path(tmp) / name
@@ -65,21 +66,27 @@ def main():
             write_synthetic_scene(folder, mesh, ggx_lambert(), camera, [point_light([offset, 0, 0])],
                                   ambient=0.01, ambient_photo=False)
             render_s = time.perf_counter() - t
-            t = time.perf_counter()
+            t, cpu = time.perf_counter(), time.process_time()
             result = extract_slice(folder)
-            extract_s = time.perf_counter() - t
-            embree_all, n_all = _embree_time(folder)
+            extract_s, extract_cpu = time.perf_counter() - t, time.process_time() - cpu
+            embree_all, embree_all_cpu, n_all = _embree_time(folder)
             scene = capture.load_scene(folder)
             mi = capture.scene_intersector(scene)
             r0, r1, c0, c1 = capture.pixel_box(scene.camera, mi.mesh.bounds)
             rows, cols = np.mgrid[r0:r1, c0:c1].reshape(2, -1)
-            embree_traced, n_traced = _embree_time(folder, (rows, cols))
+            embree_traced, embree_traced_cpu, n_traced = _embree_time(folder, (rows, cols))
             results["configs"][name] = {
                 "extract_s": round(extract_s, 3), "timings_s": result.timings,
                 "embree_all_pixel_rays_s": round(embree_all, 3), "all_pixel_rays": n_all,
                 "embree_traced_rays_s": round(embree_traced, 3), "traced_rays": n_traced,
                 "ratio_to_embree_all_pixels": round(extract_s / embree_all, 2),
                 "ratio_to_embree_traced_rays": round(extract_s / embree_traced, 2),
+                # CPU seconds of this process: less sensitive to other jobs on a shared machine
+                "extract_cpu_s": round(extract_cpu, 3),
+                "embree_all_pixel_rays_cpu_s": round(embree_all_cpu, 3),
+                "embree_traced_rays_cpu_s": round(embree_traced_cpu, 3),
+                "cpu_ratio_to_embree_all_pixels": round(extract_cpu / embree_all_cpu, 2),
+                "cpu_ratio_to_embree_traced_rays": round(extract_cpu / embree_traced_cpu, 2),
                 "pixels_used": result.coverage["pixels_used"],
                 "rejected": result.rejected, "render_s_not_timed": round(render_s, 1)}
             print(name, json.dumps(results["configs"][name]), flush=True)

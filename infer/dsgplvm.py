@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 from scipy import optimize
+from threadpoolctl import threadpool_limits
 
 from . import adm
 from .backmap import backmap_kernel, fit_loo, krr_weights, masked_squared_distances
@@ -37,18 +38,31 @@ class DSGPLVM:
     """
 
     def __init__(self, q=None, beta=50.0, xi=1e-3, mu0=1.0, rho=1.1, mu_max=1e3, max_cycles=100,
-                 tol=1e-5, step1_maxiter=50, view_weighting="paper", seed=0,
+                 tol=1e-5, step1_maxiter=50, view_weighting="paper", inverse_width=2.0,
+                 learn_inverse_width=True, seed=0,
                  views=("1d", "2d"), source_view="1d", store_views=None):
         self.q, self.beta, self.xi = q, beta, xi
         self.mu0, self.rho, self.mu_max = mu0, rho, mu_max
         self.max_cycles, self.tol, self.step1_maxiter = max_cycles, tol, step1_maxiter
         self.view_weighting, self.seed = view_weighting, seed
+        self.inverse_width, self.learn_inverse_width = inverse_width, learn_inverse_width
         self.views, self.source_view, self.store_views = views, source_view, store_views
+
+    def get_params(self):
+        """Constructor arguments (scikit-learn style), as a dict."""
+        import inspect
+        names = inspect.signature(type(self).__init__).parameters
+        return {k: getattr(self, k) for k in names if k != "self"}
 
     # ------------------------------------------------------------------ learning
     def fit(self, views, labels=None):
         """views: dict name -> (N, D_v) features (NaN = missing); labels: (N,) ints or None
         (spectral clustering into 2 classes). Returns self."""
+        # N×N algebra: BLAS threads only add overhead (and thrash on a shared machine)
+        with threadpool_limits(1):
+            return self._fit(views, labels)
+
+    def _fit(self, views, labels):
         t0 = time.perf_counter()
         names = [v for v in self.views if v in views]
         if self.source_view not in names:
@@ -69,12 +83,15 @@ class DSGPLVM:
         latent, q = pca_latent(grams, n_dims, self.q)
         if self.view_weighting == "balanced":
             weights = [min(n_dims) / d for d in n_dims]
+        elif self.view_weighting == "per_dim":
+            weights = [1.0 / d for d in n_dims]
         elif self.view_weighting == "paper":
             weights = [1.0] * len(names)
         else:
             raise ValueError(f"unknown view_weighting {self.view_weighting!r}")
         mean_d2 = mean_squared_distance(distances_from_gram(latent @ latent.T))
-        log_thetas = np.tile(np.log([1.0, 2.0 / mean_d2, 0.1, 20.0]), (len(names), 1))
+        log_thetas = np.tile(np.log([1.0, self.inverse_width / mean_d2, 0.1, 20.0]),
+                             (len(names), 1))
 
         # Algorithm 1 initialisation: Λ0 = 0, A0 from Eq. 16 with LOO-fitted (γ, λ) on X0
         mu = float(self.mu0)
@@ -86,9 +103,20 @@ class DSGPLVM:
         amats = [krr_weights(d2s[v], latent, lags[v], mu, gammas[v], lams[v])
                  for v in range(len(names))]
 
-        bounds = [(None, None)] * latent.size + LOG_THETA_BOUNDS * len(names)
-        history, info = [], []
-        previous = None
+        theta_bounds = list(LOG_THETA_BOUNDS)
+        if not self.learn_inverse_width:
+            # θ2 and the scale of X are one degree of freedom (the likelihood only sees θ2 |x_i − x_j|²);
+            # holding θ2 fixes that gauge, so the prior's pull on X is not undone by a growing θ2
+            theta_bounds[1] = (log_thetas[0, 1], log_thetas[0, 1])
+        bounds = [(None, None)] * latent.size + theta_bounds * len(names)
+        # history[0] is Eq. 12 at the initialisation, then one value per ADM cycle
+        ls_value = adm.likelihood_prior(latent, log_thetas, grams, n_dims, laplacian, self.beta,
+                                        weights)[0]
+        kbcs = [backmap_kernel(d2s[v], gammas[v]) for v in range(len(names))]
+        previous, resid = adm.augmented_lagrangian(ls_value, latent, kbcs, amats, lags, lams, mu)
+        history = [previous]
+        info = [{"cycle": -1, "objective": previous, "L_s": ls_value, "max_ibp": resid, "mu": mu,
+                 "step1_iters": 0, "gamma": list(gammas), "lambda": list(lams)}]
         for cycle in range(self.max_cycles):
             # Step 1: X, θ by L-BFGS on Eq. 13
             kbcs = [backmap_kernel(d2s[v], gammas[v]) for v in range(len(names))]
@@ -115,7 +143,7 @@ class DSGPLVM:
                          "lambda": list(lams)})
             log.info("DS-GPLVM cycle %d: Eq.12 %.6g, L_s %.6g, max|IBP| %.3g, mu %.3g",
                      cycle, value, ls_value, resid, mu)
-            if previous is not None and abs(value - previous) <= self.tol * max(1.0, abs(value)):
+            if abs(value - previous) <= self.tol * max(1.0, abs(value)):
                 break
             previous = value
 
@@ -131,7 +159,7 @@ class DSGPLVM:
         self.view_data_ = data
         self.objective_history_ = history
         self.cycle_info_ = info
-        self.n_cycles_ = len(history)
+        self.n_cycles_ = len(history) - 1
         self._build_posteriors()
         self.fit_time_ = time.perf_counter() - t0
         return self

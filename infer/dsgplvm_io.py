@@ -15,8 +15,6 @@ from brdf.errors import InputError
 from .viewdata import ViewData
 
 FORMAT = "flashbrdf-dsgplvm-1"
-CONFIG_KEYS = ("q", "beta", "xi", "mu0", "rho", "mu_max", "max_cycles", "tol", "step1_maxiter",
-               "view_weighting", "seed", "views", "source_view", "store_views")
 
 
 def save_model(model, path, store_views=None):
@@ -25,7 +23,7 @@ def save_model(model, path, store_views=None):
         store_views = [v for v in model.view_names_ if model.view_data_[v].data is not None]
     store_views = set(store_views) | {model.source_view}
     meta = {"format": FORMAT, "views": model.view_names_, "stored": sorted(store_views),
-            "config": {k: getattr(model, k) for k in CONFIG_KEYS},
+            "config": model.get_params(),
             "objective_history": model.objective_history_, "mu": model.mu_,
             "gamma": model.gamma_, "lambda": model.lambda_, "n_cycles": model.n_cycles_,
             "fit_time": getattr(model, "fit_time_", None)}

@@ -77,7 +77,7 @@ def render_surface(surface, camera, light, brdf, spp=64, seed=0, occluded=None, 
     raise InputError(where, f"unknown light type {light.type!r}")
 
 
-def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True):
+def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geometry=None):
     """Render every `reference` photo's lighting (or the given photos) from its camera.
 
     scene: capture.Scene; brdf: a render.brdf_models model. Yields (photo, image, mask) per photo:
@@ -97,7 +97,8 @@ def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True):
             key = (str(light.file), np.asarray(light.world_from_envmap).tobytes(), light.scale)
             if key not in envmaps:
                 envmaps[key] = EnvMap.from_file(light.file, light.world_from_envmap, light.scale)
-    geometry = SceneGeometry(scene)
+    # A SceneGeometry passed in keeps its primary hits across calls (e.g. one render per method).
+    geometry = SceneGeometry(scene) if geometry is None else geometry
     occluded = geometry.occluder()
     for photo in photos:
         camera = photo.camera

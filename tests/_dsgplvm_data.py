@@ -2,7 +2,7 @@
 
 import numpy as np
 
-FEATURE_OFFSET = 1e-3  # 1/sr, as brdf.colour.FEATURE_OFFSET
+from brdf.colour import rho_to_features
 
 
 def latent_views(n, seed=0, d1=30, d2=300):
@@ -44,6 +44,9 @@ def analytic_brdf(n, seed=0, n_h=90, n_d=90):
 
 
 def to_features(rho):
-    """ln(1 + ρ / 1e-3) per channel, flattened per material: (n, ...) -> (n, D)."""
+    """brdf.colour.rho_to_features (Lab of ln(1 + ρ/1e-3)), flattened per material: (n, ..., 3) ->
+    (n, D); NaN where ρ is NaN (missing)."""
     rho = np.asarray(rho, dtype=float)
-    return np.log1p(np.maximum(rho, 0) / FEATURE_OFFSET).reshape(len(rho), -1)
+    feats = rho_to_features(np.nan_to_num(rho))
+    feats[~np.isfinite(rho).all(axis=-1)] = np.nan
+    return feats.reshape(len(rho), -1)

@@ -27,7 +27,7 @@ def test_extract_writes_slice_and_report(scene, tmp_path, capsys):
     assert report["coverage"]["pixels_used"] == n.sum()
     assert set(report["rejected"]) >= {"unusable", "miss", "grazing", "theta_d", "shadowed",
                                        "outlier"}
-    assert report["timings_s"]["total"] > 0 and report["theta_d_deg"]["max"] < 1e-6
+    assert report["timings_s"]["total"] > 0 and report["theta_d_deg"]["max"] < 1e-4
     assert out.read_text().startswith("# flashbrdf extract")
 
 
