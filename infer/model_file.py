@@ -99,11 +99,12 @@ def _restore_2d_rows(model, training, feature_space):
                                       gram=stored.gram, n_dims=stored.n_dims, data=data)
 
 
-def load_method(path, name, merl_dir=None):
-    """A fitted method `name` from MODEL.npz (see infer.make_method)."""
+def load_method(path, name, merl_dir=None, **overrides):
+    """A fitted method `name` from MODEL.npz (see infer.make_method); `overrides` replace stored
+    hyperparameters that act at prediction time (e.g. anchor=True for dsgplvm)."""
     from infer import make_method
     training, params, blob = read_model(path, merl_dir)
-    kw = dict(params.get(name, {}))
+    kw = {**params.get(name, {}), **overrides}
     if name == "dsgplvm":
         if blob is None:
             raise InputError(path, "model holds no DS-GPLVM")

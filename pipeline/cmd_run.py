@@ -74,7 +74,7 @@ def _model_path(args, methods):
                                 "(make it with `flashbrdf train`)")
 
 
-def _infer(method_name, model_path, rho, out_dir):
+def _infer(method_name, model_path, rho, out_dir, anchor=True):
     """Predict a 2D table (or 3D where the model stores 3D data); write brdf.binary + brdf.json."""
     from brdf import merl, views
     from infer import load_method, make_method
@@ -83,7 +83,8 @@ def _infer(method_name, model_path, rho, out_dir):
         method = make_method(method_name).fit(None)
         view = "2d"
     else:
-        method = load_method(model_path, method_name)
+        overrides = {"anchor": anchor} if method_name == "dsgplvm" else {}
+        method = load_method(model_path, method_name, **overrides)
         view = "3d" if getattr(getattr(method, "training_", None), "valid_3d", None) is not None \
             else "2d"
     table, variance = method.predict(rho, view=view)
@@ -141,12 +142,12 @@ def run(args):
     options = ExtractOptions()
     result = stages.run("extract", extract_slice, scene, options)
     out.mkdir(parents=True, exist_ok=True)
-    write_extraction(out / "slice.csv", args.scene_dir, result, options)
+    rho = write_extraction(out / "slice.csv", args.scene_dir, result, options)
 
     predictions = {}
     for name in methods:
-        table, variance, view = stages.run(f"infer {name}", _infer, name, model_path, result.rho,
-                                           out / name)
+        table, variance, view = stages.run(f"infer {name}", _infer, name, model_path, rho,
+                                           out / name, not args.no_anchor)
         predictions[name] = {"table": table, "variance": variance, "file": f"{name}/brdf.binary",
                              "variance_label": "predictive variance (log-CIELAB features)"}
         if view == "2d":
@@ -166,7 +167,7 @@ def run(args):
         for name in methods:
             rows += stages.run(f"render+compare {name}", _render_and_compare, scene, geometry, name,
                                predictions[name]["table"], spp, out / name, references)
-    observed = {"rho": result.rho, "n": result.n, "spread": result.spread}
+    observed = {"rho": rho, "n": result.n, "spread": result.spread}
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                         observed=observed, predictions=predictions, notes=notes,
                         title=f"flashbrdf run {Path(args.scene_dir).name}")
