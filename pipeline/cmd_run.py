@@ -144,16 +144,18 @@ def run(args):
     out.mkdir(parents=True, exist_ok=True)
     rho = write_extraction(out / "slice.csv", args.scene_dir, result, options)
 
-    predictions = {}
+    predictions, two_d = {}, []
     for name in methods:
         table, variance, view = stages.run(f"infer {name}", _infer, name, model_path, rho,
                                            out / name, not args.no_anchor)
         predictions[name] = {"table": table, "variance": variance, "file": f"{name}/brdf.binary",
                              "variance_label": "predictive variance (log-CIELAB features)"}
         if view == "2d":
-            notes.append(f"{name}: the model predicts 2D rho(theta_h, theta_d); no 3D table was "
-                         "loaded, and the render looks the 2D table up directly.")
+            two_d.append(name)
 
+    if two_d:
+        notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "
+                     "3D data); no 3D table was loaded, and renders look the 2D tables up directly.")
     references = scene.photos_with_role("reference")
     rows = []
     if not references:
