@@ -31,16 +31,25 @@ METHODS_NEEDING_NO_MODEL = ("chandraker",)
 
 
 class _Stages:
-    """Wall-clock seconds per stage, in run order, printed as a table at the end."""
+    """Wall-clock seconds per stage, in run order, printed as a table at the end.
 
-    def __init__(self):
+    On a terminal a progress bar counts the stages (renders add their own per-photo bars);
+    otherwise each stage prints one line, which keeps logs readable.
+    """
+
+    def __init__(self, total):
+        from tqdm import tqdm
         self.seconds = {}
+        self.bar = tqdm(total=total, unit="stage", file=sys.stderr, disable=not sys.stderr.isatty())
 
     def run(self, name, fn, *args, **kwargs):
-        print(f"[{name}] ...", file=sys.stderr, flush=True)
+        if self.bar.disable:
+            print(f"[{name}] ...", file=sys.stderr, flush=True)
+        self.bar.set_description(name)
         start = time.perf_counter()
         result = fn(*args, **kwargs)
         self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - start
+        self.bar.update(1)
         return result
 
     def table(self):
@@ -136,7 +145,7 @@ def run(args):
     model_path = _model_path(args, methods)
     spp = int(getattr(args, "spp", None) or 64)
     out = Path(args.out)
-    stages, notes = _Stages(), []
+    stages, notes = _Stages(total=4 + 2 * len(methods)), []
 
     scene = stages.run("load scene", capture.load_scene, args.scene_dir)
     options = ExtractOptions()
@@ -173,6 +182,7 @@ def run(args):
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                         observed=observed, predictions=predictions, notes=notes,
                         title=f"flashbrdf run {Path(args.scene_dir).name}")
+    stages.bar.close()
     print(stages.table(), file=sys.stderr)
     for method, summary in report.get("summary", {}).items():
         mean = summary.get("delta_e_log_mean", {}).get("mean")
