@@ -28,8 +28,9 @@ from infer.dsgplvm import DSGPLVM  # noqa: E402
 
 SETTINGS = {
     "default": {},
+    "per_dim": {"view_weighting": "per_dim"},
     "paper_as_written": {"view_weighting": "paper", "learn_inverse_width": True,
-                         "inverse_width": 2.0},
+                         "inverse_width": 2.0, "variance": 0.95},
 }
 
 

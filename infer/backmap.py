@@ -58,23 +58,46 @@ def loo_error(d2, latent, multipliers, mu, gamma, lam):
 
 
 def fit_loo(d2, latent, multipliers, mu, gamma0, lam0):
-    """Minimise E_LOO over (ln γ, ln λ) in a bounded box (scipy L-BFGS-B). Returns (γ, λ)."""
+    """Minimise E_LOO over (ln γ, ln λ) in a bounded box. Returns (γ, λ).
+
+    For a given γ one eigendecomposition of K_bc makes E_LOO cheap for every λ, so λ is optimised
+    inside (bounded Brent) and γ outside: a coarse grid first (E_LOO is often multi-modal in γ),
+    then bounded Brent between the best grid point's neighbours.
+    """
     t = np.mean(d2[~np.eye(len(d2), dtype=bool)]) if len(d2) > 1 else 1.0
     log_gamma_ref = np.log(2.0 / t) if t > 0 else 0.0
-    bounds = [(log_gamma_ref + LOG_GAMMA_SPAN[0], log_gamma_ref + LOG_GAMMA_SPAN[1]),
-              (np.log(RIDGE_RANGE[0] * mu), np.log(RIDGE_RANGE[1] * mu))]
-    start = np.clip([np.log(gamma0), np.log(lam0)], [b[0] for b in bounds], [b[1] for b in bounds])
+    g_lo, g_hi = log_gamma_ref + LOG_GAMMA_SPAN[0], log_gamma_ref + LOG_GAMMA_SPAN[1]
+    l_lo, l_hi = np.log(RIDGE_RANGE[0] * mu), np.log(RIDGE_RANGE[1] * mu)
+    lag_mu = multipliers / mu
+    targets = latent + lag_mu
 
-    def cost(p):
-        return loo_error(d2, latent, multipliers, mu, np.exp(p[0]), np.exp(p[1]))
+    def best_lambda(log_gamma):
+        s, u = _eig(d2, np.exp(log_gamma))
+        projected, u_sq = u.T @ targets, u * u
 
-    # a coarse look first: E_LOO is often multi-modal in γ
-    grid = [(g, start[1]) for g in np.linspace(*bounds[0], 7)] + [tuple(start)]
-    best = min(grid, key=cost)
-    res = optimize.minimize(cost, best, method="L-BFGS-B", bounds=bounds,
-                            options={"maxiter": 50})
-    p = res.x if res.fun <= cost(best) else best
-    return float(np.exp(p[0])), float(np.exp(p[1]))
+        def cost(log_lam):
+            inv_eig = 1.0 / (s + np.exp(log_lam) / mu)
+            weights = u @ (inv_eig[:, None] * projected)
+            resid = weights / (u_sq @ inv_eig)[:, None] - lag_mu
+            return 0.5 * float(np.sum(resid ** 2))
+
+        res = optimize.minimize_scalar(cost, bounds=(l_lo, l_hi), method="bounded",
+                                       options={"xatol": 1e-3})
+        start = float(np.clip(np.log(lam0), l_lo, l_hi))
+        return (res.fun, res.x) if res.fun <= cost(start) else (cost(start), start)
+
+    grid = np.linspace(g_lo, g_hi, 9)
+    start = float(np.clip(np.log(gamma0), g_lo, g_hi))
+    tried = {g: best_lambda(g) for g in [*grid, start]}
+    best = min(tried, key=lambda g: tried[g][0])
+    step = grid[1] - grid[0]
+    res = optimize.minimize_scalar(lambda g: best_lambda(g)[0], method="bounded",
+                                   bounds=(max(g_lo, best - step), min(g_hi, best + step)),
+                                   options={"xatol": 1e-2})
+    if res.fun < tried[best][0]:
+        best = float(res.x)
+        tried[best] = best_lambda(best)
+    return float(np.exp(best)), float(np.exp(tried[best][1]))
 
 
 def krr_weights(d2, latent, multipliers, mu, gamma, lam):

@@ -33,7 +33,7 @@ def train(args):
 def _uncertainty_summary(variance):
     if variance is None:
         return None
-    v = np.asarray(variance, float)
+    v = np.ravel(np.asarray(variance, float))
     v = v[np.isfinite(v)]
     if not v.size:
         return None
@@ -55,7 +55,9 @@ def infer(args):
     else:
         if not Path(args.model).is_file():
             raise InputError(args.model, "no such model file")
-        method = load_method(args.model, args.method, args.merl_dir)
+        overrides = {"anchor": not getattr(args, "no_anchor", False)} \
+            if args.method == "dsgplvm" else {}
+        method = load_method(args.model, args.method, args.merl_dir, **overrides)
         has_3d = args.method in ("chandraker", "ashikhmin") or method.training_.has_3d()
     if view == "auto":
         view = "3d" if has_3d else "2d"
@@ -84,11 +86,14 @@ def infer(args):
 
 
 def evaluate(args):
-    """The paper's Table 1 protocol on --merl-dir (see infer.evaluate)."""
-    from infer.evaluate import render_table2, run_evaluation
-    run_evaluation(args.merl_dir, args.out, quick=args.quick,
-                   experiments=getattr(args, "experiments", None),
-                   time_budget=getattr(args, "time_budget", None))
+    """The paper's Table 1 protocol on --merl-dir (see infer.evaluate); with --render also its
+    Table 2 (render.table2) on the mean-performing experiment's test materials, 2D predictions."""
+    from infer.evaluate import experiment_predictor, run_evaluation
+    result = run_evaluation(args.merl_dir, args.out, quick=args.quick,
+                            experiments=getattr(args, "experiments", None),
+                            time_budget=getattr(args, "time_budget", None))
     if getattr(args, "render", False):
-        render_table2(args)  # Table 2 (issue 5): the render stage supplies it
+        from render import table2
+        names, predict = experiment_predictor(args.merl_dir, result)
+        table2(args.merl_dir, args.out, predict, names=names)
     return 0

@@ -93,10 +93,31 @@ def test_save_load_roundtrip(brdf_model, brdf_views, tmp_path):
 
 def test_generalises_on_synthetic_low_dimensional_data():
     # 40 training samples of a 2-D latent through smooth maps into two views; predict view 2 of 40
-    # held-out samples from view 1. Measured error / (error of the training mean): MEASURED.
+    # held-out samples from view 1. Measured MSE / (MSE of the training mean) with the defaults: 0.0027
+    # (linear ridge 1D -> 2D: 0.007; view_weighting="per_dim", which lets β = 50 dominate: 0.64).
     _, v1, v2 = latent_views(40, seed=0)
     _, t1, t2 = latent_views(40, seed=1)
     model = DSGPLVM(max_cycles=20).fit({"1d": v1, "2d": v2})
     pred, var = model.predict(t1, "2d")
     ratio = np.mean((pred - t2) ** 2) / np.mean((v2.mean(0) - t2) ** 2)
-    assert ratio < 0.2, ratio
+    assert ratio < 0.05, ratio
+
+
+def test_unstored_3d_view_predicts_through_weights(brdf_views, tmp_path):
+    # a "3d" view is not kept in memory nor saved by default; predict_weights still gives the GP mean
+    # as a combination of its training rows (read lazily by the caller)
+    f1, f2 = (f[:10] for f in brdf_views)
+    f3 = np.concatenate([f2, f2[:, ::-1]], axis=1).astype(np.float32)  # stand-in for a bigger view
+    model = DSGPLVM(max_cycles=5, views=("1d", "2d", "3d")).fit({"1d": f1, "2d": f2, "3d": f3})
+    assert model.view_data_["3d"].data is None
+    with pytest.raises(ValueError):
+        model.predict(brdf_views[0][N_TRAIN], "3d")
+    weights, var = model.predict_weights(brdf_views[0][N_TRAIN], "3d")
+    assert np.isfinite(weights @ f3).all() and var > 0
+    path = tmp_path / "m3.npz"
+    model.save(path)
+    loaded = DSGPLVM.load(path)
+    w2, v2 = loaded.predict_weights(brdf_views[0][N_TRAIN], "3d")
+    assert np.array_equal(weights, w2) and var == v2
+    with np.load(path) as stored:
+        assert "3d_data" not in stored.files and "2d_data" in stored.files

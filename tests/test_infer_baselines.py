@@ -139,3 +139,20 @@ def test_dsgplvm_adapter_duplicate_training_brdfs(mixed_set):
     assert np.isfinite(table[valid]).all() and np.isfinite(var[valid]).all()
     weights, space = method.combination(mixed_set.slices[5])
     assert weights.shape == (6,) and abs(weights.sum() - 1) < 1e-9  # affine: view mean folded in
+
+
+def test_streamed_3d_metrics_equal_brdf_metrics(mixed_set):
+    # evaluate_3d shares the truth's transforms across methods and sums chunk by chunk: it must
+    # give brdf.metrics.brdf_errors on the full tables (float64 round-off only)
+    from brdf import metrics
+    from infer.eval3d import evaluate_3d
+    train, test = np.arange(5), np.array([5])
+    training = mixed_set.subset(train)
+    methods = {"chandraker": Chandraker().fit(None), "pca": PCA(None, 1e-2).fit(training)}
+    got = evaluate_3d(mixed_set.valid_3d, train, test, methods, mixed_set.slices[test],
+                      chunk=300_000)
+    truth = scatter_valid(mixed_set.valid_3d[5].astype(float))
+    for name, m in methods.items():
+        want = metrics.brdf_errors(m.predict(mixed_set.slices[5], "3d")[0], truth)
+        for key, value in want.items():
+            assert got[name][0][key] == pytest.approx(value, rel=1e-9)
