@@ -136,7 +136,7 @@ def reference_figure(path, photo, reference, renders, delta_e_maps, delta_e_mean
         render = renders[method]
         _show(axes[0, m], None if render is None else tone_map(render, scale), f"{method}: render")
         de = delta_e_maps.get(method)
-        title = f"{method}: ΔE log, mean {delta_e_means.get(method, float('nan')):.2f}"
+        title = f"{method}: mean ΔE {delta_e_means.get(method, float('nan')):.2f}"
         if de is not None and np.ndim(de) == 2:
             image = axes[1, m].imshow(np.where(np.isfinite(de), de, np.nan), cmap="inferno",
                                       vmin=0, vmax=vmax)
