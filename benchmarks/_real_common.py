@@ -33,6 +33,9 @@ def run_cli(argv):
             rc = main([str(a) for a in argv])
         except SystemExit as exc:  # argparse rejects an argument
             rc = exc.code
+        except Exception as exc:  # a stage crashed: report it, let the caller fall back
+            print(f"{type(exc).__name__}: {exc}", file=err)
+            rc = 1
     return rc, err.getvalue().strip(), time.perf_counter() - start
 
 

@@ -78,6 +78,7 @@ def main(argv=None):
     ap.add_argument("--methods", default=METHODS)
     ap.add_argument("--work", default="/tmp/flashbrdf_bench_planar_cards", type=Path)
     args = ap.parse_args(argv)
+    from brdf.errors import InputError
     from brdf.merl import read_merl
     from brdf.views import read_slice_csv, write_slice_csv
     from pipeline.real_scenes import planar_card_scenes
@@ -92,9 +93,14 @@ def main(argv=None):
     pixels = flash_photo.reshape(-1, 3)
     rc, err, seconds = run_cli(["extract", flash_view, "--out", work / "slice.csv"])
     extractor = "extract stage"
+    if rc == 0:
+        try:
+            read_slice_csv(work / "slice.csv")
+        except InputError as bad:  # the stage wrote a slice its own reader rejects
+            rc, err = 1, str(bad)
     if rc != 0:
-        log(f"extract stage unavailable (exit {rc}): using the benchmark's direct extraction")
-        extractor = "direct (benchmark stand-in)"
+        log(f"extract stage unusable (exit {rc}: {err}): using the benchmark's direct extraction")
+        extractor = f"direct (benchmark stand-in; extract stage: {err})"
         rho, n, _ = direct_extract(pixels, wi, wo, normal, factor)
         write_slice_csv(work / "slice.csv", rho, n, comments=["direct extraction (stand-in)"])
     rho, n = read_slice_csv(work / "slice.csv")

@@ -23,6 +23,10 @@ def atomic_path(path, suffix=None):
     fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".part" + suffix,
                                dir=folder)
     os.close(fd)
+    # mkstemp makes the file private (0600); the output should get the usual umask permissions.
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
     try:
         yield tmp
         os.replace(tmp, path)

@@ -13,26 +13,31 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   load_mesh(path) -> (trimesh.Trimesh, has_vertex_normals)
   MeshIntersector(mesh, use_vertex_normals=None)   # Embree scene, build once
   scene_intersector(scene) -> MeshIntersector for the scene's mesh
-  intersect(mesh_or_intersector, origins, directions) -> Hits(hit, points, normals, face, distance)
+  intersect(intersector_mesh_or_scene, origins, directions) -> Hits(hit, points, normals, face,
+      distance)
   occluded(mesh_or_intersector, points, directions, max_dist=None) -> (...) bool
   is_convex(mesh_or_intersector) -> bool
   surface_from_mesh(mesh_or_intersector, camera, pixel_mask=None) -> Surface
   surface_at_pixels(mesh_or_intersector, camera, rows, cols) -> Surface (hits only)
   pixel_box(camera, bounds) -> (row0, row1, col0, col1): pixels that can see a world box
-  surface_from_normal_map(geometry, camera, pixel_mask=None) -> Surface (points None)
+  surface_from_normal_map(geometry_or_scene, camera=None, pixel_mask=None) -> Surface (no points)
   load_normal_map(geometry, camera) -> normals_camera (H, W, 3), mask (H, W)
-  load_photo(path, encoding=None, saturation=None, shape=None) -> rgb (H, W, 3) f32, usable (H, W)
-  load_brackets(brackets, encoding=None, saturation=None, shape=None) -> rgb, usable
-  load_photo_entry(photo) -> rgb, usable   # a scene.json photo entry, unscaled
-  load_flash_images(scene) -> [FlashImage(photo, radiance, usable)]   # ambient removed, /scale
+  load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=False)
+      -> rgb (H, W, 3) float32 linear, usable (H, W) bool[, clipped (H, W) bool]
+  load_brackets(brackets, encoding=None, saturation=None, shape=None, return_clipped=False)
+  load_photo_entry(photo, return_clipped=False) -> rgb, usable   # a photos[] entry, unscaled
+  embree_rays(camera, rows, cols, shift) -> float32 origins - shift, directions (not unit)
+  load_flash_images(scene_or_dir) -> [FlashImage(photo, radiance, usable, clipped)]
+      # ambient removed, divided by scale
   read_float_image(path) -> (H, W, 3) float32 via OpenImageIO
   srgb_to_linear(values) -> linear
 """
 
-from capture.camera import camera_rays, pixel_box, pixel_rays, project_points, view_directions
-from capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex,
-                              load_mesh, load_normal_map, occluded, surface_at_pixels,
-                              surface_from_mesh, surface_from_normal_map)
+from capture.camera import (camera_rays, embree_rays, pixel_box, pixel_rays, project_points,
+                            view_directions)
+from capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex, load_mesh,
+                              occluded, surface_at_pixels, surface_from_mesh)
+from capture.normal_map import load_normal_map, surface_from_normal_map
 from capture.load import FlashImage, load_flash_images, load_photo_entry
 from capture.photo import load_brackets, load_photo, read_float_image, srgb_to_linear
 from capture.scene import Camera, Geometry, Light, Photo, Scene, load_scene
@@ -49,8 +54,9 @@ def scene_intersector(scene):
 
 __all__ = [
     "Camera", "FlashImage", "Geometry", "Hits", "Light", "MeshIntersector", "Photo", "Scene",
-    "Surface", "camera_rays", "intersect", "is_convex", "load_brackets", "load_flash_images",
-    "load_mesh", "load_normal_map", "load_photo", "load_photo_entry", "load_scene", "occluded",
-    "pixel_box", "pixel_rays", "project_points", "read_float_image", "scene_intersector", "srgb_to_linear",
-    "surface_at_pixels", "surface_from_mesh", "surface_from_normal_map", "view_directions",
+    "Surface", "camera_rays", "embree_rays", "intersect", "is_convex", "load_brackets",
+    "load_flash_images", "load_mesh", "load_normal_map", "load_photo", "load_photo_entry",
+    "load_scene", "occluded", "pixel_box", "pixel_rays", "project_points", "read_float_image",
+    "scene_intersector", "srgb_to_linear", "surface_at_pixels", "surface_from_mesh",
+    "surface_from_normal_map", "view_directions",
 ]

@@ -59,8 +59,12 @@ def _ambient(scene, camera):
 def load_flash_images(scene):
     """All flash photos of a scene with ambient subtracted and divided by their scale.
 
-    Returns a list of FlashImage. InputError when the scene has no flash photo.
+    scene: capture.Scene or a scene folder. Returns a list of FlashImage. InputError when the
+    scene has no flash photo.
     """
+    from capture.scene import Scene, load_scene
+    if not isinstance(scene, Scene):
+        scene = load_scene(scene)
     flashes = scene.photos_with_role("flash")
     if not flashes:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'flash'")

@@ -70,7 +70,19 @@ def read_float_image(path):
         data = data[..., :3]
     elif all(c in names for c in "RGB"):
         data = data[..., [names.index(c) for c in "RGB"]]
-    return _to_rgb(data, path)
+    data = np.ascontiguousarray(_to_rgb(data, path))
+    window = (spec.x, spec.y, spec.width, spec.height)
+    full = (spec.full_x, spec.full_y, spec.full_width, spec.full_height)
+    if window != full and spec.full_width > 0 and spec.full_height > 0:
+        # a cropped data window (EXR): place it in the display window; outside is no data
+        canvas = np.full((spec.full_height, spec.full_width, 3), np.nan, dtype=np.float32)
+        x0, y0 = spec.x - spec.full_x, spec.y - spec.full_y
+        xs, ys = max(x0, 0), max(y0, 0)
+        xe, ye = min(x0 + spec.width, spec.full_width), min(y0 + spec.height, spec.full_height)
+        if xe > xs and ye > ys:
+            canvas[ys:ye, xs:xe] = data[ys - y0:ye - y0, xs - x0:xe - x0]
+        data = canvas
+    return data
 
 
 def read_pfm(path):
@@ -120,7 +132,7 @@ def _read_cv(path, encoding):
         raise InputError(path, "cannot read image (corrupt or unsupported)")
     if img.ndim == 3 and img.shape[2] >= 3:
         img = img[..., [2, 1, 0]]  # BGR(A) -> RGB
-    img = _to_rgb(img, path)
+    img = np.ascontiguousarray(_to_rgb(img, path))
     if img.dtype in (np.uint8, np.uint16):
         top = float(np.iinfo(img.dtype).max)
         clipped = np.any(img >= SATURATION_FRACTION * top, axis=-1)
@@ -172,7 +184,8 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
     """Merge an exposure bracket [(path, exposure_s), ...] into one HDR photo.
 
     8-bit brackets: OpenCV's Debevec camera-response calibration and a Debevec log-domain merge
-    (relative radiance: OpenCV normalises the response to 1 at code 128). Other (linear) brackets: per pixel, the maximum-likelihood
+    (relative radiance: OpenCV normalises the response to 1 at code 128). Other (linear)
+    brackets: per pixel, the maximum-likelihood
     radiance for Poisson counts, sum(value) / sum(exposure) over the brackets where the pixel is
     usable. A merged pixel is usable when at least one bracket saw it usable, clipped when every
     bracket saw it clipped.

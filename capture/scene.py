@@ -30,7 +30,7 @@ class Camera:
     """A camera. Pinhole: OpenCV axes and intrinsics (pixels); orthographic: pixel_size (m/px).
 
     world_from_camera: (4, 4) float64 pose, camera frame -> world frame.
-    distortion: (5,) OpenCV [k1, k2, p1, p2, k3] or None (pinhole only).
+    distortion: (5,) OpenCV [k1, k2, p1, p2, k3] (or OpenCV's 4/8/12/14 forms) or None.
     """
     model: str
     width: int
@@ -55,7 +55,7 @@ class Camera:
 
     @property
     def centre_world(self):
-        """(3,) camera-frame origin in world coordinates (the pinhole, or the ortho plane centre)."""
+        """(3,) camera-frame origin in world coordinates (pinhole, or ortho plane centre)."""
         return self.world_from_camera[:3, 3].copy()
 
     @property
@@ -221,7 +221,10 @@ def _camera(f):
         return Camera(model, width, height, pose, pixel_size=f.number("pixel_size", positive=True))
     distortion = None
     if f.has("distortion"):
-        distortion = f.array("distortion", (5,))
+        # the contract's [k1, k2, p1, p2, k3]; OpenCV's other lengths are accepted too
+        raw = f.get("distortion")
+        size = len(raw) if isinstance(raw, list) else 0
+        distortion = f.array("distortion", (size if size in (4, 5, 8, 12, 14) else 5,))
         if not np.any(distortion):
             distortion = None
     return Camera(model, width, height, pose, fx=f.number("fx", positive=True),

@@ -11,7 +11,8 @@ a 3D view uses its 2D view's weights (the GP posterior mean is linear in the tra
 import numpy as np
 
 from brdf import colour
-from infer.common import InferenceMethod, LinearSpace, valid_mask_2d
+from infer.common import (InferenceMethod, LinearSpace, scatter_valid, stream_combination,
+                          valid_mask_2d)
 
 
 def _model_class():
@@ -121,6 +122,14 @@ class DSGPLVMMethod(InferenceMethod):
     def _weights_view(self):
         trained = getattr(self.model, "views_", None) or getattr(self.model, "view_names_", None)
         return "3d" if trained is not None and "3d" in trained else "2d"
+
+    def _predict_3d(self, rho):
+        """Streamed 3D mean; the variance is the GP's per-dimension predictive variance (a scalar:
+        one isotropic GP per view, in feature units²)."""
+        weights, var = self._weights(slice_features(rho, self.feature_space), self._weights_view())
+        values = stream_combination(self.training_, np.asarray(weights, float),
+                                    FeatureSpace(self.feature_space))
+        return scatter_valid(values), np.float64(var)
 
     def combination(self, rho):
         weights, _ = self._weights(slice_features(rho, self.feature_space), self._weights_view())

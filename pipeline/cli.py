@@ -35,6 +35,9 @@ def _parser():
     s.add_argument("--method", default="dsgplvm",
                    choices=["dsgplvm", "pca", "noll", "chandraker", "ashikhmin"])
     s.add_argument("--merl-dir", metavar="DIR")
+    s.add_argument("--view", default="auto", choices=["auto", "2d", "3d"],
+                   help="predict 2D (copied across phi_d) or 3D; auto: 3D when training tables "
+                        "are at hand")
 
     s = sub.add_parser("extract", help="extract the flash slice from a capture folder")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
@@ -42,6 +45,8 @@ def _parser():
     s.add_argument("--max-theta-d", type=float, metavar="DEG",
                    help="reject pixels with theta_d above this (default 5 degrees)")
     s.add_argument("--min-cos", type=float, help="reject cos(theta_i|o) below this (default 0.1)")
+    s.add_argument("--silhouette-px", type=int, metavar="PX",
+                   help="reject pixels this close to the object's outline (default 1)")
 
     s = sub.add_parser("render", help="render every reference photo's lighting")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
@@ -63,12 +68,16 @@ def _parser():
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     s.add_argument("--model", metavar="MODEL.npz")
     s.add_argument("--methods", default="dsgplvm")
+    s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
 
     s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
     s.add_argument("--merl-dir", required=True, metavar="DIR")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     s.add_argument("--render", action="store_true")
     s.add_argument("--quick", action="store_true")
+    s.add_argument("--experiments", type=int, help="number of experiments (default 25)")
+    s.add_argument("--time-budget", type=float, metavar="SECONDS",
+                   help="stop starting experiments when this wall time would be exceeded")
 
     s = sub.add_parser("import-diligent", help="turn a DiLiGenT object folder into a scene folder")
     s.add_argument("obj_dir", metavar="OBJ_DIR")

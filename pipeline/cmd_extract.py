@@ -22,7 +22,11 @@ def _options(args):
         raise InputError("--max-theta-d", f"expected degrees in (0, 90], got {max_theta_d}")
     if min_cos is not None and not 0 <= min_cos < 1:
         raise InputError("--min-cos", f"expected a value in [0, 1), got {min_cos}")
+    silhouette = getattr(args, "silhouette_px", None)
+    if silhouette is not None and not 0 <= silhouette <= 50:
+        raise InputError("--silhouette-px", f"expected 0..50 pixels, got {silhouette}")
     return ExtractOptions(
+        silhouette_px=ExtractOptions.silhouette_px if silhouette is None else silhouette,
         max_theta_d_deg=ExtractOptions.max_theta_d_deg if max_theta_d is None else max_theta_d,
         min_cos=ExtractOptions.min_cos if min_cos is None else min_cos)
 
@@ -31,20 +35,29 @@ def extract(args):
     from slice_extract import extract_slice
     options = _options(args)
     result = extract_slice(args.scene_dir, options)
-    out = Path(args.out)
+    write_extraction(args.out, args.scene_dir, result, options)
+    return 0
+
+
+def write_extraction(out, scene_dir, result, options):
+    """Write slice.csv (with provenance comments) and the JSON sidecar beside it, both or neither."""
+    out = Path(out)
     cov = result.coverage
     comments = [
-        f"flashbrdf extract {Path(args.scene_dir).resolve()}",
+        f"flashbrdf extract {Path(scene_dir).resolve()}",
         f"pixels used {cov['pixels_used']}; bins filled {cov['bins_filled']}/90; theta_h observed "
         f"{cov['theta_h_deg_observed'][0]:.3f}..{cov['theta_h_deg_observed'][1]:.3f} deg",
         "rejected " + ", ".join(f"{k} {v}" for k, v in result.rejected.items()),
         f"estimator {options.estimator} (MAD k={options.outlier_k}); max theta_d "
-        f"{options.max_theta_d_deg} deg; min cos {options.min_cos}",
+        f"{options.max_theta_d_deg} deg; min cos {options.min_cos}; silhouette "
+        f"{options.silhouette_px} px",
     ]
     report = dict(result.report, slice_csv=str(out.resolve()),
                   spread=[[None if not np.isfinite(v) else float(v) for v in row]
                           for row in result.spread])
     json_path = out.with_suffix(".json")
+    if json_path == out:  # --out x.json: keep the slice, put the report beside it
+        json_path = out.with_name(out.stem + ".report.json")
     text = json.dumps(report, indent=1) + "\n"
     write_slice_csv(out, result.rho, result.n, comments=comments)
     try:
@@ -52,4 +65,3 @@ def extract(args):
     except BaseException:
         out.unlink(missing_ok=True)  # never leave half of the output behind
         raise
-    return 0

@@ -33,7 +33,7 @@ def train(args):
 def _uncertainty_summary(variance):
     if variance is None:
         return None
-    v = np.asarray(variance, float)
+    v = np.ravel(np.asarray(variance, float))
     v = v[np.isfinite(v)]
     if not v.size:
         return None
@@ -84,12 +84,14 @@ def infer(args):
 
 
 def evaluate(args):
-    """The paper's Table 1 protocol on --merl-dir (see infer.evaluate)."""
-    from infer.evaluate import run_evaluation
+    """The paper's Table 1 protocol on --merl-dir (see infer.evaluate); with --render also its
+    Table 2 (render.table2) on the mean-performing experiment's test materials, 2D predictions."""
+    from infer.evaluate import experiment_predictor, run_evaluation
+    result = run_evaluation(args.merl_dir, args.out, quick=args.quick,
+                            experiments=getattr(args, "experiments", None),
+                            time_budget=getattr(args, "time_budget", None))
     if getattr(args, "render", False):
-        from infer.evaluate import render_table2
-        render_table2(args)
-    run_evaluation(args.merl_dir, args.out, quick=args.quick,
-                   experiments=getattr(args, "experiments", None),
-                   time_budget=getattr(args, "time_budget", None))
+        from render import table2
+        names, predict = experiment_predictor(args.merl_dir, result)
+        table2(args.merl_dir, args.out, predict, names=names)
     return 0

@@ -33,7 +33,8 @@ def render(args):
     from render.images import write_exr, write_preview
     from render.scene_render import render_scene
 
-    spp = int(getattr(args, "spp", 64) or 64)
+    spp = getattr(args, "spp", None)
+    spp = 64 if spp is None else int(spp)
     if spp < 1:
         raise InputError("--spp", f"must be >= 1, got {spp}")
     scene = capture.load_scene(args.scene_dir)
@@ -41,25 +42,29 @@ def render(args):
     if not references:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'reference'")
     brdf = TabulatedBRDF(read_merl(args.brdf), interpolate=bool(getattr(args, "interpolate", False)))
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    seed = int(getattr(args, "seed", 0) or 0)
+    seed = int(getattr(args, "seed", None) or 0)
     report = {"brdf": str(Path(args.brdf).resolve()), "spp": spp, "seed": seed, "renders": []}
+    # Render and load every reference first, write afterwards: bad input found part-way (an
+    # unreadable envmap or photo) then leaves no output file behind.
+    results = []
     started = time.perf_counter()
     for photo, image, mask in render_scene(scene, brdf, spp=spp, seed=seed, photos=references):
-        elapsed = time.perf_counter() - started
+        entry = {"photo": photo.stem, "exr": f"{photo.stem}.exr",
+                 "seconds": round(time.perf_counter() - started, 3), "pixels": int(mask.sum())}
+        reference = capture.load_photo_entry(photo) if _photo_exists(photo) else None
+        results.append((photo, image, mask, reference, entry))
+        started = time.perf_counter()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    for photo, image, mask, reference, entry in results:
         write_exr(out / f"{photo.stem}.exr", image)
         write_preview(out / f"{photo.stem}.png", image)
-        entry = {"photo": photo.stem, "exr": f"{photo.stem}.exr", "seconds": round(elapsed, 3),
-                 "pixels": int(mask.sum())}
-        if _photo_exists(photo):
-            reference, usable = capture.load_photo_entry(photo)
-            metrics = write_comparison(out, image, reference, mask & usable,
-                                       json_name=f"{photo.stem}_compare.json",
-                                       png_name=f"{photo.stem}_delta_e.png")
-            entry["compare"] = metrics
+        if reference is not None:
+            rgb, usable = reference
+            entry["compare"] = write_comparison(out, image, rgb, mask & usable,
+                                                json_name=f"{photo.stem}_compare.json",
+                                                png_name=f"{photo.stem}_delta_e.png")
         report["renders"].append(entry)
-        started = time.perf_counter()
     write_text(out / "render.json", json.dumps(report, indent=2) + "\n")
     return 0
 

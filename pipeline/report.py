@@ -143,6 +143,27 @@ def _table_2d(table):
     return table
 
 
+def _variance_2d(variance):
+    """A (90,90[,3]) uncertainty to show beside the 2D table, or None when there is none to show."""
+    if variance is None:
+        return None
+    variance = np.asarray(variance, dtype=float)
+    if variance.ndim == 4:  # a 3D (phi_d-resolved) variance: average over phi_d like the table
+        import warnings
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            variance = np.nanmean(variance, axis=2)
+    return variance if variance.shape[:2] == (90, 90) and variance.ndim in (2, 3) else None
+
+
+def _number(value):
+    """A metric as float, NaN when missing (None: the photo had no reference to compare with)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
 def _reference_rows(references, fig_dir, max_figures):
     """Numbers per (photo, method), and one figure per photo (up to max_figures)."""
     rows, by_photo = [], {}
@@ -163,8 +184,8 @@ def _reference_rows(references, fig_dir, max_figures):
             for key, value in (("delta_e_log_mean", mean), ("delta_e_log_median", median),
                                ("rel_rmse", rel), ("pixels", pixels)):
                 row.setdefault(key, value)
-        row.setdefault("delta_e_log_mean", float("nan"))
-        row.setdefault("rel_rmse", float("nan"))
+        row["delta_e_log_mean"] = _number(row.get("delta_e_log_mean"))
+        row["rel_rmse"] = _number(row.get("rel_rmse"))
         rows.append(row)
         entry = by_photo.setdefault(row["photo"], {"reference": None, "renders": {}, "maps": {},
                                                    "means": {}})
@@ -217,8 +238,8 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
                         {m: t[:, 0, :] for m, t in tables.items()})
         figures["slice"] = "figures/slice.png"
     for method, p in predictions.items():
-        figs.brdf_images(fig_dir / f"brdf_{method}.png", method, tables[method], p.get("variance"),
-                         p.get("variance_label", "uncertainty"))
+        figs.brdf_images(fig_dir / f"brdf_{method}.png", method, tables[method],
+                         _variance_2d(p.get("variance")), p.get("variance_label", "uncertainty"))
         figures[f"brdf_{method}"] = f"figures/brdf_{method}.png"
     rows, ref_figures, n_photos = _reference_rows(references, fig_dir, max_reference_figures)
     if rows:
@@ -235,7 +256,8 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
             "spread": observed.get("spread")},
         "predictions": {m: {"theta_d0": tables[m][:, 0, :], "file": p.get("file"),
                             "variance_mean": (float(np.nanmean(p["variance"]))
-                                              if p.get("variance") is not None else None)}
+                                              if p.get("variance") is not None
+                                              and np.isfinite(p["variance"]).any() else None)}
                         for m, p in predictions.items()},
         "coverage": cover, "warnings": warnings, "notes": list(notes),
         "figures": {**figures, "references": ref_figures},

@@ -89,13 +89,15 @@ class Lambert(BRDFModel):
 class GGX(BRDFModel):
     """Lambert diffuse + GGX microfacet specular (Walter et al. 2007):
         rho = diffuse/pi + F D G / (4 cos_i cos_o),
-    D = GGX with roughness alpha, G = separable Smith, F = Schlick from `specular` (F0, (3,)).
+    D = GGX with roughness alpha, G = separable Smith, F = Schlick from `specular` (F0, (3,)), or
+    F = `specular` itself with fresnel=False (then it equals tests/synthetic.py's ggx_lambert).
     Sampling: a mixture of cosine and D(h) cos(theta_h) half vectors (exact pdf), mixed by the
     diffuse and specular luminances.
     """
 
-    def __init__(self, alpha, specular=(1.0, 1.0, 1.0), diffuse=(0.0, 0.0, 0.0)):
+    def __init__(self, alpha, specular=(1.0, 1.0, 1.0), diffuse=(0.0, 0.0, 0.0), fresnel=True):
         self.alpha = float(alpha)
+        self.fresnel = bool(fresnel)
         self.specular = np.broadcast_to(np.asarray(specular, dtype=np.float64), (3,)).copy()
         self.diffuse = np.broadcast_to(np.asarray(diffuse, dtype=np.float64), (3,)).copy()
         ld, ls = _luminance(self.diffuse), _luminance(self.specular)
@@ -116,7 +118,8 @@ class GGX(BRDFModel):
         above = (ci > 0) & (co > 0)
         h = _half_vector(wi, wo)
         cos_d = np.clip(np.sum(wi * h, axis=-1), 0.0, 1.0)
-        fresnel = self.specular + (1.0 - self.specular) * ((1.0 - cos_d) ** 5)[..., None]
+        fresnel = (self.specular + (1.0 - self.specular) * ((1.0 - cos_d) ** 5)[..., None]
+                   if self.fresnel else self.specular)
         spec = self._d(h[..., 2]) * self._g1(ci) * self._g1(co) / np.maximum(4 * ci * co, 1e-300)
         value = self.diffuse * INV_PI + fresnel * spec[..., None]
         return np.where(above[..., None], value, 0.0)
@@ -202,11 +205,14 @@ class TabulatedBRDF(BRDFModel):
         if table.shape not in ((90, 90, 180, 3), (90, 90, 3)):
             raise ValueError(f"table must be (90,90,180,3) or (90,90,3), got {table.shape}")
         table = np.where(np.isfinite(table) & (table >= 0), table, np.nan)
-        self.table = table
+        self.three_d = table.ndim == 4
         self.interpolate = bool(interpolate)
+        # Only interpolation needs the NaN-marked table (brdf.lookup renormalises over data).
+        self.table = table if self.interpolate else None
         # Nearest-bin fast path: a flat (bins, 3) copy with no-data as 0 (same indexing as
         # brdf.angles.merl_bin_index, checked against brdf.lookup.evaluate_table in the tests).
-        self._flat = np.ascontiguousarray(np.nan_to_num(table, nan=0.0).reshape(-1, 3))
+        self._flat = (None if self.interpolate else
+                      np.ascontiguousarray(np.nan_to_num(table, nan=0.0).reshape(-1, 3)))
         self.cosine_fraction = float(cosine_fraction)
         lum = table @ np.array([0.2126, 0.7152, 0.0722])
         axes = tuple(range(1, lum.ndim))
@@ -236,7 +242,7 @@ class TabulatedBRDF(BRDFModel):
             value = evaluate_table(self.table, theta_h, theta_d, phi_d, interpolate=True)
             value = np.where(np.isfinite(value) & (value > 0), value, 0.0)
         else:
-            value = self._flat[merl_flat_index_local(wi, wo, self.table.ndim == 4)]
+            value = self._flat[merl_flat_index_local(wi, wo, self.three_d)]
         return np.where(above[..., None], value, 0.0)
 
     def _h_bin(self, cos_h):

@@ -55,10 +55,16 @@ def compare_images(pred, ref, mask=None):
 
 
 def write_delta_e_png(path, delta_e, title="log-CIELAB $\\Delta E^*_{ab}$", vmax=None):
-    """False-colour Delta E map with a colour bar; NaN (not compared) pixels are grey."""
+    """False-colour Delta E map with a colour bar, cropped to the compared pixels (plus a
+    4-pixel margin); NaN (not compared) pixels are grey."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    rows, cols = np.nonzero(np.isfinite(delta_e))
+    if rows.size:   # crop to the compared pixels (an object often fills a small part)
+        margin = 4
+        delta_e = delta_e[max(rows.min() - margin, 0):rows.max() + margin + 1,
+                          max(cols.min() - margin, 0):cols.max() + margin + 1]
     finite = delta_e[np.isfinite(delta_e)]
     if vmax is None:
         vmax = float(np.percentile(finite, 99)) if finite.size else 1.0

@@ -45,6 +45,8 @@ def read_envmap_pixels(path):
     if pixels is None:
         raise InputError(path, "cannot decode environment map")
     pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    if spec.height < 2:
+        raise InputError(path, f"environment map needs at least 2 rows, got {spec.height}")
     if spec.width != 2 * spec.height:
         raise InputError(path, f"environment map must be lat-long with width = 2 x height, "
                                f"got {spec.width}x{spec.height}")

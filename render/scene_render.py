@@ -77,21 +77,33 @@ def render_surface(surface, camera, light, brdf, spp=64, seed=0, occluded=None, 
     raise InputError(where, f"unknown light type {light.type!r}")
 
 
-def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True):
+def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geometry=None):
     """Render every `reference` photo's lighting (or the given photos) from its camera.
 
     scene: capture.Scene; brdf: a render.brdf_models model. Yields (photo, image, mask) per photo:
     image (H, W, 3) float32 in the photo's own pixel units (the pixel model times the photo's
     `scale`), 0 where the pixel misses the geometry; mask (H, W) bool of the pixels that see it.
+    geometry: a SceneGeometry of this scene to reuse (its primary hits are cached per camera).
+    Every light is checked (and every envmap loaded) before the first render.
     """
     photos = scene.photos_with_role("reference") if photos is None else photos
-    geometry = SceneGeometry(scene)
-    occluded = geometry.occluder()
     envmaps = {}
+    for photo in photos:                       # check every light before any rendering
+        light = photo.light
+        if light is None:
+            raise InputError(photo.where, "a reference photo needs a light to render")
+        if light.type == "point" and scene.geometry.mesh is None:
+            raise InputError(f"{photo.where}.light",
+                             "a point light needs mesh geometry (a normal map has no depth)")
+        if light.type == "envmap":
+            key = (str(light.file), np.asarray(light.world_from_envmap).tobytes(), light.scale)
+            if key not in envmaps:
+                envmaps[key] = EnvMap.from_file(light.file, light.world_from_envmap, light.scale)
+    # A SceneGeometry passed in keeps its primary hits across calls (e.g. one render per method).
+    geometry = SceneGeometry(scene) if geometry is None else geometry
+    occluded = geometry.occluder()
     for photo in photos:
         camera = photo.camera
-        if photo.light is None:
-            raise InputError(photo.where, "a reference photo needs a light to render")
         surface = geometry.surface(camera)
         values = render_surface(surface, camera, photo.light, brdf, spp, seed, occluded, envmaps,
                                 progress=f"render {photo.stem}" if progress else None,
@@ -115,7 +127,7 @@ def sphere_view(size):
     return mask, normals, view
 
 
-def render_sphere(table, envmap_path, size=128, spp=256, seed=0, interpolate=False,
+def render_sphere(table, envmap_path, size=128, spp=64, seed=0, interpolate=False,
                   world_from_envmap=None, scale=1.0, threads=None, progress=None):
     """A unit sphere with a tabulated BRDF under an environment map (Table 2's renders).
 

@@ -1,12 +1,15 @@
-"""extract_slice: from a capture folder (flash photos + known geometry) to rho(theta_h) at theta_d ~ 0.
+"""extract_slice: from a capture folder (flash photos + geometry) to rho(theta_h) at theta_d ~ 0.
 
 Steps: load and validate the scene; load the flash photos (ambient removed, divided by scale);
-trace one Embree ray per usable pixel (only pixels whose ray can reach the mesh's bounding box);
-per pixel compute omega_o, omega_i, theta_h, theta_d and rho from the pixel model
-(slice_extract.samples); pool the samples of all flash photos; bin them into the 90 MERL theta_h
-bins with a robust estimate (slice_extract.binning).
+trace one Embree ray per pixel that can see the mesh's bounding box (once per camera, shared by
+its photos); mark the object's outline; per usable pixel compute omega_o, omega_i, theta_h,
+theta_d and rho from the pixel model (slice_extract.samples); pool the samples of all flash
+photos; bin them into the 90 MERL theta_h bins with a robust estimate (slice_extract.binning).
 
 Default thresholds:
+- silhouette_px = 1: pixels touching the outline mix object and background (lens blur,
+  demosaicing, a renderer's pixel filter) and they are exactly the grazing-angle samples, so a
+  one-pixel ring is dropped; 0 keeps it (exact synthetic images).
 - min_cos = 0.1: below it (84 deg) tiny normal errors swing cos(theta) by large factors.
 - max_theta_d_deg = 5: a real flash sits a few cm from the lens (3 cm at 1 m is theta_d = 0.86 deg;
   DiLiGenT's nearest lights give 2.2 to 2.9 deg). Within 5 deg Fresnel is flat ((1 - cos 5 deg)^5
@@ -32,6 +35,7 @@ class ExtractOptions:
     outlier_k: float = 3.0
     estimator: str = "trimmed_mean"  # or "median"
     shadow_rays: bool = True  # False only to diagnose (or to show what shadows would cost)
+    silhouette_px: int = 1  # reject pixels this close to the object's outline (0: keep them)
     chunk_pixels: int = 1 << 20  # pixels traced per batch: bounds memory, keeps arrays in cache
 
 
@@ -74,19 +78,39 @@ class _Clock:
         return time.perf_counter()
 
 
-def _surface_batches(scene, camera, usable_any, intersector, chunk):
-    """Yield capture.Surface batches over the usable pixels of `camera`."""
+def _trace(scene, camera, intersector, chunk):
+    """capture.Surface batches of the pixels of `camera` that see the object (every pixel that
+    can: usability is each photo's business), and the object mask (H, W) bool."""
     import capture
+    mask = np.zeros(camera.shape, dtype=bool)
     if intersector is None:
-        yield capture.surface_from_normal_map(scene.geometry, camera, usable_any)
-        return
-    r0, r1, c0, c1 = capture.pixel_box(camera, intersector.mesh.bounds)
-    box = np.zeros(camera.shape, dtype=bool)
-    box[r0:r1, c0:c1] = True
-    flat = np.flatnonzero(usable_any & box)
-    for s in range(0, len(flat), chunk):
-        rows, cols = np.divmod(flat[s:s + chunk], camera.width)
-        yield capture.surface_at_pixels(intersector, camera, rows, cols)
+        surfaces = [capture.surface_from_normal_map(scene.geometry, camera)]
+    else:
+        r0, r1, c0, c1 = capture.pixel_box(camera, intersector.mesh.bounds)
+        rows, cols = (a.ravel() for a in np.indices((r1 - r0, c1 - c0)))
+        rows += r0
+        cols += c0
+        surfaces = [capture.surface_at_pixels(intersector, camera, rows[s:s + chunk],
+                                              cols[s:s + chunk], dtype=np.float32)
+                    for s in range(0, len(rows), chunk)]
+    for surface in surfaces:
+        mask.ravel()[surface.rows * camera.width + surface.cols] = True
+    return surfaces, mask
+
+
+def silhouette_mask(object_mask, width_px):
+    """(H, W) bool: object pixels within width_px (Chebyshev) of a pixel that sees no object.
+
+    Such pixels mix object and background in any real or filtered image (optics, demosaicing,
+    a renderer's reconstruction filter: Mitsuba's default Gaussian puts ~13% of a neighbour's
+    light into a pixel, and < 0.1% from two pixels away). The image frame is not an edge.
+    """
+    if width_px <= 0:
+        return np.zeros_like(object_mask)
+    import cv2
+    kernel = np.ones((2 * width_px + 1, 2 * width_px + 1), np.uint8)
+    inner = cv2.erode(object_mask.astype(np.uint8), kernel, borderType=cv2.BORDER_REPLICATE)
+    return object_mask & ~inner.astype(bool)
 
 
 def _no_sample_error(scene, per_photo):
@@ -137,20 +161,19 @@ def extract_slice(scene, options=None):
         groups.setdefault(id(img.photo.camera), []).append(k)
     for members in groups.values():
         camera = images[members[0]].photo.camera
-        usable_any = np.logical_or.reduce([images[k].usable | images[k].clipped
-                                           for k in members])
         lights = {k: light_setup(images[k].photo) for k in members}
         stats = {k: dict(photo=images[k].photo.stem, usable=int(images[k].usable.sum()),
                          clipped=int(images[k].clipped.sum()), on_surface=0,
                          **dict.fromkeys(REASONS, 0)) for k in members}
-        for surface in _surface_batches(scene, camera, usable_any, intersector,
-                                        options.chunk_pixels):
-            t = clock.add("trace", t)
+        surfaces, object_mask = _trace(scene, camera, intersector, options.chunk_pixels)
+        edge = silhouette_mask(object_mask, options.silhouette_px)
+        t = clock.add("trace", t)
+        for surface in surfaces:
             for k in members:
                 skip = not needs_shadows or convex or lights[k].at_viewpoint
                 shadow = None if skip else intersector
                 got = photo_samples(images[k].radiance, images[k].usable, surface, lights[k],
-                                    options, shadow, images[k].clipped)
+                                    options, shadow, images[k].clipped, edge)
                 stats[k]["on_surface"] += got.n_usable
                 for reason, count in got.rejected.items():
                     stats[k][reason] += count
@@ -199,7 +222,8 @@ def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin
     }
     return {"scene": str(scene.json_path),
             "options": {k: getattr(options, k) for k in ("max_theta_d_deg", "min_cos",
-                                                         "outlier_k", "estimator")},
+                                                         "silhouette_px", "outlier_k",
+                                                         "estimator")},
             "coverage": coverage, "rejected": {k: int(v) for k, v in rejected.items()},
             "theta_d_deg": _stats_deg(theta_d[inlier]), "photos": per_photo,
             "n": [int(v) for v in n], "timings_s": {k: round(v, 4) for k, v in timings.items()}}

@@ -178,3 +178,16 @@ def test_diligent_png_loads_as_16_bit():
     # 8-bit data widened to 16 bits would only hold multiples of 257
     assert np.count_nonzero(codes % 257) > 0.5 * codes.size
     assert codes.max() <= 65535 and not usable[np.any(codes >= 65535, axis=-1)].any()
+
+
+def test_exr_data_window_is_placed_in_display_window(tmp_path):
+    import OpenImageIO as oiio
+    spec = oiio.ImageSpec(4, 3, 3, "float")
+    spec.x, spec.y, spec.full_x, spec.full_y, spec.full_width, spec.full_height = 2, 1, 0, 0, 8, 5
+    out = oiio.ImageOutput.create(str(tmp_path / "w.exr"))
+    out.open(str(tmp_path / "w.exr"), spec)
+    out.write_image(np.full((3, 4, 3), 2.0, np.float32))
+    out.close()
+    rgb, usable = capture.load_photo(tmp_path / "w.exr")
+    assert rgb.shape == (5, 8, 3) and np.all(rgb[1:4, 2:6] == 2.0)
+    assert usable.sum() == 12 and usable[1:4, 2:6].all()

@@ -114,3 +114,25 @@ def test_image_errors_without_mask_uses_finite_nonzero_pixels():
     render[1, 1] = 0.0
     _, mean, median, rel, pixels = image_errors(render, reference)
     assert pixels == 24 * 32 - 2 and mean == 0.0 and rel == 0.0
+
+
+def test_report_tolerates_missing_metrics_and_3d_inputs(tmp_path):
+    """What `run` hands over: a reference without a photo (metrics None), 3D tables, 3D variance."""
+    from brdf.views import table_3d_from_2d
+    observed, predictions = _slice_and_tables()
+    table_3d = table_3d_from_2d(predictions["pca"])
+    variance_3d = np.where(np.isfinite(table_3d), 0.5, np.nan)
+    reference, mask = _images()
+    refs = [{"photo": "ref_env", "method": "dsgplvm", "render": reference,
+             "delta_e_log_mean": None, "rel_rmse": None},
+            {"photo": "ref_b", "method": "dsgplvm", "delta_e_log_mean": 2.0, "rel_rmse": 0.25}]
+    report = write_report(tmp_path, stages={"extract": 1.0}, references=refs, observed=observed,
+                          predictions={"dsgplvm": {"table": table_3d, "variance": variance_3d}})
+    rows = json.loads((tmp_path / "report.json").read_text())["references"]
+    assert rows[0]["delta_e_log_mean"] is None and rows[1]["delta_e_log_mean"] == 2.0
+    assert report["summary"]["dsgplvm"]["delta_e_log_mean"]["mean"] == 2.0  # NaN ignored
+    assert report["predictions"]["dsgplvm"]["variance_mean"] == 0.5
+    np.testing.assert_allclose(report["predictions"]["dsgplvm"]["theta_d0"],
+                               predictions["pca"][:, 0, :])
+    assert (tmp_path / "figures" / "brdf_dsgplvm.png").is_file()
+    assert (tmp_path / "figures" / "ref_ref_env.png").is_file()

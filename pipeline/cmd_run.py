@@ -1,0 +1,180 @@
+"""`flashbrdf run SCENE_DIR --out OUT_DIR [--model MODEL.npz] [--methods dsgplvm,pca,...]`.
+
+Extract the flash slice, infer a BRDF with each method, render every reference photo's lighting
+with each prediction, compare against the photos, and write OUT_DIR/report.md + report.json.
+
+Only the work the scene needs is done: no reference photos -> nothing is rendered; normal-map
+geometry -> no rays are cast (render/capture handle that); a 2D model -> no 3D table is loaded
+(predictions stay 2D and the renderer looks them up directly); EXR photos never import rawpy.
+What was skipped, and why, goes into the report's notes.
+
+OUT_DIR/
+  slice.csv, slice.json              the extracted flash slice and its coverage
+  <method>/brdf.binary, brdf.json    each method's full MERL table (2D copied across phi_d)
+  <method>/<photo>.exr, .png         renders in the photos' pixel units, previews
+  <method>/<photo>_compare.json      the contract's compare metrics, + <photo>_delta_e.png
+  report.md, report.json, figures/   the report
+"""
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from brdf.atomic import write_text
+from brdf.errors import InputError
+
+DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "sample_data" / "models" / "merl100_1d2d.npz"
+METHODS_NEEDING_NO_MODEL = ("chandraker",)
+
+
+class _Stages:
+    """Wall-clock seconds per stage, in run order, printed as a table at the end."""
+
+    def __init__(self):
+        self.seconds = {}
+
+    def run(self, name, fn, *args, **kwargs):
+        print(f"[{name}] ...", file=sys.stderr, flush=True)
+        start = time.perf_counter()
+        result = fn(*args, **kwargs)
+        self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - start
+        return result
+
+    def table(self):
+        width = max(len(k) for k in self.seconds) if self.seconds else 5
+        lines = [f"{'stage':<{width}}  seconds", f"{'-' * width}  -------"]
+        lines += [f"{k:<{width}}  {v:7.2f}" for k, v in self.seconds.items()]
+        lines.append(f"{'total':<{width}}  {sum(self.seconds.values()):7.2f}")
+        return "\n".join(lines)
+
+
+def _methods(text):
+    from infer import METHODS
+    names = [m.strip() for m in text.split(",") if m.strip()]
+    unknown = [m for m in names if m not in METHODS or m == "oracle"]
+    if not names or unknown:
+        raise InputError("--methods", f"unknown method(s) {', '.join(unknown) or '(none)'}; "
+                                      f"expected some of {', '.join(m for m in METHODS if m != 'oracle')}")
+    return list(dict.fromkeys(names))
+
+
+def _model_path(args, methods):
+    if args.model is not None:
+        if not Path(args.model).is_file():
+            raise InputError(args.model, "no such model file")
+        return Path(args.model)
+    if DEFAULT_MODEL.is_file():
+        return DEFAULT_MODEL
+    if all(m in METHODS_NEEDING_NO_MODEL for m in methods):
+        return None
+    raise InputError("--model", f"no model given and the default {DEFAULT_MODEL} is missing "
+                                "(make it with `flashbrdf train`)")
+
+
+def _infer(method_name, model_path, rho, out_dir):
+    """Predict a 2D table (or 3D where the model stores 3D data); write brdf.binary + brdf.json."""
+    from brdf import merl, views
+    from infer import load_method, make_method
+    start = time.perf_counter()
+    if model_path is None:
+        method = make_method(method_name).fit(None)
+        view = "2d"
+    else:
+        method = load_method(model_path, method_name)
+        view = "3d" if getattr(getattr(method, "training_", None), "valid_3d", None) is not None \
+            else "2d"
+    table, variance = method.predict(rho, view=view)
+    seconds = time.perf_counter() - start
+    full = views.table_3d_from_2d(table) if view == "2d" else table
+    full = np.where(np.isfinite(full), full, -1.0)
+    full[~merl.merl_valid_mask()] = -1.0
+    out_dir.mkdir(parents=True, exist_ok=True)
+    merl.write_merl(out_dir / "brdf.binary", full)
+    write_text(out_dir / "brdf.json", json.dumps({
+        "method": method_name, "model": None if model_path is None else str(model_path),
+        "view": view, "predict_seconds": seconds,
+        "predicted": "2D table copied across phi_d" if view == "2d" else "3D table"}, indent=2))
+    return table, variance, view
+
+
+def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, references):
+    import capture
+    from render import TabulatedBRDF, render_scene, write_comparison, write_exr, write_preview
+    from render.compare import compare_images
+    rows = []
+    brdf = TabulatedBRDF(table)
+    for photo, image, mask in render_scene(scene, brdf, spp=spp, photos=references,
+                                           geometry=geometry):
+        write_exr(out_dir / f"{photo.stem}.exr", image)
+        write_preview(out_dir / f"{photo.stem}.png", image)
+        row = {"photo": photo.stem, "method": method_name, "render": image, "mask": mask}
+        if photo.file is not None and Path(photo.file).is_file() or photo.brackets:
+            reference, usable = capture.load_photo_entry(photo)
+            metrics = write_comparison(out_dir, image, reference, mask & usable,
+                                       json_name=f"{photo.stem}_compare.json",
+                                       png_name=f"{photo.stem}_delta_e.png")
+            _, delta_e = compare_images(image, reference, mask & usable)
+            row.update(metrics, reference=reference, delta_e_map=delta_e)
+        else:
+            row.update(delta_e_log_mean=None, rel_rmse=None)
+        rows.append(row)
+    return rows
+
+
+def run(args):
+    import capture
+    from pipeline.cmd_extract import write_extraction
+    from pipeline.report import write_report
+    from render.scene_render import SceneGeometry
+    from slice_extract import ExtractOptions, extract_slice
+
+    methods = _methods(args.methods)
+    model_path = _model_path(args, methods)
+    spp = int(getattr(args, "spp", None) or 64)
+    out = Path(args.out)
+    stages, notes = _Stages(), []
+
+    scene = stages.run("load scene", capture.load_scene, args.scene_dir)
+    options = ExtractOptions()
+    result = stages.run("extract", extract_slice, scene, options)
+    out.mkdir(parents=True, exist_ok=True)
+    write_extraction(out / "slice.csv", args.scene_dir, result, options)
+
+    predictions = {}
+    for name in methods:
+        table, variance, view = stages.run(f"infer {name}", _infer, name, model_path, result.rho,
+                                           out / name)
+        predictions[name] = {"table": table, "variance": variance, "file": f"{name}/brdf.binary",
+                             "variance_label": "predictive variance (log-CIELAB features)"}
+        if view == "2d":
+            notes.append(f"{name}: the model predicts 2D rho(theta_h, theta_d); no 3D table was "
+                         "loaded, and the render looks the 2D table up directly.")
+
+    references = scene.photos_with_role("reference")
+    rows = []
+    if not references:
+        notes.append("The scene has no reference photo: nothing was rendered or compared.")
+    else:
+        geometry = stages.run("ray cast", SceneGeometry, scene)
+        if scene.geometry.mesh is None:
+            notes.append("Normal-map geometry: no rays were cast.")
+        elif geometry.convex:
+            notes.append("Convex mesh: no shadow rays were cast.")
+        for name in methods:
+            rows += stages.run(f"render+compare {name}", _render_and_compare, scene, geometry, name,
+                               predictions[name]["table"], spp, out / name, references)
+    observed = {"rho": result.rho, "n": result.n, "spread": result.spread}
+    report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
+                        observed=observed, predictions=predictions, notes=notes,
+                        title=f"flashbrdf run {Path(args.scene_dir).name}")
+    print(stages.table(), file=sys.stderr)
+    for method, summary in report.get("summary", {}).items():
+        mean = summary.get("delta_e_log_mean", {}).get("mean")
+        if mean is not None:
+            print(f"{method}: mean delta_e_log_mean {mean:.3f} over {summary['references']} "
+                  "reference(s)", file=sys.stderr)
+    print(f"report: {(out / 'report.md').resolve()}")
+    return 0

@@ -1,0 +1,158 @@
+"""Baselines of infer: each reproduces what its method guarantees, on synthetic materials whose answer
+is known (built on MERL bin centres from brdf.merl), plus missing-data and extreme slices."""
+
+import numpy as np
+import pytest
+
+from infer import PCA, Ashikhmin, Chandraker, Noll, Oracle, TrainingSet
+from infer.baselines.ashikhmin import denominator, schlick
+from infer.common import cos_in_out_valid, mean_over_phi_d, scatter_valid, valid_bins_3d
+from brdf import merl
+
+
+def ap_material(roughness, r0, colour, diffuse=0.0):
+    """Ashikhmin–Premože material on the valid 3D bins: Beckmann p(θh), Schlick F, the model's
+    denominator; optional Lambertian term. -> ρ (n_valid, 3) in 1/sr."""
+    ih, jd, _ = valid_bins_3d()
+    th = merl.theta_h_centres()[ih]
+    cos_d = np.cos(merl.theta_d_centres()[jd])
+    p = np.exp(-np.tan(th) ** 2 / roughness ** 2) / (np.pi * roughness ** 2 * np.cos(th) ** 4)
+    spec = p * schlick(cos_d, r0) / denominator(*cos_in_out_valid())
+    return spec[:, None] * np.asarray(colour) + diffuse * np.asarray(colour) / np.pi
+
+
+def training_set(rows):
+    """TrainingSet from ρ on valid 3D bins (list of (n_valid, 3)); slices = θd bin 0 of the 2D."""
+    tables = np.array([mean_over_phi_d(r) for r in rows])
+    return TrainingSet([f"m{i}" for i in range(len(rows))], tables[:, :, 0, :].copy(), tables,
+                       valid_3d=np.array(rows, np.float32))
+
+
+@pytest.fixture(scope="module")
+def ap_set():
+    rows = [ap_material(a, 0.08, c) for a, c in [(0.1, (0.9, 0.8, 0.6)), (0.25, (0.5, 0.5, 0.5)),
+                                                 (0.4, (0.2, 0.3, 0.9)), (0.6, (1.0, 0.4, 0.3))]]
+    return training_set(rows)
+
+
+@pytest.fixture(scope="module")
+def mixed_set():
+    rng = np.random.default_rng(3)
+    rows = [ap_material(a, r0, rng.uniform(0.1, 1, 3), diffuse=d)
+            for a, r0, d in [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02), (0.5, 0.9, 0.5),
+                             (0.15, 0.2, 0.05), (0.7, 0.05, 0.8)]]
+    return training_set(rows)
+
+
+def test_chandraker_copies_slice_exactly(ap_set):
+    s = ap_set.slices[1]
+    table, _ = Chandraker().fit(None).predict(s, "2d")
+    np.testing.assert_array_equal(table[:, 0], s)
+    np.testing.assert_array_equal(table[:, 40], s)  # θd-invariant by construction
+
+
+def test_ashikhmin_exact_on_its_own_model(ap_set):
+    # r0 = 0.08 for every training material: the fit must find it (log r0 to ~1e-4) and then the
+    # model predicts every 2D bin of a new AP material exactly up to that r0 error (< 1e-3 relative).
+    method = Ashikhmin().fit(ap_set.subset([0, 1, 2]))
+    assert method.r0_ == pytest.approx(0.08, rel=2e-3)
+    table, _ = method.predict(ap_set.slices[3], "2d")
+    truth = ap_set.tables_2d[3]
+    ok = np.isfinite(truth).all(-1)
+    np.testing.assert_allclose(table[ok], truth[ok], rtol=1e-3, atol=1e-12)
+    table3, _ = method.predict(ap_set.slices[3], "3d")
+    ih, jd, kd = valid_bins_3d()
+    np.testing.assert_allclose(table3[ih, jd, kd], ap_set.valid_3d[3], rtol=1e-3, atol=1e-12)
+
+
+def test_noll_passes_through_observed_samples(mixed_set):
+    method = Noll().fit(mixed_set.subset([0, 1, 2, 3]))
+    s = mixed_set.slices[5].copy()
+    table, _ = method.predict(s, "2d")
+    # correction (ρ_obs + δ)/(fit + δ), δ = 1e-9 1/sr: exact up to δ
+    np.testing.assert_allclose(table[:, 0], s, rtol=1e-6, atol=2e-9)
+
+
+def test_pca_all_components_recovers_training_material(mixed_set):
+    method = PCA(n_components=None, ridge=0.0).fit(mixed_set)
+    for i in (0, 3):
+        table, _ = method.predict(mixed_set.slices[i], "2d")
+        truth = mixed_set.tables_2d[i]
+        ok = np.isfinite(truth).all(-1)
+        np.testing.assert_allclose(table[ok], truth[ok], rtol=1e-6, atol=1e-9)
+
+
+def test_oracle_projects_training_table_exactly(mixed_set):
+    method = Oracle(ridge=0.0).fit(mixed_set)
+    truth = mixed_set.tables_2d[2]
+    ok = np.isfinite(truth).all(-1)
+    np.testing.assert_allclose(method.predict_truth(truth)[ok], truth[ok], rtol=1e-6, atol=1e-9)
+
+
+def test_pca_3d_streams_training_tables(mixed_set):
+    # all components, training slice: the dual weights select that material, so its 3D comes back
+    method = PCA(n_components=None, ridge=0.0).fit(mixed_set)
+    table3, _ = method.predict(mixed_set.slices[4], "3d")
+    ih, jd, kd = valid_bins_3d()
+    np.testing.assert_allclose(table3[ih, jd, kd], mixed_set.valid_3d[4], rtol=1e-4, atol=1e-7)
+    assert np.isnan(table3[~merl.merl_valid_mask()]).all()
+
+
+@pytest.mark.parametrize("make", [lambda: Chandraker(), lambda: Ashikhmin(r0=0.1), lambda: Noll(),
+                                  lambda: PCA(None, 1e-3)])
+def test_empty_bins_are_missing_not_zero(mixed_set, make):
+    method = make().fit(mixed_set.subset([0, 1, 2, 3, 5]))
+    full = mixed_set.slices[4]
+    gap, zero = full.copy(), full.copy()
+    gap[30:45], zero[30:45] = np.nan, 0.0
+    p_full, p_gap, p_zero = (np.nan_to_num(method.predict(s, "2d")[0]) for s in (full, gap, zero))
+    err_gap = np.abs(np.log1p(p_gap) - np.log1p(p_full)).mean()
+    err_zero = np.abs(np.log1p(p_zero) - np.log1p(p_full)).mean()
+    assert err_gap < 0.5 * err_zero  # treating the gap as zeros would change the prediction more
+    assert np.all(p_gap[30:45, 0] > 0)
+
+
+@pytest.mark.parametrize("make", [lambda: Chandraker(), lambda: Ashikhmin(r0=0.1), lambda: Noll(),
+                                  lambda: PCA(None, 1e-2)])
+def test_extreme_slices_give_finite_predictions(mixed_set, make):
+    method = make().fit(mixed_set)
+    th = np.linspace(0, 1, 90)[:, None]
+    chrome = 10 ** (np.log10(4e3) - (np.log10(4e3) + 3) * th) * np.ones((1, 3))  # 4e3 .. 1e-3
+    black = np.zeros((90, 3))
+    valid2 = np.isfinite(mixed_set.tables_2d[0]).all(-1)
+    views = [("2d", valid2)]
+    if isinstance(method, (Chandraker, Ashikhmin)):  # streamed 3D is covered by the pca 3D test
+        views.append(("3d", merl.merl_valid_mask()))
+    for s in (chrome, black):
+        for view, valid in views:
+            table, _ = method.predict(s, view)
+            assert np.isfinite(table[valid]).all() and (table[valid] >= 0).all()
+
+
+def test_dsgplvm_adapter_duplicate_training_brdfs(mixed_set):
+    # two identical training materials make the Gram matrices singular: training must still succeed
+    from infer import DSGPLVMMethod
+    dup = mixed_set.subset([0, 1, 2, 3, 4, 4])
+    method = DSGPLVMMethod(max_cycles=3).fit(dup)
+    table, var = method.predict(mixed_set.slices[5], "2d")
+    valid = np.isfinite(mixed_set.tables_2d[0]).all(-1)
+    assert np.isfinite(table[valid]).all() and np.isfinite(var[valid]).all()
+    weights, space = method.combination(mixed_set.slices[5])
+    assert weights.shape == (6,) and abs(weights.sum() - 1) < 1e-9  # affine: view mean folded in
+
+
+def test_streamed_3d_metrics_equal_brdf_metrics(mixed_set):
+    # evaluate_3d shares the truth's transforms across methods and sums chunk by chunk: it must
+    # give brdf.metrics.brdf_errors on the full tables (float64 round-off only)
+    from brdf import metrics
+    from infer.eval3d import evaluate_3d
+    train, test = np.arange(5), np.array([5])
+    training = mixed_set.subset(train)
+    methods = {"chandraker": Chandraker().fit(None), "pca": PCA(None, 1e-2).fit(training)}
+    got = evaluate_3d(mixed_set.valid_3d, train, test, methods, mixed_set.slices[test],
+                      chunk=300_000)
+    truth = scatter_valid(mixed_set.valid_3d[5].astype(float))
+    for name, m in methods.items():
+        want = metrics.brdf_errors(m.predict(mixed_set.slices[5], "3d")[0], truth)
+        for key, value in want.items():
+            assert got[name][0][key] == pytest.approx(value, rel=1e-9)

@@ -1,0 +1,109 @@
+"""`flashbrdf train`, `infer` and `evaluate --quick` in-process on a few MERL (NBRDF proxy) tables."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from brdf import merl, views
+from pipeline.cli import main
+
+TRAIN = ["gold-metallic-paint", "blue-acrylic", "white-fabric", "red-plastic", "nickel"]
+TEST = "green-plastic"
+QUICK = TRAIN + [TEST, "pink-felt", "black-obsidian"]
+
+
+@pytest.fixture(scope="module")
+def trained(merl_proxy, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("merl_train")
+    for p in merl_proxy(*TRAIN):
+        shutil.copy(p, folder / p.name)
+    model = folder.parent / "model.npz"
+    assert main(["train", "--merl-dir", str(folder), "--out", str(model)]) == 0
+    slice_csv = folder.parent / "slice.csv"
+    assert main(["merl-slice", str(merl_proxy(TEST)), "--out", str(slice_csv)]) == 0
+    return folder, model, slice_csv
+
+
+@pytest.mark.parametrize("method", ["dsgplvm", "pca", "noll", "chandraker", "ashikhmin"])
+def test_infer_writes_merl_file_and_json(trained, tmp_path, method):
+    folder, model, slice_csv = trained
+    out = tmp_path / f"{method}.binary"
+    assert main(["infer", "--model", str(model), "--slice", str(slice_csv), "--out", str(out),
+                 "--method", method]) == 0
+    assert out.stat().st_size == 34_992_012
+    raw = np.fromfile(out, np.float64, offset=12).reshape(3, 90, 90, 180)
+    below = ~merl.merl_valid_mask()
+    assert (raw[:, below] < 0).all()              # below the horizon: negative, as MERL
+    table = merl.read_merl(out)
+    ok = merl.merl_valid_mask()
+    assert np.isfinite(table[ok]).all()
+    # at θd bin 0 the prediction carries the slice (exact for chandraker/noll, close for others)
+    rho, _ = views.read_slice_csv(slice_csv)
+    pred_slice, _ = views.flash_slice(table)
+    err = np.abs(np.log1p(pred_slice) - np.log1p(rho)).mean()
+    assert err < (1e-6 if method in ("chandraker", "noll") else 0.5)
+    report = json.loads(out.with_suffix(".json").read_text())
+    assert report["method"] == method and report["timings"]["predict_s"] >= 0
+    assert report["view"] == ("3d" if method in ("chandraker", "ashikhmin") else "2d")
+    if method == "dsgplvm":
+        assert report["uncertainty"]["mean"] > 0
+
+
+def test_infer_3d_with_merl_dir(trained, tmp_path):
+    folder, model, slice_csv = trained
+    out = tmp_path / "pca3d.binary"
+    assert main(["infer", "--model", str(model), "--slice", str(slice_csv), "--out", str(out),
+                 "--method", "pca", "--merl-dir", str(folder)]) == 0
+    assert json.loads(out.with_suffix(".json").read_text())["view"] == "3d"
+    table = merl.read_merl(out)
+    assert np.isfinite(table[merl.merl_valid_mask()]).all()
+
+
+def test_infer_bad_input_exit_2(trained, tmp_path, capsys):
+    folder, model, slice_csv = trained
+    out = tmp_path / "x.binary"
+    assert main(["infer", "--model", str(tmp_path / "none.npz"), "--slice", str(slice_csv),
+                 "--out", str(out)]) == 2
+    assert main(["infer", "--model", str(model), "--slice", str(slice_csv), "--out", str(out),
+                 "--view", "3d"]) == 2
+    assert "merl-dir" in capsys.readouterr().err
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_evaluate_quick(merl_proxy, tmp_path):
+    folder = tmp_path / "merl"
+    folder.mkdir()
+    for p in merl_proxy(*QUICK):
+        shutil.copy(p, folder / p.name)
+    out = tmp_path / "eval"
+    assert main(["evaluate", "--merl-dir", str(folder), "--out", str(out), "--quick"]) == 0
+    result = json.loads((out / "table1.json").read_text())
+    for view in ("2d", "3d"):
+        for m in ("dsgplvm", "pca", "noll", "chandraker", "ashikhmin", "oracle"):
+            assert np.isfinite(result["summary"][view][m]["lab_log"]["mean"])
+    assert (out / "table1.md").read_text().count("MERL (NBRDF proxy)") >= 1
+    assert (out / "error_vs_runtime.png").stat().st_size > 1000
+    assert not list(out.glob(".cache*"))
+
+
+def test_dsgplvm_extreme_and_gappy_slices(trained):
+    from infer import load_method
+    folder, model, slice_csv = trained
+    method = load_method(model, "dsgplvm")
+    valid = method.predict(np.full((90, 3), 0.1), "2d")[0]
+    valid = np.isfinite(valid).all(-1)
+    th = np.linspace(0, 1, 90)[:, None]
+    chrome = 10 ** (np.log10(4e3) - (np.log10(4e3) + 3) * th) * np.ones((1, 3))
+    for s in (chrome, np.zeros((90, 3))):
+        table, var = method.predict(s, "2d")
+        assert np.isfinite(table[valid]).all() and np.isfinite(var[valid]).all()
+    full, _ = views.read_slice_csv(slice_csv)
+    gap, zero = full.copy(), full.copy()
+    gap[30:45], zero[30:45] = np.nan, 0.0
+    p_full, p_gap, p_zero = (np.nan_to_num(method.predict(s, "2d")[0]) for s in (full, gap, zero))
+    d_gap = np.abs(np.log1p(p_gap) - np.log1p(p_full)).mean()
+    d_zero = np.abs(np.log1p(p_zero) - np.log1p(p_full)).mean()
+    assert d_gap < d_zero  # a gap is missing data: zeros would pull the prediction further
