@@ -46,7 +46,8 @@ def _slice(scene_dir, scene, mask, normals, view, work, log):
     if rc == 0:
         try:
             rho, n = read_slice_csv(work / "slice.csv")
-            return {"rho": rho, "n": n, "spread": None}, "extract stage", seconds
+            return {"rho": rho, "n": n, "spread": _spread(work / "slice.json")}, "extract stage", \
+                seconds
         except InputError as bad:  # the stage wrote a slice its own reader rejects
             rc, err = 1, str(bad)
     log(f"extract stage unusable (exit {rc}: {err}): using the benchmark's direct extraction")
@@ -59,6 +60,16 @@ def _slice(scene_dir, scene, mask, normals, view, work, log):
     write_slice_csv(work / "slice.csv", rho, n, comments=["direct extraction (benchmark stand-in)"])
     return {"rho": rho, "n": n, "spread": spread}, "direct (benchmark stand-in)", \
         time.perf_counter() - start
+
+
+def _spread(slice_json):
+    """The extract stage's per-bin spread (90,3) from SLICE.json, or None (error bars optional)."""
+    import json
+    try:
+        spread = np.array(json.loads(slice_json.read_text())["spread"], dtype=float)
+    except (OSError, KeyError, ValueError, TypeError):
+        return None
+    return spread if spread.shape == (90, 3) else None
 
 
 def _renders(scene_dir, scene, brdf_path, method, mask, normals, view, work, table):
@@ -155,8 +166,21 @@ def main(argv=None):
                     for r in report_refs if r["photo"] not in picks],
                  title="DiLiGenT ball: infer from one light, predict 95", x_key="light_angle_deg",
                  x_label="light angle from the view axis (degrees)")
+    far = gallery[-1]["file"]
+    far_rows = [r for r in report_refs if r["photo"] == far]
+    write_gallery(RESULTS / "diligent_ball_gallery.png", far, far_rows)
     log(f"wrote {RESULTS / 'diligent_ball.md'} and the full report {work / 'report' / 'report.md'}")
     return 0
+
+
+def write_gallery(path, photo, rows):
+    """The farthest light's photo beside every method's render, with Delta E maps below."""
+    from pipeline.report import image_errors
+    from pipeline.report_figures import reference_figure
+    maps = {r["method"]: image_errors(r["render"], r["reference"], r["mask"])[0] for r in rows}
+    reference_figure(path, f"{photo} (farthest light)", rows[0]["reference"],
+                     {r["method"]: r["render"] for r in rows}, maps,
+                     {r["method"]: r["delta_e_log_mean"] for r in rows})
 
 
 def _summarise(result):
@@ -200,7 +224,9 @@ def _markdown(result):
             (f"ΔE {cells[(lo, hi)]['delta_e_log_mean']:.2f}, rel {cells[(lo, hi)]['rel_rmse']:.3f} "
              f"(n={cells[(lo, hi)]['lights']})") if (lo, hi) in cells else "–"
             for lo, hi in zip(ANGLE_BINS[:-1], ANGLE_BINS[1:])) + " |")
-    lines += ["", "![ΔE and rel_rmse against light angle](diligent_ball.png)", ""]
+    lines += ["", "![ΔE and rel_rmse against light angle](diligent_ball.png)", "",
+              "The farthest light: the photo, each method's render and its ΔE map:", "",
+              "![gallery](diligent_ball_gallery.png)", ""]
     return "\n".join(lines)
 
 

@@ -72,7 +72,12 @@ def main():
     ap.add_argument("--material", default="gold-metallic-paint")
     ap.add_argument("--glossy", default="specular-black-phenolic")
     ap.add_argument("--quick", action="store_true", help="smaller sizes, for a smoke run")
+    ap.add_argument("--replot", action="store_true",
+                    help="redraw the figures and markdown from results/render_speed.json")
     args = ap.parse_args()
+    if args.replot:
+        plot(json.loads((RESULTS / "render_speed.json").read_text()))
+        return
     RESULTS.mkdir(parents=True, exist_ok=True)
     spps = [16, 64, 256, 1024]
     big, small, ref_spp = (128, 48, 2048) if args.quick else (512, 128, 8192)
@@ -119,7 +124,29 @@ def main():
     plot(result)
 
 
+def markdown(result):
+    m = result["machine"]
+    lines = ["# Render speed and convergence (benchmarks/render_speed.py)", "",
+             f"{m['cpus']} CPUs, load average at start {m['load_average'][0]:.1f} (the machine is "
+             "shared: wall times are inflated, CPU time is the sum over both threads).", "",
+             f"## {result['size']}^2 sphere, pisa, {result['material']} (3D table), MIS", "",
+             "| spp | wall s | CPU s | rel. RMSE vs converged |", "|---|---|---|---|"]
+    for e in result["speed"]:
+        lines.append(f"| {e['spp']} | {e['seconds']:.1f} | {e.get('cpu_seconds_both_threads', 0):.1f}"
+                     f" | {e['rel_rmse']:.4f} |")
+    lines += ["", f"Error measured at {result['error_size']}^2 against {result['reference_spp']} "
+              "spp.", "", f"## Variance against spp ({result['variance_size']}^2, rel. RMSE vs "
+              f"{result['reference_spp']} spp)", "", "| map / material | strategy | " +
+              " | ".join(str(s) for s in (16, 64, 256, 1024)) + " |", "|---|---|---|---|---|---|"]
+    for key, curves in result["variance"].items():
+        for strategy, curve in curves.items():
+            cells = [f"{e['rel_rmse']:.4f}" for e in curve] + ["-"] * (4 - len(curve))
+            lines.append(f"| {key} | {strategy} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
+
+
 def plot(result):
+    (RESULTS / "render_speed.md").write_text(markdown(result))
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

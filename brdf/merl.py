@@ -43,7 +43,7 @@ def _valid_mask():
     # Directions at each bin centre, with phi_h = 0: rotate d about y by theta_h (the inverse of
     # Rusinkiewicz's frame change), then reflect it about h to get the other direction.
     th, td, pd = np.meshgrid(theta_h_centres(), theta_d_centres(), phi_d_centres(), indexing="ij")
-    dx, dy, dz = np.sin(td) * np.cos(pd), np.sin(td) * np.sin(pd), np.cos(td)
+    dx, dz = np.sin(td) * np.cos(pd), np.cos(td)  # the y part does not move z
     wi_z = dz * np.cos(th) - dx * np.sin(th)
     wi_x = dx * np.cos(th) + dz * np.sin(th)
     h_x, h_z = np.sin(th), np.cos(th)

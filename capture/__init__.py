@@ -35,9 +35,9 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
 
 from capture.camera import (camera_rays, embree_rays, pixel_box, pixel_rays, project_points,
                             view_directions)
-from capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex,
-                              load_mesh, load_normal_map, occluded, surface_at_pixels,
-                              surface_from_mesh, surface_from_normal_map)
+from capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex, load_mesh,
+                              occluded, surface_at_pixels, surface_from_mesh)
+from capture.normal_map import load_normal_map, surface_from_normal_map
 from capture.load import FlashImage, load_flash_images, load_photo_entry
 from capture.photo import load_brackets, load_photo, read_float_image, srgb_to_linear
 from capture.scene import Camera, Geometry, Light, Photo, Scene, load_scene

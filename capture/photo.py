@@ -184,7 +184,8 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
     """Merge an exposure bracket [(path, exposure_s), ...] into one HDR photo.
 
     8-bit brackets: OpenCV's Debevec camera-response calibration and a Debevec log-domain merge
-    (relative radiance: OpenCV normalises the response to 1 at code 128). Other (linear) brackets: per pixel, the maximum-likelihood
+    (relative radiance: OpenCV normalises the response to 1 at code 128). Other (linear)
+    brackets: per pixel, the maximum-likelihood
     radiance for Poisson counts, sum(value) / sum(exposure) over the brackets where the pixel is
     usable. A merged pixel is usable when at least one bracket saw it usable, clipped when every
     bracket saw it clipped.

@@ -55,7 +55,7 @@ class Camera:
 
     @property
     def centre_world(self):
-        """(3,) camera-frame origin in world coordinates (the pinhole, or the ortho plane centre)."""
+        """(3,) camera-frame origin in world coordinates (pinhole, or ortho plane centre)."""
         return self.world_from_camera[:3, 3].copy()
 
     @property

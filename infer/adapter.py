@@ -11,8 +11,8 @@ a 3D view uses its 2D view's weights (the GP posterior mean is linear in the tra
 import numpy as np
 
 from brdf import colour
-from infer.common import (InferenceMethod, LinearSpace, scatter_valid, stream_combination,
-                          valid_mask_2d)
+from infer.common import (InferenceMethod, LinearSpace, anchor_to_slice, check_slice,
+                          scatter_valid, stream_combination, valid_mask_2d)
 
 
 def _model_class():
@@ -55,21 +55,25 @@ class DSGPLVMMethod(InferenceMethod):
     views ("1d", "2d") or ("1d", "2d", "3d") (3D features are float32 rows of the valid bins).
     latent "backprojection" (the paper, Eq. 9) or "optimise" (ablation without back-constraints at
     test time: x* maximises the 1D GP's predictive density of the observed slice bins).
+    anchor: False (the paper) or True, our addition: the prediction is corrected along theta_h so
+    its theta_d = 0 row passes through the observed slice (infer.common.anchor_to_slice).
     """
     name = "dsgplvm"
 
     def __init__(self, q=None, beta=50.0, feature_space="lab", views=("1d", "2d"), seed=0,
-                 latent="backprojection", model=None, **model_kw):
+                 latent="backprojection", model=None, anchor=False, **model_kw):
         self.q, self.beta, self.feature_space = q, beta, feature_space
         self.views, self.seed, self.model_kw = tuple(views), seed, model_kw
         if latent not in ("backprojection", "optimise"):
             raise ValueError(f"latent must be 'backprojection' or 'optimise', not {latent!r}")
         self.latent = latent
+        self.anchor = bool(anchor)
         self.model = model  # an already fitted DSGPLVM (e.g. loaded from a file)
 
     def get_params(self):
         return {"q": self.q, "beta": self.beta, "feature_space": self.feature_space,
-                "views": list(self.views), "seed": self.seed, "latent": self.latent, **self.model_kw}
+                "views": list(self.views), "seed": self.seed, "latent": self.latent,
+                "anchor": self.anchor, **self.model_kw}
 
     def view_features(self, training):
         views = {"1d": np.array([slice_features(s, self.feature_space) for s in training.slices]),
@@ -97,6 +101,12 @@ class DSGPLVMMethod(InferenceMethod):
         w, var = post.weights(optimise_latent(self.model, feats))
         w = w[0] + (1.0 - w[0].sum()) / w.shape[1]
         return w, float(var[0]) * self.model.view_data_[view].scale ** 2
+
+    def predict(self, flash_slice, view="2d"):
+        table, variance = super().predict(flash_slice, view)
+        if self.anchor:
+            table = anchor_to_slice(table, check_slice(flash_slice))
+        return table, variance
 
     def _predict_2d(self, rho):
         feats = slice_features(rho, self.feature_space)

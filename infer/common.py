@@ -212,3 +212,29 @@ def stream_combination(training, weights, space, tol=1e-12):
             continue
         total += w * space.forward(training.table_3d_valid(i))
     return space.inverse(total)
+
+
+def anchor_to_slice(table, flash_slice):
+    """Correct a predicted table so that its theta_d = 0 row passes through the observed slice.
+
+    table: (90, 90, 3) or (90, 90, 180, 3) in 1/sr, NaN where no data; flash_slice: (90, 3), NaN
+    where empty. Per theta_h bin and channel the correction is the ratio
+    c = (rho_obs + e) / (rho_pred(theta_d bin 0) + e), e = brdf.colour.FEATURE_OFFSET, i.e. a shift
+    in the ln(1 + rho/e) feature space, carried over every theta_d (and phi_d), like Noll et al.'s
+    correction functions. Empty slice bins take ln c interpolated along theta_h (held constant
+    beyond the observed range). Returns a new table; the prediction's theta_d shape is kept.
+    """
+    from brdf.colour import FEATURE_OFFSET as e
+    table = np.asarray(table, dtype=float)
+    rho = np.asarray(flash_slice, dtype=float)
+    first = table[:, 0] if table.ndim == 3 else np.nanmean(table[:, 0], axis=1)
+    log_c = np.log(rho + e) - np.log(np.maximum(first, 0.0) + e)           # (90, 3)
+    known = np.isfinite(log_c).all(axis=1)
+    if not known.any():
+        return table.copy()
+    bins = np.arange(90)
+    log_c = np.stack([np.interp(bins, bins[known], log_c[known, c]) for c in range(3)], axis=1)
+    shape = (90, 1, 3) if table.ndim == 3 else (90, 1, 1, 3)
+    c = np.exp(log_c).reshape(shape)
+    return np.maximum((np.maximum(table, 0.0) + e) * c - e, 0.0) + np.where(np.isnan(table),
+                                                                           np.nan, 0.0)

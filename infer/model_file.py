@@ -19,17 +19,19 @@ FORMAT = "flashbrdf-infer-model-1"
 
 
 def _model_bytes(model):
+    # The 2D (and 3D) training rows are not stored twice: the file's tables_2d rebuild them on load.
     with tempfile.TemporaryDirectory() as folder:
         path = os.path.join(folder, "dsgplvm.npz")
-        model.save(path)
+        model.save(path, store_views=(model.source_view,))
         with open(path, "rb") as f:
             return np.frombuffer(f.read(), np.uint8)
 
 
 def save_model(path, training, params, dsgplvm=None, merl_dir=""):
     """Write MODEL.npz atomically. params: {method: {hyperparameter: value}}."""
+    # float32 keeps 7 digits, far below the feature map's resolution, and halves the file.
     arrays = {"format": np.array(FORMAT), "names": np.array(training.names),
-              "slices": training.slices, "tables_2d": training.tables_2d,
+              "slices": training.slices, "tables_2d": np.asarray(training.tables_2d, np.float32),
               "params": np.array(json.dumps(params)), "merl_dir": np.array(str(merl_dir))}
     if dsgplvm is not None:
         arrays["dsgplvm"] = _model_bytes(dsgplvm)
@@ -37,7 +39,7 @@ def save_model(path, training, params, dsgplvm=None, merl_dir=""):
         arrays["valid_3d"] = np.asarray(training.valid_3d, np.float32)
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
-            np.savez(f, **arrays)
+            np.savez_compressed(f, **arrays)
 
 
 def read_model(path, merl_dir=None):
@@ -48,7 +50,7 @@ def read_model(path, merl_dir=None):
         if str(z["format"]) != FORMAT:
             raise InputError(path, f"not a flashbrdf model (format {z['format']})")
         names = [str(n) for n in z["names"]]
-        training = TrainingSet(names, z["slices"], z["tables_2d"])
+        training = TrainingSet(names, z["slices"], np.asarray(z["tables_2d"], np.float64))
         if "valid_3d" in z.files:
             training.valid_3d = z["valid_3d"]
         params = json.loads(str(z["params"]))
@@ -67,24 +69,46 @@ def read_model(path, merl_dir=None):
     return training, params, blob
 
 
-def load_dsgplvm(blob):
+def load_dsgplvm(blob, training=None, feature_space="lab"):
+    """The DSGPLVM in `blob`; views stored without training rows get them back from `training`."""
     from infer.adapter import _model_class
     with tempfile.TemporaryDirectory() as folder:
         path = os.path.join(folder, "dsgplvm.npz")
         with open(path, "wb") as f:
             f.write(blob)
-        return _model_class().load(path)
+        model = _model_class().load(path)
+    if training is not None and model.view_data_["2d"].data is None:
+        _restore_2d_rows(model, training, feature_space)
+    return model
 
 
-def load_method(path, name, merl_dir=None):
-    """A fitted method `name` from MODEL.npz (see infer.make_method)."""
+def _restore_2d_rows(model, training, feature_space):
+    """Rebuild the 2D view's centred, scaled rows from the training tables, checked against the
+    fitted model's stored keep mask, scale and Gram matrix (they must describe the same data)."""
+    from infer.adapter import table_features
+    from infer.viewdata import ViewData, prepare_view
+    stored = model.view_data_["2d"]
+    rebuilt = prepare_view(table_features(training.tables_2d, feature_space))
+    if not np.array_equal(rebuilt.keep, stored.keep) or \
+            not np.isclose(rebuilt.scale, stored.scale, rtol=1e-4):
+        raise InputError("model", "the stored 2D tables do not match the trained DS-GPLVM")
+    data = rebuilt.data * (rebuilt.scale / stored.scale)
+    if not np.allclose(data @ data.T, stored.gram, rtol=1e-3, atol=1e-3 * np.abs(stored.gram).max()):
+        raise InputError("model", "the stored 2D tables do not match the trained DS-GPLVM's Gram")
+    model.view_data_["2d"] = ViewData(keep=stored.keep, mean=rebuilt.mean, scale=stored.scale,
+                                      gram=stored.gram, n_dims=stored.n_dims, data=data)
+
+
+def load_method(path, name, merl_dir=None, **overrides):
+    """A fitted method `name` from MODEL.npz (see infer.make_method); `overrides` replace stored
+    hyperparameters that act at prediction time (e.g. anchor=True for dsgplvm)."""
     from infer import make_method
     training, params, blob = read_model(path, merl_dir)
-    kw = dict(params.get(name, {}))
+    kw = {**params.get(name, {}), **overrides}
     if name == "dsgplvm":
         if blob is None:
             raise InputError(path, "model holds no DS-GPLVM")
-        kw["model"] = load_dsgplvm(blob)
+        kw["model"] = load_dsgplvm(blob, training, kw.get("feature_space", "lab"))
     return make_method(name, **kw).fit(training)
 
 

@@ -35,6 +35,9 @@ def _parser():
     s.add_argument("--method", default="dsgplvm",
                    choices=["dsgplvm", "pca", "noll", "chandraker", "ashikhmin"])
     s.add_argument("--merl-dir", metavar="DIR")
+    s.add_argument("--no-anchor", action="store_true",
+                   help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
+                        "theta_h to pass through the observed slice, carried over theta_d")
     s.add_argument("--view", default="auto", choices=["auto", "2d", "3d"],
                    help="predict 2D (copied across phi_d) or 3D; auto: 3D when training tables "
                         "are at hand")
@@ -69,6 +72,9 @@ def _parser():
     s.add_argument("--model", metavar="MODEL.npz")
     s.add_argument("--methods", default="dsgplvm")
     s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
+    s.add_argument("--no-anchor", action="store_true",
+                   help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
+                        "theta_h to pass through the observed slice, carried over theta_d")
 
     s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
     s.add_argument("--merl-dir", required=True, metavar="DIR")

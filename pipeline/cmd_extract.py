@@ -40,7 +40,10 @@ def extract(args):
 
 
 def write_extraction(out, scene_dir, result, options):
-    """Write slice.csv (with provenance comments) and the JSON sidecar beside it, both or neither."""
+    """Write slice.csv (with provenance comments) and the JSON sidecar beside it, both or neither.
+
+    Returns the slice as written: rho (90, 3) in 1/sr, NaN where empty.
+    """
     out = Path(out)
     cov = result.coverage
     comments = [
@@ -52,16 +55,25 @@ def write_extraction(out, scene_dir, result, options):
         f"{options.max_theta_d_deg} deg; min cos {options.min_cos}; silhouette "
         f"{options.silhouette_px} px",
     ]
+    # A robust estimate of a near-black bin can dip below 0 through noise; a BRDF cannot, and
+    # slice.csv readers reject it, so such bins are written as 0 and counted.
+    negative = np.isfinite(result.rho) & (result.rho < 0)
+    rho = np.where(negative, 0.0, result.rho)
+    if negative.any():
+        comments.append(f"{int(negative.any(axis=1).sum())} bin(s) had a slightly negative estimate "
+                        "(noise around 0) and are written as 0")
     report = dict(result.report, slice_csv=str(out.resolve()),
+                  clamped_negative_bins=int(negative.any(axis=1).sum()),
                   spread=[[None if not np.isfinite(v) else float(v) for v in row]
                           for row in result.spread])
     json_path = out.with_suffix(".json")
     if json_path == out:  # --out x.json: keep the slice, put the report beside it
         json_path = out.with_name(out.stem + ".report.json")
     text = json.dumps(report, indent=1) + "\n"
-    write_slice_csv(out, result.rho, result.n, comments=comments)
+    write_slice_csv(out, rho, result.n, comments=comments)
     try:
         write_text(json_path, text)
     except BaseException:
         out.unlink(missing_ok=True)  # never leave half of the output behind
         raise
+    return rho

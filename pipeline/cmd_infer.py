@@ -55,7 +55,9 @@ def infer(args):
     else:
         if not Path(args.model).is_file():
             raise InputError(args.model, "no such model file")
-        method = load_method(args.model, args.method, args.merl_dir)
+        overrides = {"anchor": not getattr(args, "no_anchor", False)} \
+            if args.method == "dsgplvm" else {}
+        method = load_method(args.model, args.method, args.merl_dir, **overrides)
         has_3d = args.method in ("chandraker", "ashikhmin") or method.training_.has_3d()
     if view == "auto":
         view = "3d" if has_3d else "2d"

@@ -31,16 +31,25 @@ METHODS_NEEDING_NO_MODEL = ("chandraker",)
 
 
 class _Stages:
-    """Wall-clock seconds per stage, in run order, printed as a table at the end."""
+    """Wall-clock seconds per stage, in run order, printed as a table at the end.
 
-    def __init__(self):
+    On a terminal a progress bar counts the stages (renders add their own per-photo bars);
+    otherwise each stage prints one line, which keeps logs readable.
+    """
+
+    def __init__(self, total):
+        from tqdm import tqdm
         self.seconds = {}
+        self.bar = tqdm(total=total, unit="stage", file=sys.stderr, disable=not sys.stderr.isatty())
 
     def run(self, name, fn, *args, **kwargs):
-        print(f"[{name}] ...", file=sys.stderr, flush=True)
+        if self.bar.disable:
+            print(f"[{name}] ...", file=sys.stderr, flush=True)
+        self.bar.set_description(name)
         start = time.perf_counter()
         result = fn(*args, **kwargs)
         self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - start
+        self.bar.update(1)
         return result
 
     def table(self):
@@ -74,7 +83,7 @@ def _model_path(args, methods):
                                 "(make it with `flashbrdf train`)")
 
 
-def _infer(method_name, model_path, rho, out_dir):
+def _infer(method_name, model_path, rho, out_dir, anchor=True):
     """Predict a 2D table (or 3D where the model stores 3D data); write brdf.binary + brdf.json."""
     from brdf import merl, views
     from infer import load_method, make_method
@@ -83,7 +92,8 @@ def _infer(method_name, model_path, rho, out_dir):
         method = make_method(method_name).fit(None)
         view = "2d"
     else:
-        method = load_method(model_path, method_name)
+        overrides = {"anchor": anchor} if method_name == "dsgplvm" else {}
+        method = load_method(model_path, method_name, **overrides)
         view = "3d" if getattr(getattr(method, "training_", None), "valid_3d", None) is not None \
             else "2d"
     table, variance = method.predict(rho, view=view)
@@ -135,24 +145,26 @@ def run(args):
     model_path = _model_path(args, methods)
     spp = int(getattr(args, "spp", None) or 64)
     out = Path(args.out)
-    stages, notes = _Stages(), []
+    stages, notes = _Stages(total=4 + 2 * len(methods)), []
 
     scene = stages.run("load scene", capture.load_scene, args.scene_dir)
     options = ExtractOptions()
     result = stages.run("extract", extract_slice, scene, options)
     out.mkdir(parents=True, exist_ok=True)
-    write_extraction(out / "slice.csv", args.scene_dir, result, options)
+    rho = write_extraction(out / "slice.csv", args.scene_dir, result, options)
 
-    predictions = {}
+    predictions, two_d = {}, []
     for name in methods:
-        table, variance, view = stages.run(f"infer {name}", _infer, name, model_path, result.rho,
-                                           out / name)
+        table, variance, view = stages.run(f"infer {name}", _infer, name, model_path, rho,
+                                           out / name, not args.no_anchor)
         predictions[name] = {"table": table, "variance": variance, "file": f"{name}/brdf.binary",
                              "variance_label": "predictive variance (log-CIELAB features)"}
         if view == "2d":
-            notes.append(f"{name}: the model predicts 2D rho(theta_h, theta_d); no 3D table was "
-                         "loaded, and the render looks the 2D table up directly.")
+            two_d.append(name)
 
+    if two_d:
+        notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "
+                     "3D data); no 3D table was loaded, and renders look the 2D tables up directly.")
     references = scene.photos_with_role("reference")
     rows = []
     if not references:
@@ -166,10 +178,11 @@ def run(args):
         for name in methods:
             rows += stages.run(f"render+compare {name}", _render_and_compare, scene, geometry, name,
                                predictions[name]["table"], spp, out / name, references)
-    observed = {"rho": result.rho, "n": result.n, "spread": result.spread}
+    observed = {"rho": rho, "n": result.n, "spread": result.spread}
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                         observed=observed, predictions=predictions, notes=notes,
                         title=f"flashbrdf run {Path(args.scene_dir).name}")
+    stages.bar.close()
     print(stages.table(), file=sys.stderr)
     for method, summary in report.get("summary", {}).items():
         mean = summary.get("delta_e_log_mean", {}).get("mean")

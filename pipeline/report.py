@@ -123,7 +123,7 @@ def coverage(theta_h_deg, observed):
         warnings.append(f"θh above {edges[last + 1]:.0f}° not observed: the prediction there comes "
                         "from the prior")
     if first > 0:
-        warnings.append(f"θh below {edges[first]:.1f}° not observed (the specular peak): the peak "
+        warnings.append(f"θh below {edges[first]:.2g}° not observed (the specular peak): the peak "
                         "height comes from the prior")
     gaps = int((~seen[first:last + 1]).sum())
     if gaps:

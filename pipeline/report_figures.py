@@ -105,7 +105,7 @@ def exposure_for(reference):
 
 
 def reference_figure(path, photo, reference, renders, delta_e_maps, delta_e_means, vmax=None):
-    """Reference photo | for each method: render, Delta E map, on one shared exposure.
+    """Reference photo and each method's render (one shared exposure), Delta E maps below.
 
     reference: (H,W,3) linear or None; renders: {method: (H,W,3) linear or None};
     delta_e_maps: {method: (H,W) Delta E, or (H,W,3) an already false-coloured image, or None};
@@ -118,31 +118,34 @@ def reference_figure(path, photo, reference, renders, delta_e_maps, delta_e_mean
         renders = {k: (None if r is None else r[crop]) for k, r in renders.items()}
         delta_e_maps = {k: (None if m is None else m[crop]) for k, m in delta_e_maps.items()}
     methods = list(renders)
-    cols = 1 + 2 * len(methods)
-    fig, axes = plt.subplots(1, cols, figsize=(2.6 * cols, 2.9))
-    axes = np.atleast_1d(axes)
+    # Top row: the reference, then each method's render; bottom row: each method's Delta E map.
+    fig, axes = plt.subplots(2, 1 + len(methods), figsize=(2.6 * (1 + len(methods)), 5.4),
+                             squeeze=False)
     scale = exposure_for(reference) if reference is not None else \
         exposure_for(next((r for r in renders.values() if r is not None), np.ones(1)))
     if vmax is None:
         maps = [m for m in delta_e_maps.values() if m is not None and np.ndim(m) == 2]
         finite = np.concatenate([m[np.isfinite(m)].ravel() for m in maps]) if maps else np.zeros(1)
         vmax = max(5.0, float(np.percentile(finite, 99))) if finite.size else 5.0
-    _show(axes[0], None if reference is None else tone_map(reference, scale), f"{photo}: reference")
+    _show(axes[0, 0], None if reference is None else tone_map(reference, scale), f"{photo}: reference")
+    axes[1, 0].axis("off")
+    axes[1, 0].text(0.5, 0.5, "per-pixel ΔE log\n(render vs reference)", ha="center",
+                    va="center", fontsize=9, transform=axes[1, 0].transAxes)
     image = None
-    for m, method in enumerate(methods):
+    for m, method in enumerate(methods, start=1):
         render = renders[method]
-        _show(axes[1 + 2 * m], None if render is None else tone_map(render, scale), f"{method}: render")
+        _show(axes[0, m], None if render is None else tone_map(render, scale), f"{method}: render")
         de = delta_e_maps.get(method)
-        title = f"ΔE log, mean {delta_e_means.get(method, float('nan')):.2f}"
+        title = f"{method}: ΔE log, mean {delta_e_means.get(method, float('nan')):.2f}"
         if de is not None and np.ndim(de) == 2:
-            image = axes[2 + 2 * m].imshow(np.where(np.isfinite(de), de, np.nan), cmap="inferno",
-                                           vmin=0, vmax=vmax)
-            axes[2 + 2 * m].set_title(title, fontsize=8)
-            axes[2 + 2 * m].axis("off")
+            image = axes[1, m].imshow(np.where(np.isfinite(de), de, np.nan), cmap="inferno",
+                                      vmin=0, vmax=vmax)
+            axes[1, m].set_title(title, fontsize=8)
+            axes[1, m].axis("off")
         else:
-            _show(axes[2 + 2 * m], de, title)
+            _show(axes[1, m], de, title)
     if image is not None:
-        fig.colorbar(image, ax=axes.tolist(), shrink=0.75, label="ΔE log (CIE76)")
+        fig.colorbar(image, ax=axes[1].tolist(), shrink=0.8, label="ΔE log (CIE76)")
     _save(fig, path)
 
 

@@ -13,7 +13,7 @@ Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
   render_point_light(points, normals, view, brdf, light_position, intensity_rgb, occluded=None)
   render_directional_light(points, normals, view, brdf, direction, irradiance_rgb, occluded=None)
   render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=None, ...) -> (P, 3)
-  render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True)
+  render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geometry=None)
       -> iterator of (photo, image (H, W, 3) float32 in photo units, mask (H, W))
   render_sphere(table, envmap_path, size=128, spp=64, seed=0, ...) -> (size, size, 3) float32
   table2(merl_dir, out_dir, predict, names=None, methods=METHODS, envmaps=None, size=128,

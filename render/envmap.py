@@ -32,30 +32,15 @@ LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722])
 
 def read_envmap_pixels(path):
     """Read a lat-long map -> (H, W, 3) float32 linear RGB. InputError if unreadable or not 2:1."""
-    import OpenImageIO as oiio
+    from capture import read_float_image
     path = os.fspath(path)
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise InputError(path, f"cannot read environment map ({oiio.geterror().strip()})")
-    try:
-        spec = inp.spec()
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
-    finally:
-        inp.close()
-    if pixels is None:
-        raise InputError(path, "cannot decode environment map")
-    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    if spec.height < 2:
-        raise InputError(path, f"environment map needs at least 2 rows, got {spec.height}")
-    if spec.width != 2 * spec.height:
+    pixels = read_float_image(path)
+    height, width = pixels.shape[:2]
+    if height < 2:
+        raise InputError(path, f"environment map needs at least 2 rows, got {height}")
+    if width != 2 * height:
         raise InputError(path, f"environment map must be lat-long with width = 2 x height, "
-                               f"got {spec.width}x{spec.height}")
-    if spec.nchannels == 1:
-        pixels = np.repeat(pixels, 3, axis=2)
-    elif spec.nchannels >= 3:
-        pixels = pixels[..., :3]
-    else:
-        raise InputError(path, f"environment map has {spec.nchannels} channels, need 1 or >= 3")
+                               f"got {width}x{height}")
     if not np.all(np.isfinite(pixels)):
         raise InputError(path, "environment map holds non-finite values")
     return np.maximum(pixels, 0.0)

@@ -32,27 +32,11 @@ def write_exr(path, rgb):
 def read_image(path):
     """Read a linear HDR image (.exr, .hdr, .pfm, ...) -> (H, W, 3) float32.
 
-    Single-channel images are repeated to RGB; alpha and extra channels are dropped.
-    InputError when the file is missing or unreadable.
+    capture's reader: channels by name, grey repeated to RGB, alpha dropped, an EXR data window
+    placed in its display window (NaN outside). InputError when missing or unreadable.
     """
-    import OpenImageIO as oiio
-    path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise InputError(path, "no such image file")
-    inp = oiio.ImageInput.open(path)
-    if inp is None:
-        raise InputError(path, f"cannot read image ({oiio.geterror().strip()})")
-    try:
-        spec = inp.spec()
-        pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
-    finally:
-        inp.close()
-    if pixels is None:
-        raise InputError(path, "cannot decode image")
-    pixels = np.asarray(pixels, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    if spec.nchannels in (1, 2):
-        return np.repeat(pixels[..., :1], 3, axis=2)
-    return np.ascontiguousarray(pixels[..., :3])
+    from capture import read_float_image
+    return read_float_image(path)
 
 
 def tonemap(rgb, exposure=None):

@@ -164,44 +164,47 @@ def _mis_factor(pdf_this, pdf_other, heuristic):
 
 
 def _envmap_chunk(points, normals, view, brdf, envmap, u, occluded, heuristic, strategies):
-    """Both MIS strategies for a chunk of Pc points and S samples each -> (Pc, 3)."""
+    """Both MIS strategies for a chunk of Pc points and S samples each -> (Pc, 3).
+
+    Works on flat (Pc * S, ...) arrays: boolean compression of flat arrays is much cheaper than
+    fancy indexing of (Pc, S) ones.
+    """
     pc, s = u.shape[:2]
     t, b = shading_frame(normals)
-    wo_l = to_local(view, t, b, normals)[:, None, :]             # (Pc, 1, 3)
-    tb = (t[:, None], b[:, None], normals[:, None])
+    wo_l = np.repeat(to_local(view, t, b, normals), s, axis=0)        # (Pc*S, 3)
+    frame = tuple(np.repeat(x, s, axis=0) for x in (t, b, normals))
+    pixel = np.repeat(np.arange(pc), s)
+    u = u.reshape(pc * s, -1)
+    both = "envmap" in strategies and "brdf" in strategies
     total = np.zeros((pc, 3))
     for k, strategy in enumerate(strategies):
-        uk = u[..., 2 * k:2 * k + 2]
+        uk = u[:, 2 * k:2 * k + 2]
         if strategy == "envmap":
             wi_w, pdf_env = envmap.sample(uk)
-            wi_l = to_local(wi_w, *tb)
-            pdf_brdf = brdf.pdf_local(wi_l, wo_l) if "brdf" in strategies else 0.0
-            factor = (_mis_factor(pdf_env, pdf_brdf, heuristic)
-                      if "brdf" in strategies else 1.0 / np.maximum(pdf_env, 1e-300))
+            wi_l = to_local(wi_w, *frame)
+            factor = (_mis_factor(pdf_env, brdf.pdf_local(wi_l, wo_l), heuristic) if both
+                      else 1.0 / np.maximum(pdf_env, 1e-300))
         elif strategy == "brdf":
             wi_l, pdf_brdf = brdf.sample_local(wo_l, uk)
-            wi_w = to_world(wi_l, *tb)
-            pdf_env = envmap.pdf(wi_w) if "envmap" in strategies else 0.0
-            factor = (_mis_factor(pdf_brdf, pdf_env, heuristic)
-                      if "envmap" in strategies else 1.0 / np.maximum(pdf_brdf, 1e-300))
+            wi_w = to_world(wi_l, *frame)
+            factor = (_mis_factor(pdf_brdf, envmap.pdf(wi_w), heuristic) if both
+                      else 1.0 / np.maximum(pdf_brdf, 1e-300))
         else:
             raise ValueError(f"unknown strategy {strategy!r}")
-        cos_i = wi_l[..., 2]
-        live = cos_i > 0
+        # Only directions above the horizon can contribute: evaluate those alone.
+        live = wi_l[:, 2] > 0
         if not np.any(live):
             continue
-        # Evaluate only live samples: below-horizon directions contribute nothing.
-        idx = np.nonzero(live)
-        wi_live = wi_l[idx]
-        f = brdf.evaluate_local(wi_live, np.broadcast_to(wo_l, wi_l.shape)[idx])
-        weight = (cos_i[idx] * np.broadcast_to(factor, cos_i.shape)[idx])[:, None]
-        contrib = f * weight
-        nonzero = np.any(contrib > 0, axis=1)
-        idx = tuple(a[nonzero] for a in idx)
-        contrib = contrib[nonzero] * envmap.radiance(wi_w[idx])
-        if occluded is not None and contrib.shape[0]:
-            blocked = occluded(points[idx[0]], wi_w[idx], None)
-            contrib[blocked] = 0.0
-        total += np.stack([np.bincount(idx[0], contrib[:, c], minlength=pc) for c in range(3)],
-                          axis=1)
+        wi_live, wo_live = wi_l[live], wo_l[live]
+        f = brdf.evaluate_local(wi_live, wo_live)
+        contrib = f * (wi_live[:, 2] * np.broadcast_to(factor, live.shape)[live])[:, None]
+        keep = np.any(contrib > 0, axis=1)
+        contrib = contrib[keep]
+        dirs = wi_w[live][keep]
+        owner = pixel[live][keep]
+        contrib *= envmap.radiance(dirs)
+        if occluded is not None and len(owner):
+            contrib[occluded(points[owner], dirs, None)] = 0.0
+        for c in range(3):
+            total[:, c] += np.bincount(owner, contrib[:, c], minlength=pc)
     return total / s

@@ -83,6 +83,8 @@ def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geomet
     scene: capture.Scene; brdf: a render.brdf_models model. Yields (photo, image, mask) per photo:
     image (H, W, 3) float32 in the photo's own pixel units (the pixel model times the photo's
     `scale`), 0 where the pixel misses the geometry; mask (H, W) bool of the pixels that see it.
+    geometry: a SceneGeometry of this scene to reuse (its primary hits are cached per camera).
+    Every light is checked (and every envmap loaded) before the first render.
     """
     photos = scene.photos_with_role("reference") if photos is None else photos
     envmaps = {}

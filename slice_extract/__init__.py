@@ -7,13 +7,17 @@ coverage report; written as the contract's `slice.csv` plus a JSON sidecar (pipe
 Public API:
   extract_slice(scene_dir_or_scene, options=None) -> SliceResult(rho (90, 3), n (90,),
       spread (90, 3), report dict: coverage, rejected, theta_d_deg, photos, timings_s)
-  ExtractOptions(max_theta_d_deg=5.0, min_cos=0.1, outlier_k=3.0, estimator="trimmed_mean")
-  robust_bins(bin_index, rho, k=3.0, ...) -> estimate, n, spread, inlier
+  ExtractOptions(max_theta_d_deg=5.0, min_cos=0.1, outlier_k=3.0, estimator="trimmed_mean",
+                 shadow_rays=True, silhouette_px=1, chunk_pixels=2**20)
+  robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e-3,
+              estimator="trimmed_mean") -> estimate (90, 3), n (90,), spread (90, 3), inlier (N,)
   half_diff_thetas(wi, wo, normal) -> theta_h, theta_d
+  silhouette_mask(object_mask, width_px) -> (H, W) bool
 """
 
 from slice_extract.binning import robust_bins
-from slice_extract.extract import ExtractOptions, SliceResult, extract_slice
+from slice_extract.extract import ExtractOptions, SliceResult, extract_slice, silhouette_mask
 from slice_extract.samples import half_diff_thetas
 
-__all__ = ["ExtractOptions", "SliceResult", "extract_slice", "half_diff_thetas", "robust_bins"]
+__all__ = ["ExtractOptions", "SliceResult", "extract_slice", "half_diff_thetas", "robust_bins",
+           "silhouette_mask"]

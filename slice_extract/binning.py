@@ -30,8 +30,8 @@ def _bin_statistics(rho, theta_h, censored, counts, k, rel_floor):
 
     rho: (C, N) channel-major, so every per-bin slice is C contiguous rows.
     One pass per non-empty bin, each fully vectorised (a partition-based median is O(n)): the loop
-    runs over the 90 bins, never over pixels. Returns median, sigma, mean of the inliers (n_bins, C),
-    mean theta_h of the inliers (n_bins,), inlier counts (n_bins,), inlier mask (N,).
+    runs over the 90 bins, never over pixels. Returns median, sigma, mean of the inliers
+    (n_bins, C), mean theta_h of the inliers (n_bins,), inlier counts (n_bins,), inlier mask (N,).
     """
     channels, n_bins = rho.shape[0], len(counts)
     median, sigma, mean = (np.full((n_bins, channels), np.nan) for _ in range(3))

@@ -1,4 +1,4 @@
-"""extract_slice: from a capture folder (flash photos + known geometry) to rho(theta_h) at theta_d ~ 0.
+"""extract_slice: from a capture folder (flash photos + geometry) to rho(theta_h) at theta_d ~ 0.
 
 Steps: load and validate the scene; load the flash photos (ambient removed, divided by scale);
 trace one Embree ray per pixel that can see the mesh's bounding box (once per camera, shared by
@@ -94,7 +94,7 @@ def _trace(scene, camera, intersector, chunk):
                                               cols[s:s + chunk], dtype=np.float32)
                     for s in range(0, len(rows), chunk)]
     for surface in surfaces:
-        mask[surface.rows, surface.cols] = True
+        mask.ravel()[surface.rows * camera.width + surface.cols] = True
     return surfaces, mask
 
 

@@ -11,7 +11,8 @@ hits come from trimesh's own ray interface, and normals are interpolated with tr
 barycentric helper, so a bug in capture cannot cancel itself out in a test.
 
 Typical use (in a test, with tmp_path):
-    from synthetic import sphere_mesh, ggx_lambert, pinhole_camera, point_light, write_synthetic_scene
+    from synthetic import (sphere_mesh, ggx_lambert, pinhole_camera, point_light,
+                           write_synthetic_scene)
     folder = write_synthetic_scene(tmp_path / "s", sphere_mesh(), ggx_lambert(),
                                    pinhole_camera(256, 256, 1000.0),
                                    [point_light([0.03, 0, 0])])
@@ -245,7 +246,8 @@ def write_synthetic_scene(folder, mesh, brdf_fn, camera, lights, ambient=0.0, ph
     brdf_fn(wi, wo, normal) -> (N, 3) 1/sr; camera: contract camera dict; lights: list of
     contract light dicts (point or directional).
     ambient: constant radiance added to every pixel of every photo, with a matching `ambient`
-    photo (0 or ambient_photo=False: no ambient photo, the ambient stays in); photons: Poisson noise at that mean count (None = exact);
+    photo (0 or ambient_photo=False: no ambient photo, the ambient stays in);
+    photons: Poisson noise at that mean count (None = exact);
     photo_format: "exr" or "png16" (linear 16-bit, code 65535 = `white`, default the max pixel);
     scale: stored photo scale (pixels are multiplied by it); post(image, k) -> image: a hook to
     corrupt flash photo k (hot pixels, ...). Returns the folder Path.

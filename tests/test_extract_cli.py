@@ -127,3 +127,31 @@ def test_normal_map_orthographic_directional(tmp_path):
     ok = result.n >= 20
     assert ok.sum() >= 50
     assert np.median(np.abs(result.rho[ok] / truth[ok] - 1)) < 0.01
+
+
+def test_silhouette_mask_is_the_outline_ring_not_the_frame():
+    from slice_extract import silhouette_mask
+    obj = np.zeros((9, 12), bool)
+    obj[2:7, 2:7] = True  # a 5x5 object
+    obj[:, 9:] = True  # an object cut by the image frame
+    ring = silhouette_mask(obj, 1)
+    assert ring[2:7, 2:7].sum() == 16 and not ring[3:6, 3:6].any()
+    assert ring[:, 9].all() and not ring[:, 10:].any()  # frame side kept
+    assert not silhouette_mask(obj, 0).any()
+
+
+def test_half_diff_thetas_match_brdf_angles():
+    """slice_extract's lean theta_h/theta_d (no phi_d, float32-ready) equals brdf.angles'."""
+    from brdf.angles import half_diff_from_world
+    from slice_extract import half_diff_thetas
+    rng = np.random.default_rng(5)
+    n = rng.normal(size=(2000, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    wi, wo = (v / np.linalg.norm(v, axis=1, keepdims=True)
+              for v in (n + rng.normal(scale=0.6, size=n.shape) for _ in range(2)))
+    wo[:5] = wi[:5] = n[:5]  # theta_h = theta_d = 0 exactly
+    th, td, _ = half_diff_from_world(wi, wo, n)
+    ours_h, ours_d = half_diff_thetas(wi, wo, n)
+    assert np.abs(ours_h - th).max() < 1e-12 and np.abs(ours_d - td).max() < 1e-12
+    h32, d32 = half_diff_thetas(*(v.astype(np.float32) for v in (wi, wo, n)))
+    assert np.abs(h32 - th).max() < 1e-5 and np.abs(d32 - td).max() < 1e-5  # float32 path

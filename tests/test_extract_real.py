@@ -17,7 +17,8 @@ TO_OPENCV = np.array([1.0, -1.0, -1.0])
 def _scene(folder, src, index):
     import scipy.io
     folder.mkdir()
-    np.save(folder / "normals.npy", scipy.io.loadmat(src / "Normal_gt.mat")["Normal_gt"] * TO_OPENCV)
+    normals = scipy.io.loadmat(src / "Normal_gt.mat")["Normal_gt"] * TO_OPENCV
+    np.save(folder / "normals.npy", normals)
     shutil.copy(src / "mask.png", folder / "mask.png")
     direction = np.loadtxt(src / "light_directions.txt")[index - 1] * TO_OPENCV
     irradiance = np.loadtxt(src / "light_intensities.txt")[index - 1]

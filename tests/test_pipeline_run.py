@@ -45,19 +45,55 @@ def test_run_writes_the_contract_outputs(run_report):
     compare = json.loads((out / "dsgplvm" / "ref_pisa_compare.json").read_text())
     assert rows["ref_pisa", "dsgplvm"]["delta_e_log_mean"] == pytest.approx(
         compare["delta_e_log_mean"])
-    assert compare["pixels"] > 0.4 * 128 * 128 * np.pi / 4 * 0.3  # the sphere's visible disc
+    # The sphere (r = 0.1 m, 1 m away, fx = 2.2 * 128 px) covers a disc of radius
+    # fx * r / sqrt(d^2 - r^2) = 28.3 px: pi * 28.3^2 = 2516 pixels, less the silhouette's edge.
+    assert 2300 < compare["pixels"] < 2600
 
 
-def test_predicted_render_matches_the_reference(run_report):
+def test_predicted_render_matches_the_reference(run_report, sphere_scene):
     """The prediction's render is within a stated Delta E (log-CIELAB, Table 2's metric).
 
-    Measured: DS-GPLVM {DSG} and Chandraker {CHA} (see the closing note). The bound leaves
-    room for Monte Carlo noise at 64 spp while failing for a wrong colour or brightness.
+    Measured (2026-11-22): dsgplvm 3.61, chandraker 3.50 (the reference is 256 spp, the renders
+    64 spp). The bound 5.0 leaves room for Monte Carlo noise, and is well under what a uniform
+    2x brightness error gives on this image (checked below), so a wrong prediction fails.
     """
-    _, report = run_report
+    from brdf.metrics import delta_e_log
+    from render import read_image
+    out, report = run_report
     rows = {r["method"]: r for r in report["references"]}
     assert rows["dsgplvm"]["delta_e_log_mean"] < DSGPLVM_BOUND
-    assert rows["chandraker"]["delta_e_log_mean"] < 3 * DSGPLVM_BOUND
+    assert rows["chandraker"]["delta_e_log_mean"] < DSGPLVM_BOUND
+    reference = read_image(sphere_scene / "ref_pisa.exr")
+    on_object = reference.max(axis=-1) > 0
+    twice_too_bright = delta_e_log(2 * reference[on_object], reference[on_object]).mean()
+    assert twice_too_bright > 2 * DSGPLVM_BOUND
 
 
-DSGPLVM_BOUND = 1.0
+DSGPLVM_BOUND = 5.0
+
+
+def test_unknown_method_or_missing_model_exit_2_and_write_nothing(sphere_scene, tmp_path,
+                                                                   capsys):
+    out = tmp_path / "out"
+    assert main(["run", str(sphere_scene), "--out", str(out), "--methods", "dsgplvm,magic"]) == 2
+    assert "magic" in capsys.readouterr().err and not out.exists()
+    assert main(["run", str(sphere_scene), "--out", str(out), "--model",
+                 str(tmp_path / "none.npz")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "none.npz" in err[0] and not out.exists()
+
+
+def test_a_scene_without_references_renders_nothing(sphere_scene, tmp_path):
+    scene = tmp_path / "scene"
+    scene.mkdir()
+    doc = json.loads((sphere_scene / "scene.json").read_text())
+    for name in ("object.ply", "flash.exr", "ambient.exr"):
+        (scene / name).symlink_to(sphere_scene / name)
+    doc["photos"] = [p for p in doc["photos"] if p["role"] != "reference"]
+    (scene / "scene.json").write_text(json.dumps(doc))
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out), "--methods", "chandraker"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["references"] == [] and "render+compare chandraker" not in report["stages"]
+    assert any("no reference photo" in note for note in report["notes"])
+    assert not list((out / "chandraker").glob("*.exr"))
