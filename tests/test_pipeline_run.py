@@ -70,3 +70,30 @@ def test_predicted_render_matches_the_reference(run_report, sphere_scene):
 
 
 DSGPLVM_BOUND = 5.0
+
+
+def test_unknown_method_or_missing_model_exit_2_and_write_nothing(sphere_scene, tmp_path,
+                                                                   capsys):
+    out = tmp_path / "out"
+    assert main(["run", str(sphere_scene), "--out", str(out), "--methods", "dsgplvm,magic"]) == 2
+    assert "magic" in capsys.readouterr().err and not out.exists()
+    assert main(["run", str(sphere_scene), "--out", str(out), "--model",
+                 str(tmp_path / "none.npz")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "none.npz" in err[0] and not out.exists()
+
+
+def test_a_scene_without_references_renders_nothing(sphere_scene, tmp_path):
+    scene = tmp_path / "scene"
+    scene.mkdir()
+    doc = json.loads((sphere_scene / "scene.json").read_text())
+    for name in ("object.ply", "flash.exr", "ambient.exr"):
+        (scene / name).symlink_to(sphere_scene / name)
+    doc["photos"] = [p for p in doc["photos"] if p["role"] != "reference"]
+    (scene / "scene.json").write_text(json.dumps(doc))
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out), "--methods", "chandraker"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert report["references"] == [] and "render+compare chandraker" not in report["stages"]
+    assert any("no reference photo" in note for note in report["notes"])
+    assert not list((out / "chandraker").glob("*.exr"))
