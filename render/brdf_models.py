@@ -86,7 +86,26 @@ class Lambert(BRDFModel):
         return np.maximum(wi[..., 2], 0.0) * INV_PI
 
 
-class GGX(BRDFModel):
+class HalfVectorMixture(BRDFModel):
+    """Sampling shared by GGX and tabulated BRDFs: a cosine-weighted direction with probability
+    `cosine_fraction`, else omega_o reflected about a half vector from the subclass's
+    `_sample_h(u)`; `pdf_local` is the subclass's mixture density."""
+
+    cosine_fraction = 0.25
+
+    def sample_local(self, wo, u):
+        c = self.cosine_fraction
+        use_cos = u[..., 0] < c
+        # Reuse the component-selecting uniform so stratification survives.
+        u_cos = np.stack([np.where(use_cos, u[..., 0] / max(c, 1e-300), 0.0), u[..., 1]], -1)
+        u_h = np.stack([np.where(use_cos, 0.0, (u[..., 0] - c) / max(1.0 - c, 1e-300)),
+                        u[..., 1]], -1)
+        wo_b = np.broadcast_to(wo, np.broadcast_shapes(wo.shape, u.shape[:-1] + (3,)))
+        wi = np.where(use_cos[..., None], sample_cosine(u_cos), _reflect(wo_b, self._sample_h(u_h)))
+        return wi, self.pdf_local(wi, wo_b)
+
+
+class GGX(HalfVectorMixture):
     """Lambert diffuse + GGX microfacet specular (Walter et al. 2007):
         rho = diffuse/pi + F D G / (4 cos_i cos_o),
     D = GGX with roughness alpha, G = separable Smith, F = Schlick from `specular` (F0, (3,)), or
@@ -133,17 +152,6 @@ class GGX(BRDFModel):
         phi = 2.0 * np.pi * u[..., 1]
         return np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1)
 
-    def sample_local(self, wo, u):
-        c = self.cosine_fraction
-        use_cos = u[..., 0] < c
-        # Reuse the component-selecting uniform so stratification survives.
-        u_cos = np.stack([np.where(use_cos, u[..., 0] / max(c, 1e-300), 0.0), u[..., 1]], -1)
-        u_spec = np.stack([np.where(use_cos, 0.0, (u[..., 0] - c) / max(1.0 - c, 1e-300)),
-                           u[..., 1]], -1)
-        wo_b = np.broadcast_to(wo, np.broadcast_shapes(wo.shape, u.shape[:-1] + (3,)))
-        wi = np.where(use_cos[..., None], sample_cosine(u_cos), _reflect(wo_b, self._sample_h(u_spec)))
-        return wi, self.pdf_local(wi, wo_b)
-
     def pdf_local(self, wi, wo):
         h = _half_vector(wi, wo)
         cos_h = h[..., 2]
@@ -189,7 +197,7 @@ def _theta_h_edges():
     return (np.pi / 2) * (np.arange(91) / 90.0) ** 2
 
 
-class TabulatedBRDF(BRDFModel):
+class TabulatedBRDF(HalfVectorMixture):
     """A MERL-layout table, 3D (90, 90, 180, 3) or 2D (90, 90, 3), in 1/sr.
 
     Negative, NaN or no-data bins evaluate to 0 (with `interpolate`, brdf.lookup renormalises
@@ -258,16 +266,6 @@ class TabulatedBRDF(BRDFModel):
         sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos_t ** 2))
         phi = 2.0 * np.pi * u[..., 1]
         return np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1)
-
-    def sample_local(self, wo, u):
-        c = self.cosine_fraction
-        use_cos = u[..., 0] < c
-        u_cos = np.stack([np.where(use_cos, u[..., 0] / max(c, 1e-300), 0.0), u[..., 1]], -1)
-        u_h = np.stack([np.where(use_cos, 0.0, (u[..., 0] - c) / max(1.0 - c, 1e-300)),
-                        u[..., 1]], -1)
-        wo_b = np.broadcast_to(wo, np.broadcast_shapes(wo.shape, u.shape[:-1] + (3,)))
-        wi = np.where(use_cos[..., None], sample_cosine(u_cos), _reflect(wo_b, self._sample_h(u_h)))
-        return wi, self.pdf_local(wi, wo_b)
 
     def pdf_local(self, wi, wo):
         h = _half_vector(wi, wo)
