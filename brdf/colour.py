@@ -29,13 +29,26 @@ def linear_rgb_to_lab(rgb):
     """CIELAB (..., 3) of linear sRGB triplets (..., 3); white (1, 1, 1) -> L = 100.
 
     Negative inputs follow the CIE function's linear segment, so the map is defined (and
-    invertible) on all of R^3.
+    invertible) on all of R^3. Channels are combined one at a time: a (N, 3) @ (3, 3) product
+    and a two-branch np.where are ten times slower on the 3.3 M bins of a 3D table.
     """
     rgb_to_xyz, _, white = _srgb_matrices()
-    t = (np.asarray(rgb, dtype=np.float64) @ rgb_to_xyz.T) / white
-    f = np.where(t > _DELTA ** 3, np.cbrt(t), t / (3 * _DELTA ** 2) + 4.0 / 29.0)
-    return np.stack([116.0 * f[..., 1] - 16.0, 500.0 * (f[..., 0] - f[..., 1]),
-                     200.0 * (f[..., 1] - f[..., 2])], axis=-1)
+    rgb = np.asarray(rgb, dtype=np.float64)
+    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
+    f = []
+    for i in range(3):
+        m = rgb_to_xyz[i] / white[i]
+        t = m[0] * r + m[1] * g + m[2] * b
+        ft = np.asarray(np.cbrt(t))  # 0-d for a single triplet: still assignable
+        small = t <= _DELTA ** 3
+        if small.any():
+            ft[small] = t[small] / (3 * _DELTA ** 2) + 4.0 / 29.0
+        f.append(ft)
+    lab = np.empty(rgb.shape)
+    lab[..., 0] = 116.0 * f[1] - 16.0
+    lab[..., 1] = 500.0 * (f[0] - f[1])
+    lab[..., 2] = 200.0 * (f[1] - f[2])
+    return lab
 
 
 def lab_to_linear_rgb(lab):
