@@ -62,7 +62,16 @@ def brdf_images(path, method, table_2d, uncertainty=None, uncertainty_label="unc
     table_2d: (90,90,3) 1/sr [theta_h, theta_d, RGB]; uncertainty: (90,90,3) or (90,90) or None.
     """
     plt = _pyplot()
-    cols = 3 if uncertainty is None else 6
+    unc = None if uncertainty is None else np.asarray(uncertainty, dtype=float)
+    if unc is not None:
+        unc = np.repeat(unc[..., None], 3, axis=2) if unc.ndim == 2 else unc
+        values = unc[np.isfinite(unc)]
+        if not values.size:
+            unc = None
+        elif np.ptp(values) <= 1e-9 * max(abs(values).max(), 1e-300):
+            # One number for every bin (e.g. one isotropic GP per view): say it, don't paint it.
+            unc = float(values[0])
+    cols = 3 if unc is None else (4 if isinstance(unc, float) else 6)
     fig, axes = plt.subplots(1, cols, figsize=(2.7 * cols, 3.0))
     log_rho = np.log10(np.where(table_2d > 0, table_2d, np.nan))
     finite = log_rho[np.isfinite(log_rho)]
@@ -73,15 +82,20 @@ def brdf_images(path, method, table_2d, uncertainty=None, uncertainty_label="unc
                             aspect="auto")
         axes[c].set_title(f"{method}: log10 ρ {CHANNELS[c]}", fontsize=9)
     fig.colorbar(im, ax=axes[:3].tolist(), shrink=0.8, label="log10 ρ (1/sr)")
-    if uncertainty is not None:
-        unc = np.asarray(uncertainty, dtype=float)
-        unc = np.repeat(unc[..., None], 3, axis=2) if unc.ndim == 2 else unc
-        top = np.nanpercentile(unc, 99) if np.isfinite(unc).any() else 1.0
+    # Uncertainty in the feature space has CIELAB channels, not RGB ones.
+    names = ("L*", "a*", "b*") if "CIELAB" in uncertainty_label else CHANNELS
+    if isinstance(unc, float):
+        axes[3].axis("off")
+        axes[3].text(0.0, 0.5, f"{uncertainty_label}:\n{unc:.3g} in every bin and channel\n"
+                     f"(std {np.sqrt(max(unc, 0.0)):.3g})", fontsize=8, va="center", wrap=True)
+        axes = axes[:3]
+    elif unc is not None:
+        top = np.nanpercentile(unc, 99)
         for c in range(3):
             im = axes[3 + c].imshow(unc[:, :, c], vmin=0, vmax=top, cmap="viridis", extent=extent,
                                     aspect="auto")
-            axes[3 + c].set_title(f"{uncertainty_label} {CHANNELS[c]}", fontsize=9)
-        fig.colorbar(im, ax=axes[3:].tolist(), shrink=0.8)
+            axes[3 + c].set_title(f"variance {names[c]}", fontsize=9)
+        fig.colorbar(im, ax=axes[3:].tolist(), shrink=0.8, label=uncertainty_label)
     # Rows are MERL's square-root-spaced theta_h bins: label them in degrees where they fall.
     theta_ticks = np.array([0, 2, 5, 10, 20, 40, 60, 90])
     for ax in axes:
