@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from brdf.errors import InputError
+from render.images import write_exr
 
 CAMERA_FROM_DILIGENT = np.diag([1.0, -1.0, -1.0])
 WORLD_FROM_CAMERA = np.diag([1.0, -1.0, -1.0, 1.0])  # world = DiLiGenT frame
@@ -172,21 +173,6 @@ def dumps_scene(scene):
     return number_list.sub(lambda m: "[" + re.sub(r"\s+", " ", m.group(1)) + "]", text) + "\n"
 
 
-def write_exr(path, image):
-    """Write (H, W, 3) float32 linear RGB as a ZIP-compressed EXR at `path` (not atomic itself)."""
-    import OpenImageIO as oiio
-    image = np.ascontiguousarray(image, dtype=np.float32)
-    spec = oiio.ImageSpec(image.shape[1], image.shape[0], 3, "float")
-    spec.attribute("compression", "zip")
-    out = oiio.ImageOutput.create(os.fspath(path))
-    if out is None or not out.open(os.fspath(path), spec):
-        raise OSError(f"{path}: cannot write EXR ({oiio.geterror()})")
-    ok = out.write_image(image)
-    out.close()
-    if not ok:
-        raise OSError(f"{path}: cannot write EXR ({oiio.geterror()})")
-
-
 @contextlib.contextmanager
 def atomic_folder(target, marker="scene.json"):
     """Yield a temporary folder beside `target`; on success it replaces `target` in one rename.
@@ -223,8 +209,6 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None):
     flash_index: 1-based index of the photo used as the flash (directional light near the view).
     progress: optional callable wrapping an iterable (e.g. tqdm) for the photo loop.
     """
-    import json
-
     import cv2
 
     obj = read_diligent(obj_dir)

@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from brdf.errors import InputError
-from pipeline.diligent import atomic_folder, dumps_scene, write_exr
+from pipeline.diligent import atomic_folder, dumps_scene
+from render.images import write_exr
 
 CM = 0.01  # metres per centimetre
 # Camera axes in world: x right = +x, y down = -y (image up is +y), z forward = -z (down).

@@ -71,13 +71,12 @@ def read_image(source):
         return source
     path = Path(source)
     if path.suffix.lower() in (".exr", ".hdr", ".pfm"):
-        import OpenImageIO as oiio
-        inp = oiio.ImageInput.open(os.fspath(path))
-        if inp is None:
+        from capture import read_float_image
+        from brdf.errors import InputError
+        try:
+            return read_float_image(path)
+        except InputError:
             return None
-        image = inp.read_image("float")
-        inp.close()
-        return image[..., :3] if image.ndim == 3 else image
     import cv2
     image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
     if image is None:

@@ -19,6 +19,7 @@ def write_exr(path, rgb):
         raise ValueError(f"write_exr needs (H, W, 3), got {rgb.shape}")
     with atomic_path(path) as tmp:
         spec = oiio.ImageSpec(rgb.shape[1], rgb.shape[0], 3, oiio.FLOAT)
+        spec.attribute("compression", "zip")  # lossless, and smaller for images mostly black
         out = oiio.ImageOutput.create(tmp)
         if out is None or not out.open(tmp, spec):
             raise OSError(f"{path}: cannot write EXR ({oiio.geterror().strip()})")
