@@ -113,7 +113,6 @@ def _infer(method_name, model_path, rho, out_dir, anchor=True):
 def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, references):
     import capture
     from render import TabulatedBRDF, render_scene, write_comparison, write_exr, write_preview
-    from render.compare import compare_images
     rows = []
     brdf = TabulatedBRDF(table)
     for photo, image, mask in render_scene(scene, brdf, spp=spp, photos=references,
@@ -123,10 +122,10 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
         row = {"photo": photo.stem, "method": method_name, "render": image, "mask": mask}
         if photo.file is not None and Path(photo.file).is_file() or photo.brackets:
             reference, usable = capture.load_photo_entry(photo)
-            metrics = write_comparison(out_dir, image, reference, mask & usable,
-                                       json_name=f"{photo.stem}_compare.json",
-                                       png_name=f"{photo.stem}_delta_e.png")
-            _, delta_e = compare_images(image, reference, mask & usable)
+            metrics, delta_e = write_comparison(out_dir, image, reference, mask & usable,
+                                                json_name=f"{photo.stem}_compare.json",
+                                                png_name=f"{photo.stem}_delta_e.png",
+                                                return_map=True)
             row.update(metrics, reference=reference, delta_e_map=delta_e)
         else:
             row.update(delta_e_log_mean=None, rel_rmse=None)

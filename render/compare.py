@@ -83,11 +83,12 @@ def write_delta_e_png(path, delta_e, title="log-CIELAB $\\Delta E^*_{ab}$", vmax
 
 
 def write_comparison(out_dir, pred, ref, mask=None, json_name=COMPARE_JSON,
-                     png_name=DELTA_E_PNG):
-    """Compare and write OUT_DIR/compare.json (+ the Delta E PNG). Returns the metrics dict."""
+                     png_name=DELTA_E_PNG, return_map=False):
+    """Compare and write OUT_DIR/compare.json (+ the Delta E PNG). Returns the metrics dict, or
+    (metrics, delta_e (H, W)) with `return_map`."""
     metrics, delta_e = compare_images(pred, ref, mask)
     os.makedirs(out_dir, exist_ok=True)
     if png_name:
         write_delta_e_png(os.path.join(out_dir, png_name), delta_e)
     write_text(os.path.join(out_dir, json_name), json.dumps(metrics, indent=2) + "\n")
-    return metrics
+    return (metrics, delta_e) if return_map else metrics
