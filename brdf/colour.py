@@ -31,20 +31,25 @@ def linear_rgb_to_lab(rgb):
     Negative inputs follow the CIE function's linear segment, so the map is defined (and
     invertible) on all of R^3. Channels are combined one at a time: a (N, 3) @ (3, 3) product
     and a two-branch np.where are ten times slower on the 3.3 M bins of a 3D table.
+    float32 input stays float32 (and keeps its memory layout); anything else is computed in float64.
     """
     rgb_to_xyz, _, white = _srgb_matrices()
-    rgb = np.asarray(rgb, dtype=np.float64)
+    rgb = np.asarray(rgb)
+    dtype = np.float32 if rgb.dtype == np.float32 else np.float64
+    rgb = rgb.astype(dtype, copy=False)
     r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
     f = []
     for i in range(3):
-        m = rgb_to_xyz[i] / white[i]
-        t = m[0] * r + m[1] * g + m[2] * b
+        m = (rgb_to_xyz[i] / white[i]).astype(dtype)
+        t = m[0] * r
+        t += m[1] * g
+        t += m[2] * b
         ft = np.asarray(np.cbrt(t))  # 0-d for a single triplet: still assignable
         small = t <= _DELTA ** 3
         if small.any():
-            ft[small] = t[small] / (3 * _DELTA ** 2) + 4.0 / 29.0
+            ft[small] = t[small] / dtype(3 * _DELTA ** 2) + dtype(4.0 / 29.0)
         f.append(ft)
-    lab = np.empty(rgb.shape)
+    lab = np.empty_like(rgb)
     lab[..., 0] = 116.0 * f[1] - 16.0
     lab[..., 1] = 500.0 * (f[0] - f[1])
     lab[..., 2] = 200.0 * (f[1] - f[2])
@@ -67,9 +72,13 @@ def rho_to_features(rho, space="lab"):
     The log is ln(1 + rho / FEATURE_OFFSET) with FEATURE_OFFSET = 1e-3 1/sr: it is finite and 0 for
     rho = 0 (black materials), and ln(rho) + 6.9 for rho >> 1e-3, so chrome's six decades map to a
     range of about 16. space="rgb" skips the CIELAB step (the log-RGB ablation). NaN propagates.
+    float32 input gives float32 features (the 3D streaming path); anything else float64.
     """
-    log_rgb = np.log1p(np.maximum(np.asarray(rho, dtype=np.float64), 0.0) / FEATURE_OFFSET)
-    log_rgb = np.where(np.isnan(rho), np.nan, log_rgb)
+    rho = np.asarray(rho)
+    dtype = np.float32 if rho.dtype == np.float32 else np.float64
+    log_rgb = np.maximum(rho.astype(dtype, copy=True), 0.0)   # maximum keeps NaN
+    log_rgb *= dtype(1.0 / FEATURE_OFFSET)
+    np.log1p(log_rgb, out=log_rgb)
     if space == "rgb":
         return log_rgb
     if space != "lab":

@@ -11,8 +11,9 @@ a 3D view uses its 2D view's weights (the GP posterior mean is linear in the tra
 import numpy as np
 
 from brdf import colour
-from infer.common import (InferenceMethod, LinearSpace, anchor_to_slice, check_slice,
-                          scatter_valid, stream_combination, valid_mask_2d)
+from infer.common import (AnchoredSpace, InferenceMethod, LinearSpace, anchor_log_correction,
+                          anchor_to_slice, check_slice, scatter_valid, stream_combination,
+                          valid_mask_2d)
 
 
 def _model_class():
@@ -56,7 +57,8 @@ class DSGPLVMMethod(InferenceMethod):
     latent "backprojection" (the paper, Eq. 9) or "optimise" (ablation without back-constraints at
     test time: x* maximises the 1D GP's predictive density of the observed slice bins).
     anchor: False (the paper) or True, our addition: the prediction is corrected along theta_h so
-    its theta_d = 0 row passes through the observed slice (infer.common.anchor_to_slice).
+    its theta_d = 0 row passes through the observed slice (infer.common.anchor_to_slice). The 3D
+    prediction takes the correction computed on the 2D prediction, so both views agree.
     """
     name = "dsgplvm"
 
@@ -104,7 +106,7 @@ class DSGPLVMMethod(InferenceMethod):
 
     def predict(self, flash_slice, view="2d"):
         table, variance = super().predict(flash_slice, view)
-        if self.anchor:
+        if self.anchor and view == "2d":  # 3D: anchored in combination()
             table = anchor_to_slice(table, check_slice(flash_slice))
         return table, variance
 
@@ -138,12 +140,20 @@ class DSGPLVMMethod(InferenceMethod):
         one isotropic GP per view, in feature units²)."""
         weights, var = self._weights(slice_features(rho, self.feature_space), self._weights_view())
         values = stream_combination(self.training_, np.asarray(weights, float),
-                                    FeatureSpace(self.feature_space))
+                                    self._space(rho))
         return scatter_valid(values), np.float64(var)
 
     def combination(self, rho):
         weights, _ = self._weights(slice_features(rho, self.feature_space), self._weights_view())
-        return np.asarray(weights, float), FeatureSpace(self.feature_space)
+        return np.asarray(weights, float), self._space(rho)
+
+    def _space(self, rho):
+        """The 3D combination space; anchored: its inverse applies the 2D prediction's correction."""
+        space = FeatureSpace(self.feature_space)
+        if not self.anchor:
+            return space
+        log_c = anchor_log_correction(self._predict_2d(rho)[0][:, 0], rho)
+        return space if log_c is None else AnchoredSpace(space, log_c)
 
 
 def optimise_latent(model, feats, n_starts=5):

@@ -7,6 +7,8 @@ where MERL's layout has no data (below the horizon).
 """
 
 import functools
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,6 +23,13 @@ def valid_bins_3d():
     """Flat indices of MERL's valid 3D bins: (ih, id, kd) int arrays, each (n_valid,) (~3.29 M)."""
     ih, jd, kd = np.nonzero(merl.merl_valid_mask())
     return ih.astype(np.int16), jd.astype(np.int16), kd.astype(np.int16)
+
+
+@functools.lru_cache(maxsize=1)
+def valid_flat_3d():
+    """valid_bins_3d() as flat indices phi_d + 180*(theta_d + 90*theta_h), (n_valid,) int64."""
+    ih, jd, kd = (b.astype(np.int64) for b in valid_bins_3d())
+    return kd + merl.N_PHI_D * (jd + merl.N_THETA_D * ih)
 
 
 @functools.lru_cache(maxsize=1)
@@ -146,15 +155,14 @@ class TrainingSet:
     def has_3d(self):
         return self.valid_3d is not None or self.paths is not None
 
-    def table_3d_valid(self, i):
-        """ρ on the valid 3D bins of material i, (n_valid, 3) float64."""
+    def table_3d_valid(self, i, dtype=np.float64):
+        """ρ on the valid 3D bins of material i, (n_valid, 3) of `dtype`."""
         if self.valid_3d is not None:
-            return np.asarray(self.valid_3d[i], dtype=float)
+            return np.asarray(self.valid_3d[i], dtype=dtype)
         if self.paths is None:
             raise InputError("--merl-dir", "3D prediction needs the training tables: give --merl-dir "
                              "or train with --views 1d,2d,3d")
-        ih, jd, kd = valid_bins_3d()
-        return merl.read_merl(self.paths[i])[ih, jd, kd]
+        return merl.read_merl_bins(self.paths[i], valid_flat_3d(), dtype)
 
 
 # ----------------------------------------------------------------------------- estimator base
@@ -202,51 +210,98 @@ class LinearSpace:
         return np.maximum(mapped, 0.0)
 
 
-def stream_combination(training, weights, space, tol=1e-12):
-    """Σ_i w_i forward(T_i) over the valid 3D bins, reading one training table at a time, then
-    inverse. Skips tables whose weight is negligible. Returns ρ on valid bins (n_valid, 3)."""
-    total = np.zeros((len(valid_bins_3d()[0]), 3))
+def stream_combination(training, weights, space, tol=1e-12, workers=None):
+    """Σ_i w_i forward(T_i) over the valid 3D bins, reading one training table at a time per worker
+    thread, then inverse. Returns ρ on valid bins (n_valid, 3).
+
+    Tables are read and mapped in float32 (the maps are per bin; float32 keeps 7 digits, far below
+    the metrics' resolution) and summed in float64. Tables whose weight is negligible are skipped.
+    workers: threads (default: one per core, at most 4); numpy's ufuncs and file reads release the
+    GIL, so two cores give almost twice the speed of one.
+    """
+    weights = np.asarray(weights, dtype=np.float64)
     scale = np.abs(weights).max() if len(weights) else 0.0
-    for i, w in enumerate(weights):
-        if abs(w) <= tol * scale:
-            continue
-        total += w * space.forward(training.table_3d_valid(i))
+    used = [i for i, w in enumerate(weights) if abs(w) > tol * scale]
+    workers = max(1, min(workers or min(os.cpu_count() or 1, 4), len(used)))
+
+    def partial_sum(part):
+        total = np.zeros((len(valid_flat_3d()), 3))
+        for i in part:
+            total += weights[i] * space.forward(training.table_3d_valid(i, np.float32))
+        return total
+
+    if workers == 1:
+        total = partial_sum(used)
+    else:
+        with ThreadPoolExecutor(workers) as pool:
+            total = sum(pool.map(partial_sum, [used[k::workers] for k in range(workers)]))
     return space.inverse(total)
 
 
 ANCHOR_SMOOTHING_BINS = 2.0  # see anchor_to_slice; chosen in benchmarks, not on test data
 
 
-def anchor_to_slice(table, flash_slice, smoothing_bins=None):
-    """Correct a predicted table so that its theta_d = 0 row follows the observed slice.
+def anchor_log_correction(first_row, flash_slice, smoothing_bins=None):
+    """ln c (90, 3): the per-θh, per-channel correction that takes a predicted θd = 0 row
+    `first_row` (90, 3) to the observed `flash_slice` (90, 3, NaN where empty), both in 1/sr.
 
-    table: (90, 90, 3) or (90, 90, 180, 3) in 1/sr, NaN where no data; flash_slice: (90, 3), NaN
-    where empty. Per theta_h bin and channel the correction is the ratio
-    c = (rho_obs + e) / (rho_pred(theta_d bin 0) + e), e = brdf.colour.FEATURE_OFFSET, i.e. a shift
-    in the ln(1 + rho/e) feature space, carried over every theta_d (and phi_d), like Noll et al.'s
-    correction functions. Empty slice bins take ln c interpolated along theta_h (held constant
-    beyond the observed range). ln c is then smoothed along theta_h with a Gaussian of
-    `smoothing_bins` bins (None: ANCHOR_SMOOTHING_BINS): a bump of the prediction's theta_d = 0 row that its other rows lack is
-    the blend's own artefact, and cancelling it bin by bin would stamp a dark line across every
-    theta_d. 0 makes the theta_d = 0 row pass exactly through the observation. Returns a new table.
+    c = (ρ_obs + e) / (ρ_pred + e), e = brdf.colour.FEATURE_OFFSET, i.e. a shift in the ln(1 + ρ/e)
+    feature space. Empty slice bins take ln c interpolated along θh (held constant beyond the
+    observed range). ln c is then smoothed along θh with a Gaussian of `smoothing_bins` bins (None:
+    ANCHOR_SMOOTHING_BINS): a bump of the prediction's θd = 0 row that its other rows lack is the
+    blend's own artefact, and cancelling it bin by bin would stamp a dark line across every θd.
+    0 makes the θd = 0 row pass exactly through the observation. None when no bin is observed.
     """
     from scipy.ndimage import gaussian_filter1d
 
     from brdf.colour import FEATURE_OFFSET as e
     if smoothing_bins is None:
         smoothing_bins = ANCHOR_SMOOTHING_BINS
-    table = np.asarray(table, dtype=float)
-    rho = np.asarray(flash_slice, dtype=float)
-    first = table[:, 0] if table.ndim == 3 else np.nanmean(table[:, 0], axis=1)
-    log_c = np.log(rho + e) - np.log(np.maximum(first, 0.0) + e)           # (90, 3)
+    log_c = (np.log(np.asarray(flash_slice, dtype=float) + e)
+             - np.log(np.maximum(np.asarray(first_row, dtype=float), 0.0) + e))
     known = np.isfinite(log_c).all(axis=1)
     if not known.any():
-        return table.copy()
+        return None
     bins = np.arange(90)
     log_c = np.stack([np.interp(bins, bins[known], log_c[known, c]) for c in range(3)], axis=1)
     if smoothing_bins > 0:
         log_c = gaussian_filter1d(log_c, smoothing_bins, axis=0, mode="nearest")
-    shape = (90, 1, 3) if table.ndim == 3 else (90, 1, 1, 3)
-    c = np.exp(log_c).reshape(shape)
-    return np.maximum((np.maximum(table, 0.0) + e) * c - e, 0.0) + np.where(np.isnan(table),
-                                                                           np.nan, 0.0)
+    return log_c
+
+
+def apply_log_correction(rho, log_c):
+    """ρ' = (ρ + e)·exp(ln c) − e, clamped ≥ 0, NaN kept; ρ (..., 3), ln c broadcastable to it."""
+    from brdf.colour import FEATURE_OFFSET as e
+    rho = np.asarray(rho, dtype=float)
+    out = np.maximum((np.maximum(rho, 0.0) + e) * np.exp(log_c) - e, 0.0)
+    out[np.isnan(rho)] = np.nan
+    return out
+
+
+def anchor_to_slice(table, flash_slice, smoothing_bins=None):
+    """Correct a predicted table so that its θd = 0 row follows the observed slice, like Nöll et
+    al.'s correction functions: anchor_log_correction of its θd = 0 row (the φd-mean for a 3D
+    table), carried over every θd (and φd). table: (90, 90, 3) or (90, 90, 180, 3) in 1/sr, NaN
+    where no data; flash_slice: (90, 3), NaN where empty. Returns a new table.
+    """
+    table = np.asarray(table, dtype=float)
+    first = table[:, 0] if table.ndim == 3 else np.nanmean(table[:, 0], axis=1)
+    log_c = anchor_log_correction(first, flash_slice, smoothing_bins)
+    if log_c is None:
+        return table.copy()
+    return apply_log_correction(table, log_c.reshape((90, 1, 3) if table.ndim == 3 else (90, 1, 1, 3)))
+
+
+class AnchoredSpace(LinearSpace):
+    """Another method's combination space whose inverse also applies a θh correction ln c (90, 3)
+    (anchor_log_correction), so streamed 3D predictions are anchored like the 2D ones."""
+
+    def __init__(self, base, log_c):
+        self.base, self.log_c = base, log_c
+
+    def forward(self, rho, sel=slice(None)):
+        return self.base.forward(rho, sel)
+
+    def inverse(self, mapped, sel=slice(None)):
+        return apply_log_correction(self.base.inverse(mapped, sel),
+                                    self.log_c[valid_bins_3d()[0][sel]])

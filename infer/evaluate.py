@@ -2,8 +2,10 @@
 
 Experiments: R repetitions of 5-fold splits of a seeded permutation (R = 5 gives the paper's 25
 experiments); in each, one fold (20 %) is the test set, the next fold the validation set and the rest
-(60 %) the training set. Validation picks the DS-GPLVM's q and β and the pca/oracle hyperparameters
-(LAB-log 2D error). Errors: brdf.metrics for every test prediction (2D; 3D on the experiments that fit
+(60 %) the training set. Validation picks the DS-GPLVM's β and feature space and the pca/oracle
+hyperparameters (LAB-log 2D error). Two DS-GPLVMs are scored from the same fits: "dsgplvm" is what
+`flashbrdf infer` does (slice anchoring on, log-LAB or log-RGB features as validation picks) and
+"dsgplvm-paper" is the paper's method as written (log-LAB features, no anchoring). Errors: brdf.metrics for every test prediction (2D; 3D on the experiments that fit
 the time budget, the paper's mean-performing one first), pooled mean and median, plus the
 "mean-performing experiment" (dsgplvm 2D LAB-log mean closest to the mean over experiments).
 """
@@ -24,10 +26,23 @@ from infer import TrainingSet, make_method
 from infer.eval3d import RowsView, build_cache, evaluate_3d
 from infer.report import summarise_errors, write_markdown, write_runtime_plot
 
-DS_GRID = {"q": [None], "beta": [50.0, 100.0]}
+DS_GRID = {"q": [None], "beta": [50.0, 100.0], "feature_space": ["lab", "rgb"]}
+DS_FIXED = {"anchor": True}                      # "dsgplvm" is the anchored DS-GPLVM of infer/run
+PAPER = "dsgplvm-paper"                          # the paper's DS-GPLVM, scored from the same fits
+PAPER_FIXED = {"feature_space": "lab", "anchor": False}
+METHOD_ORDER = ("chandraker", "ashikhmin", "noll", "pca", "oracle", "dsgplvm", PAPER)
+PREDICTION_ONLY = ("anchor", "latent")           # switches that need no refit
 PCA_GRID = {"n_components": [3, 6, 12, 24, None], "ridge": [1e-3, 1e-2, 1e-1, 1.0, 10.0]}
 ORACLE_GRID = {"ridge": [1e-6, 1e-2, 1.0]}
-QUICK_DS_GRID = {"q": [None], "beta": [50.0], "max_cycles": [10]}  # smoke run: short ADM
+QUICK_DS_GRID = {"q": [None], "beta": [50.0], "feature_space": ["lab", "rgb"],
+                 "max_cycles": [10]}  # smoke run: short ADM
+
+
+def build_method(name, **params):
+    """make_method for the evaluated names: PAPER is the DS-GPLVM with PAPER_FIXED."""
+    if name == PAPER:
+        return make_method("dsgplvm", **(params | PAPER_FIXED))
+    return make_method(name, **params)
 
 
 def splits(n, repetitions, seed=0, folds=5):
@@ -77,16 +92,21 @@ def select(name, grid, train, valid, data, fixed=None):
     return best["method"], best["params"], trials
 
 
-def tune_baselines(training, seed=0):
-    """Hyperparameters for `flashbrdf train`: ashikhmin r0 on all, pca on a seeded 80/20 split."""
+def tune_baselines(training, seed=0, feature_space="auto"):
+    """Hyperparameters for `flashbrdf train`: ashikhmin r0 on all; pca and (feature_space "auto")
+    the DS-GPLVM's feature space on a seeded 80/20 split, scored like Table 1's validation."""
     n = len(training)
     order = np.random.default_rng(seed).permutation(n)
     cut = max(1, n // 5)
     valid, train = np.sort(order[:cut]), np.sort(order[cut:])
     grid = {k: [v for v in vals if v is None or v < len(train)] for k, vals in PCA_GRID.items()}
     _, pca_params, _ = select("pca", grid, training.subset(train), valid, training)
+    if feature_space == "auto":
+        _, ds, _ = select("dsgplvm", {"feature_space": DS_GRID["feature_space"]},
+                          training.subset(train), valid, training, fixed=DS_FIXED)
+        feature_space = ds["feature_space"]
     return {"pca": pca_params, "ashikhmin": make_method("ashikhmin").fit(training).get_params(),
-            "noll": {}, "chandraker": {}}
+            "noll": {}, "chandraker": {}, "dsgplvm": {"feature_space": feature_space}}
 
 
 def _measure(fn):
@@ -100,6 +120,30 @@ def _measure(fn):
     return result, seconds, peak
 
 
+def _fit_key(params):
+    """The hyperparameters that change a DS-GPLVM fit (defaults filled in, prediction-time
+    switches dropped), as a hashable key."""
+    full = make_method("dsgplvm", **params).get_params()
+    return json.dumps({k: v for k, v in full.items() if k not in PREDICTION_ONLY},
+                      sort_keys=True, default=str)
+
+
+def _select_paper(trials, train, valid_idx, data):
+    """The paper's DS-GPLVM from the log-LAB fits of the dsgplvm grid, scored unanchored on
+    validation: -> (method, params, trials) like select()."""
+    out, best = [], None
+    for t in trials:
+        if t["params"].get("feature_space") != "lab":
+            continue
+        params = t["params"] | PAPER_FIXED
+        m = make_method("dsgplvm", **params, model=t["method"].model).fit(train)
+        err = lab_log(errors_2d(m, data, valid_idx))
+        out.append({"params": params, "valid_lab_log": err, "fit_s": t["fit_s"], "method": m})
+        if best is None or err < best["valid_lab_log"]:
+            best = out[-1]
+    return best["method"], best["params"], out
+
+
 def run_experiment(k, split, data, cache, quick, costs, points, ablations):
     """Fit every method on one split; 2D test errors; returns (record, fitted methods)."""
     train_idx, valid_idx, test_idx = split
@@ -108,14 +152,20 @@ def run_experiment(k, split, data, cache, quick, costs, points, ablations):
     n_train = len(train_idx)
     fitted, chosen, record = {}, {}, {"experiment": k, "test": [data.names[i] for i in test_idx],
                                       "errors_2d": {}}
+    all_trials = {}
     measure = not costs  # tracemalloc on the first experiment only (it slows numpy a little)
     grids = {"dsgplvm": QUICK_DS_GRID if quick else DS_GRID,
              "pca": {kk: [v for v in vals if v is None or v < n_train] for kk, vals in PCA_GRID.items()},
              "oracle": ORACLE_GRID}
-    for name in ("chandraker", "ashikhmin", "noll", "pca", "oracle", "dsgplvm"):
+    for name in METHOD_ORDER:
         t0, peak = time.perf_counter(), None
-        if name in grids:
-            fit = lambda: select(name, grids[name], train, valid_idx, data)  # noqa: E731
+        if name == PAPER:
+            m, params, trials = _select_paper(all_trials["dsgplvm"], train, valid_idx, data)
+            train_s = time.perf_counter() - t0
+            peak = costs.get("dsgplvm", {}).get("peak_mb") if measure else None
+        elif name in grids:
+            fixed = DS_FIXED if name == "dsgplvm" else None
+            fit = lambda: select(name, grids[name], train, valid_idx, data, fixed)  # noqa: E731
             if measure:  # peak over the grid's fits (each fit alone peaks no higher)
                 (m, params, trials), _, peak = _measure(fit)
             else:
@@ -128,6 +178,7 @@ def run_experiment(k, split, data, cache, quick, costs, points, ablations):
             if measure:  # peak of one fit plus one 2D prediction
                 _, _, peak = _measure(lambda: errors_2d(make_method(name, **params).fit(train),
                                                         data, test_idx[:1]))
+        all_trials[name] = trials
         t0 = time.perf_counter()
         errs = errors_2d(m, data, test_idx)
         infer_s = (time.perf_counter() - t0) / len(test_idx)
@@ -140,47 +191,55 @@ def run_experiment(k, split, data, cache, quick, costs, points, ablations):
         if peak is not None:
             c["peak_mb"] = peak
         for t in trials if k == 0 else []:
-            if name in ("dsgplvm", "pca"):
+            if name in ("dsgplvm", "pca", PAPER):
                 t0 = time.perf_counter()
                 e = lab_log(errors_2d(t["method"], data, test_idx))
                 s = (time.perf_counter() - t0) / len(test_idx)
-                label = ",".join(f"{a}={b}" for a, b in t["params"].items() if a not in ("seed",))
+                label = ",".join(f"{a}={b}" for a, b in t["params"].items()
+                                 if a not in ("seed", "q", "anchor") or b is not None and a == "q")
                 points.append({"method": name, "label": f"{name} {label}", "seconds": s, "error": e})
-        if k == 0 and name not in ("dsgplvm", "pca"):
+        if k == 0 and name not in ("dsgplvm", "pca", PAPER):
             points.append({"method": name, "label": name, "seconds": infer_s, "error": lab_log(errs)})
     record["chosen"] = chosen
     if ablations is not None:
-        entry = ablations.setdefault("dsgplvm (chosen q, beta)", {"errors": []})
-        entry["errors"] = entry["errors"] + record["errors_2d"]["dsgplvm"]
-        run_ablations(fitted["dsgplvm"], train, data, test_idx, ablations, k, points, quick)
+        for label, name in (("ours: dsgplvm (anchored, feature space chosen on validation)",
+                             "dsgplvm"), ("the paper's DS-GPLVM (log-LAB, unanchored)", PAPER)):
+            entry = ablations.setdefault(label, {"errors": []})
+            entry["errors"] = entry["errors"] + record["errors_2d"][name]
+        models = {_fit_key(t["params"]): t["method"].model for t in all_trials["dsgplvm"]}
+        run_ablations(fitted[PAPER], train, data, test_idx, ablations, k, points, quick, models)
     return record, fitted
 
 
-def run_ablations(chosen, train, data, test_idx, ablations, k, points, quick=False):
-    """No prior (β = 0), log-RGB features, no back-constraints (latent by optimisation at test time,
-    on the chosen fitted model), ADM cycles; `chosen` is the fitted DSGPLVMMethod."""
-    params = chosen.get_params()
+def run_ablations(base, train, data, test_idx, ablations, k, points, quick=False, models=None):
+    """The issue's ablations of the paper's DS-GPLVM `base` (fitted): no prior (β = 0), log-RGB
+    features, no back-constraints (latent by optimisation at test time); then our slice anchoring,
+    alone and with log-RGB features; ADM cycles on the first experiment. models: {_fit_key: fitted
+    DSGPLVM} already trained on `train` (the grid's fits), reused instead of refitting."""
+    params = base.get_params()
+    models = dict(models or {})
     variants = {"no prior (beta=0)": {"beta": 0.0},
                 "log-RGB features": {"feature_space": "rgb"},
                 "no back-constraints (latent optimised at test time)": {"latent": "optimise"},
-                "with slice anchoring (ours; the default of infer/run)": {"anchor": True}}
+                "with slice anchoring": {"anchor": True},
+                "log-RGB features + slice anchoring": {"feature_space": "rgb", "anchor": True}}
     if k == 0 and not quick:
         variants |= {f"ADM cycles <= {c}": {"max_cycles": c} for c in (1, 5)}
     for label, change in variants.items():
+        p = params | change
         try:
-            if change.get("latent") == "optimise" or change.get("anchor"):  # prediction-time only
-                m = make_method("dsgplvm", **(params | change), model=chosen.model).fit(train)
-            else:
-                m = make_method("dsgplvm", **(params | change)).fit(train)
+            model = models.get(_fit_key(p))
+            m = make_method("dsgplvm", **p, model=model).fit(train)
         except TypeError as err:  # the model does not offer this switch
             ablations.setdefault(label, {"skipped": str(err)})
             continue
+        models[_fit_key(p)] = m.model
         t0 = time.perf_counter()
         errs = errors_2d(m, data, test_idx)
         entry = ablations.setdefault(label, {})
         entry["errors"] = entry.get("errors", []) + errs
         if k == 0 and change and "max_cycles" in change:
-            points.append({"method": "dsgplvm", "label": f"dsgplvm {label}",
+            points.append({"method": PAPER, "label": f"{PAPER} {label}",
                            "seconds": (time.perf_counter() - t0) / len(test_idx),
                            "error": lab_log(errs)})
 
@@ -201,7 +260,7 @@ def experiment_predictor(merl_dir, result, view="2d", seed=0):
         if method not in chosen or name not in data.names:
             return None
         if method not in fitted:
-            fitted[method] = make_method(method, **chosen[method]).fit(train)
+            fitted[method] = build_method(method, **chosen[method]).fit(train)
         i = data.names.index(name)
         if method == "oracle":
             return fitted[method].predict_truth(data.tables_2d[i]) if view == "2d" else None
@@ -304,7 +363,7 @@ def run_3d(record, split, data, cache, costs, first, stride=1):
     train_idx, _, test_idx = split
     train = data.subset(train_idx)
     train.valid_3d = RowsView(cache, train_idx)
-    methods = {name: make_method(name, **params).fit(train)
+    methods = {name: build_method(name, **params).fit(train)
                for name, params in record["chosen"].items()}
     slices = data.slices[test_idx]
     if first:  # the CLI's streamed 3D inference time, one material

@@ -26,6 +26,9 @@ def _parser():
     s.add_argument("--merl-dir", required=True, metavar="DIR")
     s.add_argument("--out", required=True, metavar="MODEL.npz")
     s.add_argument("--views", default="1d,2d", choices=["1d,2d", "1d,2d,3d"])
+    s.add_argument("--feature-space", default="auto", choices=["auto", "lab", "rgb"],
+                   help="dsgplvm features: CIELAB (the paper) or RGB of ln(1 + rho/1e-3); auto "
+                        "picks one on a held-out 20%% of the tables, with slice anchoring")
     s.add_argument("--seed", type=int, default=0)
 
     s = sub.add_parser("infer", help="infer a full BRDF from a slice")

@@ -20,9 +20,11 @@ def train(args):
     training = TrainingSet.from_merl_dir(args.merl_dir, keep_3d="3d" in wanted)
     if len(training) < 3:
         raise InputError(args.merl_dir, f"needs at least 3 MERL tables, found {len(training)}")
-    params = tune_baselines(training, seed=args.seed)
-    model = DSGPLVMMethod(views=wanted, seed=args.seed).fit(training)
-    params["dsgplvm"] = {"feature_space": "lab", "views": wanted, "seed": args.seed}
+    params = tune_baselines(training, seed=args.seed,
+                            feature_space=getattr(args, "feature_space", "auto"))
+    space = params["dsgplvm"]["feature_space"]
+    model = DSGPLVMMethod(views=wanted, seed=args.seed, feature_space=space).fit(training)
+    params["dsgplvm"] = {"feature_space": space, "views": wanted, "seed": args.seed}
     params["train_seconds"] = time.perf_counter() - start
     from infer import save_model
     save_model(args.out, training, params, dsgplvm=model.model, merl_dir=args.merl_dir)

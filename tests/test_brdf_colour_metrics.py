@@ -41,6 +41,18 @@ def test_feature_map_is_invertible_and_finite_at_the_extremes():
     assert np.all(np.isnan(rho_to_features(np.full((1, 3), np.nan))))
 
 
+def test_float32_features_match_float64_and_keep_the_layout():
+    # The 3D streaming path maps float32 tables held channel-first (a transposed (3, n) buffer).
+    rng = np.random.default_rng(2)
+    rho = 10.0 ** rng.uniform(-4, 3.6, (3, 20000))
+    rho[:, :10] = 0.0
+    rho32 = rho.astype(np.float32).T
+    feats32 = rho_to_features(rho32)
+    assert feats32.dtype == np.float32 and feats32.flags["F_CONTIGUOUS"]
+    # ln(1+ρ/1e-3) ≤ 16.2 and Lab ≤ ~500·cbrt; float32 keeps 2^-24 relative, so a few 1e-4 Lab units.
+    np.testing.assert_allclose(feats32, rho_to_features(rho32.astype(np.float64)), atol=1e-3)
+
+
 def test_metrics_of_a_table_against_itself_are_zero():
     rng = np.random.default_rng(2)
     true = rng.uniform(0, 5, (90, 90, 3))

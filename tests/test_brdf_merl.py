@@ -94,3 +94,25 @@ def test_unbuilt_commands_say_so(capsys, tmp_path, monkeypatch):
     monkeypatch.setattr(commands, "run", commands._delegate("cmd_absent_for_test", "run"))
     assert main(["run", str(tmp_path), "--out", str(tmp_path / "o")]) == 1
     assert "not implemented yet" in capsys.readouterr().err
+
+
+def test_read_merl_bins_equals_read_merl_at_those_bins(blue_acrylic, tmp_path):
+    from brdf.merl import read_merl_bins
+    table = read_merl(blue_acrylic)
+    rng = np.random.default_rng(0)
+    flat = rng.choice(90 * 90 * 180, 5000, replace=False)       # valid and no-data bins alike
+    expected = table.reshape(-1, 3)[flat]
+    np.testing.assert_array_equal(read_merl_bins(blue_acrylic, flat), expected)  # NaN included
+    # float32: one rounding of each value, so within float32's half-ulp (6e-8 relative).
+    got32 = read_merl_bins(blue_acrylic, flat, np.float32)
+    assert got32.dtype == np.float32
+    np.testing.assert_allclose(got32, expected, rtol=1.2e-7)
+    # A NaN written into a requested bin is an error naming the file; the input is not modified.
+    bad = tmp_path / "bad.binary"
+    raw = np.fromfile(blue_acrylic, dtype="<f8", offset=12)
+    raw[flat[0]] = np.nan
+    bad.write_bytes(blue_acrylic.read_bytes()[:12] + raw.tobytes())
+    before = bad.read_bytes()
+    with pytest.raises(InputError, match="bad.binary.*NaN/Inf"):
+        read_merl_bins(bad, flat)
+    assert bad.read_bytes() == before

@@ -82,7 +82,7 @@ def test_evaluate_quick(merl_proxy, tmp_path):
     assert main(["evaluate", "--merl-dir", str(folder), "--out", str(out), "--quick"]) == 0
     result = json.loads((out / "table1.json").read_text())
     for view in ("2d", "3d"):
-        for m in ("dsgplvm", "pca", "noll", "chandraker", "ashikhmin", "oracle"):
+        for m in ("dsgplvm", "dsgplvm-paper", "pca", "noll", "chandraker", "ashikhmin", "oracle"):
             assert np.isfinite(result["summary"][view][m]["lab_log"]["mean"])
     assert (out / "table1.md").read_text().count("MERL (NBRDF proxy)") >= 1
     assert (out / "error_vs_runtime.png").stat().st_size > 1000
