@@ -8,12 +8,14 @@ in feature space with the model's GP weights, streamed one table at a time; a mo
 a 3D view uses its 2D view's weights (the GP posterior mean is linear in the training outputs).
 """
 
+import warnings
+
 import numpy as np
 
 from brdf import colour
 from infer.common import (AnchoredSpace, InferenceMethod, LinearSpace, anchor_log_correction,
-                          anchor_to_slice, check_slice, scatter_valid, stream_combination,
-                          valid_mask_2d)
+                          anchor_to_slice, check_slice, clip_to_range, scatter_valid,
+                          stream_combination, valid_mask_2d)
 
 
 def _model_class():
@@ -22,7 +24,9 @@ def _model_class():
 
 
 class FeatureSpace(LinearSpace):
-    """brdf feature map (log, then Lab unless space="rgb") as the combination space."""
+    """brdf feature map (log, then Lab unless space="rgb") as the combination space; GP means are
+    clipped to the training range (LinearSpace.clip_to_training)."""
+    clip_to_training = True
 
     def __init__(self, space="lab"):
         self.space = space
@@ -90,6 +94,10 @@ class DSGPLVMMethod(InferenceMethod):
 
     def fit(self, training, labels=None):
         self.training_ = training
+        feats = table_features(training.tables_2d, self.feature_space)
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)   # all-NaN bins below the horizon
+            self.range_2d_ = (np.nanmin(feats, axis=0), np.nanmax(feats, axis=0))
         if self.model is None:
             model = _model_class()(q=self.q, beta=self.beta, seed=self.seed, views=self.views,
                                    **self.model_kw)
@@ -121,7 +129,7 @@ class DSGPLVMMethod(InferenceMethod):
             # folded weights sum to 1; centred rows sum to 0, so w @ centred = GP mean (centred)
             mean[data.keep] = data.mean[data.keep] + data.scale * (w @ data.data)
             var = np.full(len(data.keep), v)
-        mean = np.asarray(mean, float).reshape(90, 90, 3)
+        mean = clip_to_range(np.asarray(mean, float), *self.range_2d_).reshape(90, 90, 3)
         table = colour.features_to_rho(np.nan_to_num(mean), space=self.feature_space)
         invalid = ~valid_mask_2d() | ~np.isfinite(mean).all(axis=-1)
         table[invalid] = np.nan

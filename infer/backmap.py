@@ -39,6 +39,37 @@ def masked_squared_distances(y_new, y_train):
     return np.maximum(d2, 0.0) * (y_new.shape[1] / n_obs)[:, None]
 
 
+IMPUTE_RIDGE = 1e-2  # relative ridge of impute_missing; chosen on validation materials (see below)
+
+
+def impute_missing(y_new, y_train, ridge=IMPUTE_RIDGE):
+    """Fill the missing (NaN) entries of rows y_new (M, D) from the training rows y_train (N, D),
+    both centred and scaled like the view: the ridge regression of the observed entries on the
+    training rows, y_obs ≈ a·Y_obs, a = (Y_obs Y_obsᵀ + η I)⁻¹ Y_obs y_obs with η = ridge·tr/N,
+    and y_mis = a·Y_mis (a Gaussian conditional under the training rows' covariance).
+
+    Why: a slice extracted from a photo misses bins (the specular peak at θh < 1°, grazing bins).
+    Distances over the observed bins alone (masked_squared_distances) leave the kernel back-mapping
+    blind to exactly the most telling bins, and its latent point lands far from every training
+    material: on held-out MERL (NBRDF proxy) slices with θh bins 0-6 removed, LAB-log 2D error went
+    from 14.5 (log-LAB) / 38.6 (log-RGB) to 5.8 / 5.4 with imputation (full slices: about 5).
+    ridge 1e-2 was the best of 1e-3, 1e-2, 1e-1 on the validation materials of Table 1's first split.
+    Rows with nothing missing are returned unchanged. Returns a new (M, D) array.
+    """
+    y = np.array(np.atleast_2d(y_new), dtype=float)
+    for row in y:
+        observed = np.isfinite(row)
+        if observed.all() or not observed.any():
+            continue
+        basis = y_train[:, observed]
+        gram = basis @ basis.T
+        eta = ridge * max(np.trace(gram) / len(gram), np.finfo(float).tiny)
+        chol, _ = robust_cholesky(gram + eta * np.eye(len(gram)))
+        coef = linalg.cho_solve((chol, True), basis @ row[observed], check_finite=False)
+        row[~observed] = coef @ y_train[:, ~observed]
+    return y
+
+
 def _eig(d2, gamma):
     s, u = linalg.eigh(backmap_kernel(d2, gamma), check_finite=False)
     return np.maximum(s, 0.0), u

@@ -201,7 +201,11 @@ class LinearSpace:
 
     `sel` picks the valid 3D bins the rows belong to (a slice or index array into valid_bins_3d()).
     forward(rho (n,3), sel) -> (n,3); inverse(m (n,3), sel) -> ρ (n,3) ≥ 0. Default: identity.
+    clip_to_training: the combination is clipped, per bin and channel, to the range of the training
+    tables' mapped values before the inverse (a GP mean with large ± weights can otherwise
+    extrapolate by many decades at grazing bins).
     """
+    clip_to_training = False
 
     def forward(self, rho, sel=slice(None)):
         return rho
@@ -215,27 +219,45 @@ def stream_combination(training, weights, space, tol=1e-12, workers=None):
     thread, then inverse. Returns ρ on valid bins (n_valid, 3).
 
     Tables are read and mapped in float32 (the maps are per bin; float32 keeps 7 digits, far below
-    the metrics' resolution) and summed in float64. Tables whose weight is negligible are skipped.
-    workers: threads (default: one per core, at most 4); numpy's ufuncs and file reads release the
-    GIL, so two cores give almost twice the speed of one.
+    the metrics' resolution) and summed in float64. Tables whose weight is negligible are skipped,
+    unless space.clip_to_training asks for the range of every table. workers: threads (default: one
+    per core, at most 4); numpy's ufuncs and file reads release the GIL, so two cores give almost
+    twice the speed of one.
     """
     weights = np.asarray(weights, dtype=np.float64)
     scale = np.abs(weights).max() if len(weights) else 0.0
-    used = [i for i, w in enumerate(weights) if abs(w) > tol * scale]
+    clip = getattr(space, "clip_to_training", False)
+    used = [i for i, w in enumerate(weights) if clip or abs(w) > tol * scale]
     workers = max(1, min(workers or min(os.cpu_count() or 1, 4), len(used)))
 
-    def partial_sum(part):
+    def partial(part):
         total = np.zeros((len(valid_flat_3d()), 3))
+        low = high = None
         for i in part:
-            total += weights[i] * space.forward(training.table_3d_valid(i, np.float32))
-        return total
+            mapped = space.forward(training.table_3d_valid(i, np.float32))
+            total += weights[i] * mapped
+            if clip:
+                low = mapped if low is None else np.fmin(low, mapped)
+                high = mapped if high is None else np.fmax(high, mapped)
+        return total, low, high
 
     if workers == 1:
-        total = partial_sum(used)
+        parts = [partial(used)]
     else:
         with ThreadPoolExecutor(workers) as pool:
-            total = sum(pool.map(partial_sum, [used[k::workers] for k in range(workers)]))
+            parts = list(pool.map(partial, [used[k::workers] for k in range(workers)]))
+    total = sum(p[0] for p in parts)
+    if clip and used:
+        low = functools.reduce(np.fmin, [p[1] for p in parts if p[1] is not None])
+        high = functools.reduce(np.fmax, [p[2] for p in parts if p[2] is not None])
+        total = clip_to_range(total, low, high)
     return space.inverse(total)
+
+
+def clip_to_range(values, low, high):
+    """values clipped to [low, high] where those are finite (NaN bounds leave the value alone)."""
+    out = np.where(np.isfinite(low) & (values < low), low, values)
+    return np.where(np.isfinite(high) & (out > high), high, out)
 
 
 ANCHOR_SMOOTHING_BINS = 2.0  # see anchor_to_slice; chosen in benchmarks, not on test data
@@ -298,6 +320,7 @@ class AnchoredSpace(LinearSpace):
 
     def __init__(self, base, log_c):
         self.base, self.log_c = base, log_c
+        self.clip_to_training = base.clip_to_training
 
     def forward(self, rho, sel=slice(None)):
         return self.base.forward(rho, sel)

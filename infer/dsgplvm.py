@@ -14,7 +14,7 @@ from scipy import optimize
 from threadpoolctl import threadpool_limits
 
 from . import adm
-from .backmap import backmap_kernel, fit_loo, krr_weights, masked_squared_distances
+from .backmap import backmap_kernel, fit_loo, impute_missing, krr_weights, masked_squared_distances
 from .gp import GPPosterior
 from .prior import distances_from_gram, joint_laplacian, mean_squared_distance, spectral_labels
 from .viewdata import pca_latent, prepare_view
@@ -189,7 +189,8 @@ class DSGPLVM:
 
     # ------------------------------------------------------------------ inference
     def project(self, slice_features):
-        """Latent position of slice(s) by the source-view back-mapping (Eq. 9), missing-data aware.
+        """Latent position of slice(s) by the source-view back-mapping (Eq. 9), missing-data aware:
+        missing bins are first filled from the observed ones (backmap.impute_missing).
 
         slice_features: (D1,) or (M, D1) source-view features, NaN = missing bin. Returns (M, q).
         """
@@ -198,6 +199,9 @@ class DSGPLVM:
         if y.shape[1] != len(src.keep):
             raise ValueError(f"slice has {y.shape[1]} features, the model expects {len(src.keep)}")
         y = (y[:, src.keep] - src.mean[src.keep]) / src.scale
+        if not np.isfinite(y).any(axis=1).all():
+            raise ValueError("slice has no observed bin")
+        y = impute_missing(y, src.data)      # missing bins: conditioned on the observed ones
         d2 = masked_squared_distances(y, src.data)
         return backmap_kernel(d2, self.gamma_[self.source_view]) @ \
             self.backmap_weights_[self.source_view]

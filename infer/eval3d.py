@@ -10,7 +10,7 @@ import numpy as np
 
 from brdf import colour, merl, metrics
 from infer.baselines import Oracle, dual_weights
-from infer.common import valid_bins_3d
+from infer.common import clip_to_range, valid_bins_3d
 
 CHUNK = 131_072  # bins per chunk: 60 training rows × 131 k × 3 × 8 B ≈ 190 MB
 
@@ -123,7 +123,10 @@ def evaluate_3d(cache, train, test, methods, slices, chunk=CHUNK, stride=1):
             else:
                 _, weights, space, spaces = plan
                 mapped = space.forward(x_train, sel).reshape(len(train), -1)
-                combined = (weights @ mapped).reshape(len(test), -1, 3)
+                combined = weights @ mapped
+                if space.clip_to_training:   # as stream_combination does for these methods
+                    combined = clip_to_range(combined, mapped.min(axis=0), mapped.max(axis=0))
+                combined = combined.reshape(len(test), -1, 3)
                 preds = [(spaces[t] if spaces else space).inverse(combined[t], sel)
                          for t in range(len(test))]
             for t, pred in enumerate(preds):

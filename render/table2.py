@@ -20,7 +20,7 @@ from render.compare import compare_images
 from render.envmap import EnvMap
 from render.scene_render import render_sphere, sphere_view
 
-METHODS = ("dsgplvm", "pca", "noll", "chandraker", "ashikhmin", "oracle")
+METHODS = ("dsgplvm", "dsgplvm-paper", "pca", "noll", "chandraker", "ashikhmin", "oracle")
 ENVMAPS = ("pisa_latlong_256x128.hdr", "grace_latlong_256x128.hdr", "uffizi_latlong_256x128.hdr")
 
 
@@ -107,6 +107,8 @@ def _markdown(result):
     lines = ["# Table 2: render error (log-CIELAB Delta E*ab, mean over sphere pixels)", "",
              f"{len(result['materials'])} materials; {result['size']}^2 sphere, "
              f"{result['spp']} spp, seed {result['seed']}; mean / median across materials.", "",
+             "dsgplvm is what `flashbrdf infer` does (slice anchoring, feature space picked on "
+             "validation); dsgplvm-paper is the paper's DS-GPLVM as written.", "",
              "| method | " + " | ".join(envs) + " |", "|---|" + "---|" * len(envs)]
     for method, entry in result["summary"].items():
         cells = [f"{entry[e]['mean']:.3f} / {entry[e]['median']:.3f}" if entry.get(e) else "n/a"

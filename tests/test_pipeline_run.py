@@ -53,15 +53,18 @@ def test_run_writes_the_contract_outputs(run_report):
 def test_predicted_render_matches_the_reference(run_report, sphere_scene):
     """The prediction's render is within a stated Delta E (log-CIELAB, Table 2's metric).
 
-    Measured (2026-11-22): dsgplvm 3.61, chandraker 3.50 (the reference is 256 spp, the renders
+    Measured (2026-11-22): dsgplvm 1.40, chandraker 3.50 (the reference is 256 spp, the renders
     64 spp). The bound 5.0 leaves room for Monte Carlo noise, and is well under what a uniform
-    2x brightness error gives on this image (checked below), so a wrong prediction fails.
+    2x brightness error gives on this image (checked below), so a wrong prediction fails. The
+    slice of this 128² sphere misses θh bins 0-6 (the highlight is under a pixel): dsgplvm's own
+    bound of 2.5 fails a model that mishandles those missing bins (it was at 180 before the
+    back-projection imputed them, with the log-RGB model).
     """
     from brdf.metrics import delta_e_log
     from render import read_image
     out, report = run_report
     rows = {r["method"]: r for r in report["references"]}
-    assert rows["dsgplvm"]["delta_e_log_mean"] < DSGPLVM_BOUND
+    assert rows["dsgplvm"]["delta_e_log_mean"] < 2.5
     assert rows["chandraker"]["delta_e_log_mean"] < DSGPLVM_BOUND
     reference = read_image(sphere_scene / "ref_pisa.exr")
     on_object = reference.max(axis=-1) > 0
