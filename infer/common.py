@@ -220,15 +220,16 @@ def stream_combination(training, weights, space, tol=1e-12, workers=None):
 
     Tables are read and mapped in float32 (the maps are per bin; float32 keeps 7 digits, far below
     the metrics' resolution) and summed in float64. Tables whose weight is negligible are skipped,
-    unless space.clip_to_training asks for the range of every table. workers: threads (default: one
-    per core, at most 4); numpy's ufuncs and file reads release the GIL, so two cores give almost
-    twice the speed of one.
+    unless space.clip_to_training asks for the range of every table. workers: threads (default:
+    $FLASHBRDF_THREADS, else one per core, at most 4); numpy's ufuncs and file reads release the
+    GIL, so two cores give almost twice the speed of one.
     """
     weights = np.asarray(weights, dtype=np.float64)
     scale = np.abs(weights).max() if len(weights) else 0.0
     clip = getattr(space, "clip_to_training", False)
     used = [i for i, w in enumerate(weights) if clip or abs(w) > tol * scale]
-    workers = max(1, min(workers or min(os.cpu_count() or 1, 4), len(used)))
+    workers = workers or int(os.environ.get("FLASHBRDF_THREADS") or min(os.cpu_count() or 1, 4))
+    workers = max(1, min(workers, len(used)))
 
     def partial(part):
         total = np.zeros((len(valid_flat_3d()), 3))

@@ -174,3 +174,20 @@ def test_streamed_3d_combination_is_thread_count_independent(mixed_set):
     hot = np.eye(len(mixed_set))[2]
     np.testing.assert_allclose(stream_combination(mixed_set, hot, FeatureSpace()),
                                mixed_set.valid_3d[2], rtol=5e-5, atol=1e-9)
+
+
+def test_streamed_combination_clips_to_the_training_range_when_asked(mixed_set):
+    from infer.adapter import FeatureSpace
+    from infer.common import LinearSpace, stream_combination
+    # 3·T0 − 2·T1 extrapolates beyond both tables; a GP mean with large ± weights does the same.
+    w = np.zeros(len(mixed_set))
+    w[[0, 1]] = 3.0, -2.0
+    plain = stream_combination(mixed_set, w, LinearSpace())          # identity space, no clip
+    clipped = stream_combination(mixed_set, w, FeatureSpace("rgb"))  # the DS-GPLVM's space
+    tables = np.asarray(mixed_set.valid_3d, float)
+    lo, hi = tables.min(axis=0), tables.max(axis=0)               # the range of every training table
+    outside = lambda rho: (rho < lo * (1 - 1e-4)) | (rho > hi * (1 + 1e-4))  # noqa: E731
+    assert np.mean(outside(plain)) > 0.1
+    # log-RGB features are monotonic per channel, so a clip in feature space keeps each ρ channel
+    # within the training tables (up to the float32 path, 1e-4 relative).
+    assert not np.any(outside(clipped))
