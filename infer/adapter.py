@@ -76,6 +76,11 @@ class DSGPLVMMethod(InferenceMethod):
         self.anchor = bool(anchor)
         self.model = model  # an already fitted DSGPLVM (e.g. loaded from a file)
 
+    @property
+    def feature_label(self):
+        """What the predictive variance is measured in, for reports."""
+        return ("CIELAB" if self.feature_space == "lab" else "RGB") + " of ln(1 + rho/1e-3)"
+
     def get_params(self):
         return {"q": self.q, "beta": self.beta, "feature_space": self.feature_space,
                 "views": list(self.views), "seed": self.seed, "latent": self.latent,

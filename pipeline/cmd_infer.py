@@ -32,14 +32,14 @@ def train(args):
     return 0
 
 
-def _uncertainty_summary(variance):
+def _uncertainty_summary(variance, feature_label):
     if variance is None:
         return None
     v = np.ravel(np.asarray(variance, float))
     v = v[np.isfinite(v)]
     if not v.size:
         return None
-    return {"space": "brdf.colour features (Lab of ln(1 + rho/1e-3)), predictive variance",
+    return {"space": f"brdf.colour features ({feature_label}), predictive variance",
             "mean": float(v.mean()), "median": float(np.median(v)), "max": float(v.max()),
             "mean_std": float(np.sqrt(v).mean())}
 
@@ -82,7 +82,7 @@ def infer(args):
               "params": method.get_params(),
               "timings": {"load_s": t1 - t0, "predict_s": t2 - t1, "write_s": t3 - t2,
                           "total_s": t3 - t0},
-              "uncertainty": _uncertainty_summary(variance)}
+              "uncertainty": _uncertainty_summary(variance, getattr(method, "feature_label", ""))}
     write_text(Path(args.out).with_suffix(".json"), json.dumps(report, indent=2, default=str) + "\n")
     return 0
 

@@ -107,7 +107,8 @@ def _infer(method_name, model_path, rho, out_dir, anchor=True):
         "method": method_name, "model": None if model_path is None else str(model_path),
         "view": view, "predict_seconds": seconds,
         "predicted": "2D table copied across phi_d" if view == "2d" else "3D table"}, indent=2))
-    return table, variance, view
+    label = "predictive variance (" + getattr(method, "feature_label", "features") + ")"
+    return table, variance, view, label
 
 
 def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, references):
@@ -154,10 +155,10 @@ def run(args):
 
     predictions, two_d = {}, []
     for name in methods:
-        table, variance, view = stages.run(f"infer {name}", _infer, name, model_path, rho,
-                                           out / name, not args.no_anchor)
+        table, variance, view, label = stages.run(f"infer {name}", _infer, name, model_path, rho,
+                                                  out / name, not args.no_anchor)
         predictions[name] = {"table": table, "variance": variance, "file": f"{name}/brdf.binary",
-                             "variance_label": "predictive variance (log-CIELAB features)"}
+                             "variance_label": label}
         if view == "2d":
             two_d.append(name)
 
