@@ -5,6 +5,7 @@ benchmarks depend only on the contract. Where a stage is not built yet, a small 
 implementation of the contract's pixel model stands in for it, and the results say so.
 """
 
+import argparse
 import contextlib
 import io
 import json
@@ -21,6 +22,19 @@ from brdf.merl import theta_h_centres
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("FLASHBRDF_SHARED", REPO.parent / "shared"))
 RESULTS = REPO / "benchmarks" / "results"
+METHODS = "dsgplvm,pca,noll,chandraker,ashikhmin"
+
+
+def argument_parser(description, data_name, work_name):
+    """The options both real-photo benchmarks share: --data (../shared/data/real/DATA_NAME),
+    --model, --merl-dir, --methods, --work (/tmp/WORK_NAME). Add the benchmark's own, then parse."""
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("--data", default=SHARED / "data" / "real" / data_name, type=Path)
+    ap.add_argument("--model", default=None)
+    ap.add_argument("--merl-dir", default=None)
+    ap.add_argument("--methods", default=METHODS)
+    ap.add_argument("--work", default=Path("/tmp") / work_name, type=Path)
+    return ap
 
 
 def run_cli(argv):

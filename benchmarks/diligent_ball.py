@@ -11,7 +11,6 @@ run report in WORK/report/. Where extract or render is not built yet, the benchm
 implementation of the contract pixel model stands in and the results say so.
 """
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -19,10 +18,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._real_common import (RESULTS, SHARED, direct_extract, direct_render,  # noqa: E402
-                                     infer_all, resolve_model, run_cli, theta_h_deg, write_json)
+from benchmarks._real_common import (RESULTS, argument_parser, direct_extract,  # noqa: E402
+                                     direct_render, infer_all, resolve_model, run_cli,
+                                     theta_h_deg, write_json)
 
-METHODS = "dsgplvm,pca,noll,chandraker,ashikhmin"
 ANGLE_BINS = (0, 15, 25, 35, 45, 60)
 
 
@@ -95,13 +94,8 @@ def _renders(scene_dir, scene, brdf_path, method, mask, normals, view, work, tab
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=SHARED / "data" / "real" / "diligent-ball", type=Path)
+    ap = argument_parser(__doc__.splitlines()[0], "diligent-ball", "flashbrdf_bench_diligent_ball")
     ap.add_argument("--flash", type=int, default=52)
-    ap.add_argument("--model", default=None)
-    ap.add_argument("--merl-dir", default=None)
-    ap.add_argument("--methods", default=METHODS)
-    ap.add_argument("--work", default="/tmp/flashbrdf_bench_diligent_ball", type=Path)
     args = ap.parse_args(argv)
     from brdf.merl import read_merl
     from brdf.views import table_2d

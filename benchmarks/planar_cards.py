@@ -13,7 +13,6 @@ Writes benchmarks/results/planar_cards.{json,md,png}; where extract or render is
 the benchmark's own direct implementation of the contract pixel model stands in (and says so).
 """
 
-import argparse
 import json
 import sys
 import time
@@ -22,10 +21,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._real_common import (RESULTS, SHARED, direct_extract, direct_render,  # noqa: E402
-                                     infer_all, resolve_model, run_cli, theta_h_deg, write_json)
+from benchmarks._real_common import (RESULTS, argument_parser, direct_extract,  # noqa: E402
+                                     direct_render, infer_all, resolve_model, run_cli,
+                                     theta_h_deg, write_json)
 
-METHODS = "dsgplvm,pca,noll,chandraker,ashikhmin"
 N_CLUSTERS = 3
 
 
@@ -134,13 +133,8 @@ def _per_cluster_vs_pooled(views, flash_view, labels, pooled_rho, cluster_slices
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", default=SHARED / "data" / "real" / "flash-planar-cards-blue", type=Path)
+    ap = argument_parser(__doc__.splitlines()[0], "flash-planar-cards-blue", "flashbrdf_bench_planar_cards")
     ap.add_argument("--flash-view", type=int, default=0)
-    ap.add_argument("--model", default=None)
-    ap.add_argument("--merl-dir", default=None)
-    ap.add_argument("--methods", default=METHODS)
-    ap.add_argument("--work", default="/tmp/flashbrdf_bench_planar_cards", type=Path)
     args = ap.parse_args(argv)
     from brdf.errors import InputError
     from brdf.merl import read_merl
