@@ -85,25 +85,17 @@ def read_image(source):
 
 
 def image_errors(render, reference, mask=None):
-    """(delta_e_map (H,W) NaN outside, delta_e_log_mean, delta_e_log_median, rel_rmse, pixels).
-
-    Over `mask` (nonzero = object) when given, else over pixels where both images are finite and
-    nonzero (the contract's compare rule). rel_rmse = ||render - ref|| / ||ref|| over those pixels.
-    """
-    from brdf.metrics import delta_e_log
-    render, reference = np.asarray(render, float), np.asarray(reference, float)
-    finite = np.all(np.isfinite(render), -1) & np.all(np.isfinite(reference), -1)
+    """(delta_e_map (H,W) NaN outside, delta_e_log_mean, delta_e_log_median, rel_rmse, pixels):
+    render.compare.compare_images (the contract's compare rule) as a tuple, NaN for no pixel.
+    mask: nonzero = object, (H, W) or (H, W, C)."""
+    from render.compare import compare_images
     if mask is not None:
-        valid = finite & (np.asarray(mask).reshape(finite.shape[0], finite.shape[1], -1).max(-1) > 0)
-    else:
-        valid = finite & (np.any(render != 0, -1) | np.any(reference != 0, -1))
-    de = np.full(valid.shape, np.nan)
-    de[valid] = delta_e_log(render[valid], reference[valid])
-    if not valid.any():
-        return de, float("nan"), float("nan"), float("nan"), 0
-    diff = render[valid] - reference[valid]
-    rel = float(np.sqrt(np.mean(diff ** 2) / max(np.mean(reference[valid] ** 2), 1e-300)))
-    return de, float(np.mean(de[valid])), float(np.median(de[valid])), rel, int(valid.sum())
+        mask = np.asarray(mask)
+        mask = (mask.reshape(mask.shape[0], mask.shape[1], -1).max(-1) > 0)
+    metrics, delta_e = compare_images(render, reference, mask)
+    nan = lambda v: float("nan") if v is None else v   # noqa: E731
+    return (delta_e, nan(metrics["delta_e_log_mean"]), nan(metrics["delta_e_log_median"]),
+            nan(metrics["rel_rmse"]), metrics["pixels"])
 
 
 def coverage(theta_h_deg, observed):
