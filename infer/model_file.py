@@ -102,13 +102,20 @@ def _restore_2d_rows(model, training, feature_space):
 def load_method(path, name, merl_dir=None, **overrides):
     """A fitted method `name` from MODEL.npz (see infer.make_method); `overrides` replace stored
     hyperparameters that act at prediction time (e.g. anchor=True for dsgplvm)."""
+    return load_methods(path, [name], merl_dir, {name: overrides})[name]
+
+
+def load_methods(path, names, merl_dir=None, overrides=None):
+    """{name: fitted method} for several methods from one read of MODEL.npz (a model with a 3D
+    view holds GBs of rows: read once, shared). overrides: {name: {hyperparameter: value}}."""
     from infer import make_method
     training, params, blob = read_model(path, merl_dir)
-    kw = {**params.get(name, {}), **overrides}
-    if name == "dsgplvm":
-        if blob is None:
-            raise InputError(path, "model holds no DS-GPLVM")
-        kw["model"] = load_dsgplvm(blob, training, kw.get("feature_space", "lab"))
-    return make_method(name, **kw).fit(training)
-
-
+    methods = {}
+    for name in names:
+        kw = {**params.get(name, {}), **(overrides or {}).get(name, {})}
+        if name == "dsgplvm":
+            if blob is None:
+                raise InputError(path, "model holds no DS-GPLVM")
+            kw["model"] = load_dsgplvm(blob, training, kw.get("feature_space", "lab"))
+        methods[name] = make_method(name, **kw).fit(training)
+    return methods

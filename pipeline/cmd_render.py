@@ -25,6 +25,15 @@ def _photo_exists(photo):
     return bool(photo.brackets) and all(Path(p).is_file() for p, _ in photo.brackets)
 
 
+def samples_per_pixel(args):
+    """--spp of `render` and `run`: 64 when absent; InputError below 1 (never silently 64)."""
+    spp = getattr(args, "spp", None)
+    spp = 64 if spp is None else int(spp)
+    if spp < 1:
+        raise InputError("--spp", f"must be >= 1, got {spp}")
+    return spp
+
+
 def render(args):
     import capture
     from brdf.merl import read_merl
@@ -33,10 +42,7 @@ def render(args):
     from render.images import write_exr, write_preview
     from render.scene_render import render_scene
 
-    spp = getattr(args, "spp", None)
-    spp = 64 if spp is None else int(spp)
-    if spp < 1:
-        raise InputError("--spp", f"must be >= 1, got {spp}")
+    spp = samples_per_pixel(args)
     scene = capture.load_scene(args.scene_dir)
     references = scene.photos_with_role("reference")
     if not references:

@@ -83,19 +83,21 @@ def _model_path(args, methods):
                                 "(make it with `flashbrdf train`)")
 
 
-def _infer(method_name, model_path, rho, out_dir, anchor=True):
+def _load_methods(names, model_path, anchor):
+    """{name: fitted method}, the model file read once for all of them."""
+    from infer import make_method
+    from infer.model_file import load_methods
+    if model_path is None:
+        return {name: make_method(name).fit(None) for name in names}
+    return load_methods(model_path, names, overrides={"dsgplvm": {"anchor": anchor}})
+
+
+def _infer(method, method_name, model_path, rho, out_dir):
     """Predict a 2D table (or 3D where the model stores 3D data); write brdf.binary + brdf.json."""
     from brdf import merl, views
-    from infer import load_method, make_method
     start = time.perf_counter()
-    if model_path is None:
-        method = make_method(method_name).fit(None)
-        view = "2d"
-    else:
-        overrides = {"anchor": anchor} if method_name == "dsgplvm" else {}
-        method = load_method(model_path, method_name, **overrides)
-        view = "3d" if getattr(getattr(method, "training_", None), "valid_3d", None) is not None \
-            else "2d"
+    view = "3d" if getattr(getattr(method, "training_", None), "valid_3d", None) is not None \
+        else "2d"
     table, variance = method.predict(rho, view=view)
     seconds = time.perf_counter() - start
     full = views.table_3d_from_2d(table) if view == "2d" else table
@@ -137,15 +139,16 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
 def run(args):
     import capture
     from pipeline.cmd_extract import write_extraction
+    from pipeline.cmd_render import samples_per_pixel
     from pipeline.report import write_report
     from render.scene_render import SceneGeometry
     from slice_extract import ExtractOptions, extract_slice
 
     methods = _methods(args.methods)
     model_path = _model_path(args, methods)
-    spp = int(getattr(args, "spp", None) or 64)
+    spp = samples_per_pixel(args)
     out = Path(args.out)
-    stages, notes = _Stages(total=4 + 2 * len(methods)), []
+    stages, notes = _Stages(total=5 + 2 * len(methods)), []
 
     scene = stages.run("load scene", capture.load_scene, args.scene_dir)
     options = ExtractOptions()
@@ -153,10 +156,11 @@ def run(args):
     out.mkdir(parents=True, exist_ok=True)
     rho = write_extraction(out / "slice.csv", args.scene_dir, result, options)
 
+    fitted = stages.run("load model", _load_methods, methods, model_path, not args.no_anchor)
     predictions, two_d = {}, []
     for name in methods:
-        table, variance, view, label = stages.run(f"infer {name}", _infer, name, model_path, rho,
-                                                  out / name, not args.no_anchor)
+        table, variance, view, label = stages.run(f"infer {name}", _infer, fitted[name], name,
+                                                  model_path, rho, out / name)
         predictions[name] = {"table": table, "variance": variance, "file": f"{name}/brdf.binary",
                              "variance_label": label}
         if view == "2d":

@@ -84,6 +84,9 @@ def test_unknown_method_or_missing_model_exit_2_and_write_nothing(sphere_scene, 
                  str(tmp_path / "none.npz")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "none.npz" in err[0] and not out.exists()
+    # --spp 0 is an error naming the option, not a silent 64 (checked before any work).
+    assert main(["run", str(sphere_scene), "--out", str(out), "--spp", "0"]) == 2
+    assert "--spp" in capsys.readouterr().err and not out.exists()
 
 
 def test_a_scene_without_references_renders_nothing(sphere_scene, tmp_path):
