@@ -15,7 +15,7 @@ import numpy as np
 from brdf import colour
 from infer.common import (AnchoredSpace, InferenceMethod, LinearSpace, anchor_log_correction,
                           anchor_to_slice, check_slice, clip_to_range, scatter_valid,
-                          stream_combination, valid_mask_2d)
+                          stream_combination, valid_flat_3d, valid_mask_2d)
 
 
 def _model_class():
@@ -86,13 +86,16 @@ class DSGPLVMMethod(InferenceMethod):
                 "views": list(self.views), "seed": self.seed, "latent": self.latent,
                 "anchor": self.anchor, **self.model_kw}
 
-    def view_features(self, training):
+    def view_features(self, training, features_2d=None):
+        """{view: (N, D_v) features}; features_2d: table_features of the 2D tables if at hand."""
+        if features_2d is None:
+            features_2d = table_features(training.tables_2d, self.feature_space)
         views = {"1d": np.array([slice_features(s, self.feature_space) for s in training.slices]),
-                 "2d": table_features(training.tables_2d, self.feature_space)}
+                 "2d": features_2d}
         if "3d" in self.views:
-            rows = np.empty((len(training), training.table_3d_valid(0).size), np.float32)
+            rows = np.empty((len(training), 3 * len(valid_flat_3d())), np.float32)
             for i in range(len(training)):
-                rows[i] = colour.rho_to_features(training.table_3d_valid(i),
+                rows[i] = colour.rho_to_features(training.table_3d_valid(i, np.float32),
                                                  space=self.feature_space).ravel()
             views["3d"] = rows
         return views
@@ -106,7 +109,7 @@ class DSGPLVMMethod(InferenceMethod):
         if self.model is None:
             model = _model_class()(q=self.q, beta=self.beta, seed=self.seed, views=self.views,
                                    **self.model_kw)
-            self.model = model.fit(self.view_features(training), labels=labels)
+            self.model = model.fit(self.view_features(training, feats), labels=labels)
         return self
 
     def _weights(self, feats, view):
@@ -145,28 +148,26 @@ class DSGPLVMMethod(InferenceMethod):
         return table, var
 
     def _weights_view(self):
-        trained = getattr(self.model, "views_", None) or getattr(self.model, "view_names_", None)
-        return "3d" if trained is not None and "3d" in trained else "2d"
+        return "3d" if "3d" in self.model.view_names_ else "2d"
 
     def _predict_3d(self, rho):
         """Streamed 3D mean; the variance is the GP's per-dimension predictive variance (a scalar:
         one isotropic GP per view, in feature units²)."""
-        weights, var = self._weights(slice_features(rho, self.feature_space), self._weights_view())
-        values = stream_combination(self.training_, np.asarray(weights, float),
-                                    self._space(rho))
-        return scatter_valid(values), np.float64(var)
+        weights, space, var = self._combination(rho)
+        return scatter_valid(stream_combination(self.training_, weights, space)), np.float64(var)
 
     def combination(self, rho):
-        weights, _ = self._weights(slice_features(rho, self.feature_space), self._weights_view())
-        return np.asarray(weights, float), self._space(rho)
+        return self._combination(rho)[:2]
 
-    def _space(self, rho):
-        """The 3D combination space; anchored: its inverse applies the 2D prediction's correction."""
+    def _combination(self, rho):
+        """(weights (N,), 3D combination space, predictive variance). Anchored: the space's inverse
+        applies the correction computed on the 2D prediction."""
+        weights, var = self._weights(slice_features(rho, self.feature_space), self._weights_view())
         space = FeatureSpace(self.feature_space)
-        if not self.anchor:
-            return space
-        log_c = anchor_log_correction(self._predict_2d(rho)[0][:, 0], rho)
-        return space if log_c is None else AnchoredSpace(space, log_c)
+        if self.anchor:
+            log_c = anchor_log_correction(self._predict_2d(rho)[0][:, 0], rho)
+            space = space if log_c is None else AnchoredSpace(space, log_c)
+        return np.asarray(weights, float), space, var
 
 
 def optimise_latent(model, feats, n_starts=5):
