@@ -55,15 +55,12 @@ def write_extraction(out, scene_dir, result, options):
         f"{options.max_theta_d_deg} deg; min cos {options.min_cos}; silhouette "
         f"{options.silhouette_px} px",
     ]
-    # A robust estimate of a near-black bin can dip below 0 through noise; a BRDF cannot, and
-    # slice.csv readers reject it, so such bins are written as 0 and counted.
-    negative = np.isfinite(result.rho) & (result.rho < 0)
-    rho = np.where(negative, 0.0, result.rho)
-    if negative.any():
-        comments.append(f"{int(negative.any(axis=1).sum())} bin(s) had a slightly negative estimate "
-                        "(noise around 0) and are written as 0")
+    clamped = result.report.get("clamped_negative_bins", 0)
+    if clamped:
+        comments.append(f"{clamped} bin(s) had a slightly negative estimate (noise around 0) and "
+                        "are written as 0")
+    rho = result.rho
     report = dict(result.report, slice_csv=str(out.resolve()),
-                  clamped_negative_bins=int(negative.any(axis=1).sum()),
                   spread=[[None if not np.isfinite(v) else float(v) for v in row]
                           for row in result.spread])
     json_path = out.with_suffix(".json")

@@ -193,10 +193,15 @@ def extract_slice(scene, options=None):
     if not np.any(n):
         raise InputError(f"{scene.json_path}: photos", "every observed theta_h bin is more than "
                          "half clipped (over-exposed): no bin can be estimated")
+    # A robust estimate of a near-black bin can dip below 0 through noise; a BRDF cannot (and
+    # slice.csv readers reject it), so such bins become 0 here, and the report counts them.
+    negative = np.isfinite(estimate) & (estimate < 0)
+    estimate = np.where(negative, 0.0, estimate)
     clock.add("binning", t)
     clock.t["total"] = time.perf_counter() - start
     report = _report(scene, options, per_photo, theta_h, theta_d, inlier, n, clock.t,
                      np.bincount(bins[censored], minlength=N_THETA_H), censored)
+    report["clamped_negative_bins"] = int(negative.any(axis=1).sum())
     return SliceResult(estimate, n, spread, report)
 
 

@@ -153,3 +153,23 @@ def test_saturated_highlight_leaves_bins_empty_not_biased(tmp_path):
     # every bin that is still estimated is unbiased (the clipped ones are censored, not dropped)
     rel, _ = _errors(result, TRUE, n_min=5)
     assert np.all(rel < 0.02)
+
+
+def test_a_noise_negative_bin_estimate_becomes_zero_and_is_counted(clean_sphere, monkeypatch):
+    # Near-black bins can come out of the robust estimator slightly below 0 (noise around 0, e.g.
+    # after ambient subtraction); extract_slice itself returns them as 0 and counts them.
+    import slice_extract.extract as extract_module
+    real = extract_module.robust_bins
+
+    def dipping(*args, **kwargs):
+        estimate, n, spread, inlier = real(*args, **kwargs)
+        first = np.flatnonzero(n > 0)[:2]
+        estimate = estimate.copy()
+        estimate[first, 1] = -1e-6
+        return estimate, n, spread, inlier
+
+    monkeypatch.setattr(extract_module, "robust_bins", dipping)
+    result = extract_slice(clean_sphere)
+    observed = np.isfinite(result.rho)
+    assert np.all(result.rho[observed] >= 0)
+    assert result.report["clamped_negative_bins"] == 2
