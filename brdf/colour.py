@@ -30,7 +30,7 @@ def linear_rgb_to_lab(rgb):
 
     Negative inputs follow the CIE function's linear segment, so the map is defined (and
     invertible) on all of R^3. Channels are combined one at a time: a (N, 3) @ (3, 3) product
-    and a two-branch np.where are ten times slower on the 3.3 M bins of a 3D table.
+    and a two-branch np.where are ten times slower on the 3.3 M values (1.1 M bins) of a 3D table.
     float32 input stays float32 (and keeps its memory layout); anything else is computed in float64.
     """
     rgb_to_xyz, _, white = _srgb_matrices()

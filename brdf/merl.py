@@ -61,9 +61,8 @@ def merl_valid_mask():
     return _valid_mask()
 
 
-def _open_raw(path, whole):
-    """A MERL file's body as stored, (3, 90*90*180) float64 in file units, after checking its size
-    and header: read into memory (whole=True, then also checked for NaN/Inf) or memory-mapped."""
+def _read_raw(path):
+    """The validated body of a MERL file as stored: (3, 90*90*180) float64, file units."""
     path = os.fspath(path)
     try:
         size = os.path.getsize(path)
@@ -71,23 +70,16 @@ def _open_raw(path, whole):
             raise InputError(path, f"not a MERL table: {size} bytes, expected {MERL_FILE_SIZE}")
         with open(path, "rb") as f:
             header = np.fromfile(f, dtype="<i4", count=3)
-            body = np.fromfile(f, dtype="<f8") if whole else None
-        if body is None:
-            body = np.memmap(path, dtype="<f8", mode="r", offset=12)
+            body = np.fromfile(f, dtype="<f8")
     except OSError as err:
         raise InputError(path, f"cannot read: {err.strerror or err}") from None
     if tuple(header) != MERL_SHAPE:
         raise InputError(path, f"wrong MERL header {tuple(int(h) for h in header)}, "
                                f"expected {MERL_SHAPE}")
-    if whole:
-        _check_finite(path, body)
-    return body.reshape(3, -1)
-
-
-def _check_finite(path, values):
-    if not np.all(np.isfinite(values)):
-        bad = int(np.count_nonzero(~np.isfinite(values)))
+    if not np.all(np.isfinite(body)):
+        bad = int(np.count_nonzero(~np.isfinite(body)))
         raise InputError(path, f"{bad} NaN/Inf values in the table")
+    return body.reshape(3, -1)
 
 
 def read_merl(path):
@@ -97,7 +89,7 @@ def read_merl(path):
     (negative values). Raises InputError naming the file for a wrong size, a wrong header or
     NaN/Inf values.
     """
-    raw = _open_raw(path, whole=True).reshape(3, *MERL_SHAPE)
+    raw = _read_raw(path).reshape(3, *MERL_SHAPE)
     table = np.moveaxis(raw, 0, -1) * MERL_SCALE
     table[table < 0] = np.nan
     return table
@@ -108,18 +100,9 @@ def read_merl_bins(path, flat_index, dtype=np.float64):
 
     flat_index: (n,) int indices into the (90, 90, 180) grid, i.e. phi_d + 180*(theta_d + 90*theta_h).
     Returns (n, 3) ρ in 1/sr of `dtype`, NaN where the file has no data. The array is a transposed
-    (3, n) buffer, so each channel column is contiguous (per-channel maps over 3.3 M bins stay fast).
-    The file is memory-mapped and only the requested bins are read and checked for NaN/Inf.
+    (3, n) buffer, so each channel column is contiguous (per-channel maps over 1.1 M bins stay fast).
     """
-    raw = _open_raw(path, whole=False)
-    try:
-        values = np.asarray(raw[:, flat_index])
-    except OSError as err:
-        raise InputError(path, f"cannot read: {err.strerror or err}") from None
-    finally:
-        del raw
-    _check_finite(path, values)
-    values = values.astype(dtype, copy=False)
+    values = np.take(_read_raw(path), flat_index, axis=1).astype(dtype, copy=False)
     values *= MERL_SCALE.astype(dtype)[:, None]
     values[values < 0] = np.nan
     return values.T

@@ -20,7 +20,7 @@ from brdf.errors import InputError
 # ----------------------------------------------------------------------------- bin geometry
 @functools.lru_cache(maxsize=1)
 def valid_bins_3d():
-    """Flat indices of MERL's valid 3D bins: (ih, id, kd) int arrays, each (n_valid,) (~3.29 M)."""
+    """Flat indices of MERL's valid 3D bins: (ih, id, kd) int arrays, each (n_valid,) (1,096,216)."""
     ih, jd, kd = np.nonzero(merl.merl_valid_mask())
     return ih.astype(np.int16), jd.astype(np.int16), kd.astype(np.int16)
 
@@ -127,7 +127,7 @@ class TrainingSet:
     @classmethod
     def from_merl_dir(cls, folder, names=None, keep_3d=False):
         """Read the MERL tables of `folder` (all, or those in `names`, in that order).
-        keep_3d: also hold their valid 3D bins as float32 rows (N × 3.3 M × 3 × 4 B)."""
+        keep_3d: also hold their valid 3D bins as float32 rows (N × 1.1 M × 3 × 4 B)."""
         found = dict(merl.list_merl(folder))
         if not found:
             raise InputError(folder, "no .binary MERL tables in this folder")

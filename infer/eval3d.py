@@ -1,5 +1,5 @@
 """3D Table 1 metrics without holding 3D tables in memory: a float32 cache of every material's valid
-3D bins on disk (memmap, N × 3.29 M × 3), read in bin chunks; every method's 3D prediction for every
+3D bins on disk (memmap, N × 1.1 M × 3), read in bin chunks; every method's 3D prediction for every
 test material is formed chunk by chunk (linear methods as weights × mapped training rows) and the
 contract metrics (brdf.metrics.brdf_errors) are accumulated as count-weighted chunk means.
 """
