@@ -11,8 +11,21 @@ from infer.adapter import DSGPLVMMethod
 from infer.baselines import PCA, Ashikhmin, Chandraker, Noll, Oracle
 from infer.common import InferenceMethod, TrainingSet
 from infer.model_file import load_method, read_model, save_model
+from infer.relative import RelativeDSGPLVMMethod
 
-METHODS = {"dsgplvm": DSGPLVMMethod, "pca": PCA, "noll": Noll, "chandraker": Chandraker,
+
+def dsgplvm_method(representation="absolute", **params):
+    """The DS-GPLVM estimator for a representation: "absolute" (the default: whole-table features as
+    in the paper; infer.adapter) or "relative" (per-channel log-ratio to the observed row,
+    infer.relative; measured in benchmarks/generalisation.py, not yet the default)."""
+    if representation == "relative":
+        return RelativeDSGPLVMMethod(**params)
+    if representation == "absolute":
+        return DSGPLVMMethod(**params)
+    raise ValueError(f"unknown DS-GPLVM representation {representation!r}")
+
+
+METHODS = {"dsgplvm": dsgplvm_method, "pca": PCA, "noll": Noll, "chandraker": Chandraker,
            "ashikhmin": Ashikhmin, "oracle": Oracle}
 
 
@@ -23,5 +36,6 @@ def make_method(name, **params):
     return METHODS[name](**params)
 
 
-__all__ = ["METHODS", "make_method", "InferenceMethod", "TrainingSet", "DSGPLVMMethod", "PCA",
+__all__ = ["METHODS", "make_method", "InferenceMethod", "TrainingSet", "DSGPLVMMethod",
+           "RelativeDSGPLVMMethod", "PCA",
            "Ashikhmin", "Chandraker", "Noll", "Oracle", "save_model", "read_model", "load_method"]

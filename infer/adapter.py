@@ -13,6 +13,7 @@ import warnings
 import numpy as np
 
 from brdf import colour
+from infer.gp import loo_bin_variance
 from infer.common import (AnchoredSpace, InferenceMethod, LinearSpace, anchor_log_correction,
                           anchor_to_slice, check_slice, clip_to_range, scatter_valid,
                           stream_combination, valid_flat_3d, valid_mask_2d)
@@ -65,16 +66,21 @@ class DSGPLVMMethod(InferenceMethod):
     prediction takes the correction computed on the 2D prediction, so both views agree.
     """
     name = "dsgplvm"
+    representation = "absolute"
 
     def __init__(self, q=None, beta=50.0, feature_space="lab", views=("1d", "2d"), seed=0,
-                 latent="backprojection", model=None, anchor=False, **model_kw):
+                 latent="backprojection", model=None, anchor=False, representation="absolute",
+                 calibration=1.0, **model_kw):
+        if representation != "absolute":
+            raise ValueError("DSGPLVMMethod is the absolute representation; see infer.dsgplvm_method")
         self.q, self.beta, self.feature_space = q, beta, feature_space
         self.views, self.seed, self.model_kw = tuple(views), seed, model_kw
         if latent not in ("backprojection", "optimise"):
             raise ValueError(f"latent must be 'backprojection' or 'optimise', not {latent!r}")
         self.latent = latent
         self.anchor = bool(anchor)
-        self.model = model  # an already fitted DSGPLVM (e.g. loaded from a file)
+        self.calibration = calibration
+        self.model = model  # an already fitted DSGPLVM (e.g. loaded from a file); fit never changes it
 
     @property
     def feature_label(self):
@@ -82,9 +88,10 @@ class DSGPLVMMethod(InferenceMethod):
         return ("CIELAB" if self.feature_space == "lab" else "RGB") + " of ln(1 + rho/1e-3)"
 
     def get_params(self):
-        return {"q": self.q, "beta": self.beta, "feature_space": self.feature_space,
+        return {"representation": self.representation,
+                "q": self.q, "beta": self.beta, "feature_space": self.feature_space,
                 "views": list(self.views), "seed": self.seed, "latent": self.latent,
-                "anchor": self.anchor, **self.model_kw}
+                "anchor": self.anchor, "calibration": self.calibration, **self.model_kw}
 
     def view_features(self, training, features_2d=None):
         """{view: (N, D_v) features}; features_2d: table_features of the 2D tables if at hand."""
@@ -109,16 +116,35 @@ class DSGPLVMMethod(InferenceMethod):
         if self.model is None:
             model = _model_class()(q=self.q, beta=self.beta, seed=self.seed, views=self.views,
                                    **self.model_kw)
-            self.model = model.fit(self.view_features(training, feats), labels=labels)
+            self.model_ = model.fit(self.view_features(training, feats), labels=labels)
+        else:
+            self.model_ = self.model
+        rows = self.model_.view_data_["2d"].data
+        self.bin_variance_ = None if rows is None else \
+            loo_bin_variance(self.model_.posteriors_["2d"], rows)
         return self
+
+    def novelty(self, flash_slice):
+        """How far a slice lies from the training slices (infer.dsgplvm.DSGPLVM.novelty): > 1 means
+        outside what the model was trained on."""
+        return self.model_.novelty(slice_features(check_slice(flash_slice), self.feature_space))
+
+    def bin_variance(self, gp_variance):
+        """Per-bin predictive variance (90, 90, 3) in feature units² from the GP's per-dimension
+        variance (feature units²): κ · v · the 2D view's leave-one-out residual shape
+        (infer.gp.loo_bin_variance), so bins the training data predict badly get wide intervals."""
+        keep = self.model_.view_data_["2d"].keep
+        shape = np.full(len(keep), np.nan)
+        shape[keep] = 1.0 if self.bin_variance_ is None else self.bin_variance_
+        return (self.calibration * float(gp_variance) * shape).reshape(90, 90, 3)
 
     def _weights(self, feats, view):
         if self.latent == "backprojection":
-            return self.model.predict_weights(feats, view=view)
-        post = self.model.posteriors_[view]
-        w, var = post.weights(optimise_latent(self.model, feats))
+            return self.model_.predict_weights(feats, view=view)
+        post = self.model_.posteriors_[view]
+        w, var = post.weights(optimise_latent(self.model_, feats))
         w = w[0] + (1.0 - w[0].sum()) / w.shape[1]
-        return w, float(var[0]) * self.model.view_data_[view].scale ** 2
+        return w, float(var[0]) * self.model_.view_data_[view].scale ** 2
 
     def predict(self, flash_slice, view="2d"):
         table, variance = super().predict(flash_slice, view)
@@ -129,10 +155,10 @@ class DSGPLVMMethod(InferenceMethod):
     def _predict_2d(self, rho):
         feats = slice_features(rho, self.feature_space)
         if self.latent == "backprojection":
-            mean, var = self.model.predict(feats, view="2d")
+            mean, var = self.model_.predict(feats, view="2d")
         else:
             w, v = self._weights(feats, "2d")
-            data = self.model.view_data_["2d"]
+            data = self.model_.view_data_["2d"]
             mean = np.full(len(data.keep), np.nan)
             # folded weights sum to 1; centred rows sum to 0, so w @ centred = GP mean (centred)
             mean[data.keep] = data.mean[data.keep] + data.scale * (w @ data.data)
@@ -141,14 +167,13 @@ class DSGPLVMMethod(InferenceMethod):
         table = colour.features_to_rho(np.nan_to_num(mean), space=self.feature_space)
         invalid = ~valid_mask_2d() | ~np.isfinite(mean).all(axis=-1)
         table[invalid] = np.nan
-        var = np.broadcast_to(np.asarray(var, float), (90 * 90 * 3,) if np.size(var) > 1 else ())
-        if var.ndim:
-            var = var.reshape(90, 90, 3).copy()
-            var[invalid] = np.nan
+        var = np.asarray(var, float)
+        var = var.reshape(90, 90, 3).copy() if var.size > 1 else self.bin_variance(var.ravel()[0])
+        var[invalid] = np.nan
         return table, var
 
     def _weights_view(self):
-        return "3d" if "3d" in self.model.view_names_ else "2d"
+        return "3d" if "3d" in self.model_.view_names_ else "2d"
 
     def _predict_3d(self, rho):
         """Streamed 3D mean; the variance is the GP's per-dimension predictive variance (a scalar:

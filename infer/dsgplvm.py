@@ -206,6 +206,24 @@ class DSGPLVM:
         return backmap_kernel(d2, self.gamma_[self.source_view]) @ \
             self.backmap_weights_[self.source_view]
 
+    NOVELTY_QUANTILE = 0.99
+
+    def novelty(self, slice_features):
+        """How far slice(s) lie from the training slices: the distance to the nearest training row
+        in the source view (missing bins imputed as in project), divided by the NOVELTY_QUANTILE of
+        the training rows' own nearest-neighbour distances. (M,) or float; > 1 means the slice is
+        farther from every training slice than 99% of the training slices are from each other, so
+        the back-projection extrapolates."""
+        src = self.view_data_[self.source_view]
+        y = np.atleast_2d(np.asarray(slice_features, dtype=float))
+        y = impute_missing((y[:, src.keep] - src.mean[src.keep]) / src.scale, src.data)
+        nearest = np.sqrt(masked_squared_distances(y, src.data).min(axis=1))
+        own = distances_from_gram(src.gram)
+        np.fill_diagonal(own, np.inf)
+        bound = np.quantile(np.sqrt(np.maximum(own.min(axis=1), 0.0)), self.NOVELTY_QUANTILE)
+        ratio = nearest / max(bound, 1e-12)
+        return float(ratio[0]) if np.ndim(slice_features) == 1 else ratio
+
     def predict_weights(self, slice_features, view="2d"):
         """Prediction of `view` as an affine combination of its training rows, for lazy (streamed) 3D.
 

@@ -136,7 +136,7 @@ def _select_paper(trials, train, valid_idx, data):
         if t["params"].get("feature_space") != "lab":
             continue
         params = t["params"] | PAPER_FIXED
-        m = make_method("dsgplvm", **params, model=t["method"].model).fit(train)
+        m = make_method("dsgplvm", **params, model=t["method"].model_).fit(train)
         err = lab_log(errors_2d(m, data, valid_idx))
         out.append({"params": params, "valid_lab_log": err, "fit_s": t["fit_s"], "method": m})
         if best is None or err < best["valid_lab_log"]:
@@ -206,7 +206,7 @@ def run_experiment(k, split, data, cache, quick, costs, points, ablations):
                              "dsgplvm"), ("the paper's DS-GPLVM (log-LAB, unanchored)", PAPER)):
             entry = ablations.setdefault(label, {"errors": []})
             entry["errors"] = entry["errors"] + record["errors_2d"][name]
-        models = {_fit_key(t["params"]): t["method"].model for t in all_trials["dsgplvm"]}
+        models = {_fit_key(t["params"]): t["method"].model_ for t in all_trials["dsgplvm"]}
         run_ablations(fitted[PAPER], train, data, test_idx, ablations, k, points, quick, models)
     return record, fitted
 
@@ -233,7 +233,7 @@ def run_ablations(base, train, data, test_idx, ablations, k, points, quick=False
         except TypeError as err:  # the model does not offer this switch
             ablations.setdefault(label, {"skipped": str(err)})
             continue
-        models[_fit_key(p)] = m.model
+        models[_fit_key(p)] = m.model_
         t0 = time.perf_counter()
         errs = errors_2d(m, data, test_idx)
         entry = ablations.setdefault(label, {})

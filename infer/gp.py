@@ -111,3 +111,14 @@ class GPPosterior:
         w = linalg.cho_solve((self.chol, True), k_star.T, check_finite=False).T
         var = prior_variance(self.log_theta) - np.sum(w * k_star, axis=1)
         return w, np.maximum(var, 1.0 / np.exp(self.log_theta[3]))
+
+
+def loo_bin_variance(posterior, data):
+    """Closed-form leave-one-out residual variance of a GP view, per output column, relative to the
+    mean LOO predictive variance: (D,) ≥ 0. With K⁻¹ the inverse training kernel, the LOO residual
+    of row i is (K⁻¹Y)_i / (K⁻¹)_ii and its predictive variance 1 / (K⁻¹)_ii (Rasmussen & Williams
+    2006, Eq. 5.12). The ratio says which bins a GP of one isotropic variance under- or over-states."""
+    k_inv = linalg.cho_solve((posterior.chol, True), np.eye(len(data)), check_finite=False)
+    diag = np.diag(k_inv)
+    resid = (k_inv @ np.nan_to_num(data)) / diag[:, None]
+    return np.mean(resid ** 2, axis=0) / np.mean(1.0 / diag)

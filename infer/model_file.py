@@ -116,6 +116,9 @@ def load_methods(path, names, merl_dir=None, overrides=None):
         if name == "dsgplvm":
             if blob is None:
                 raise InputError(path, "model holds no DS-GPLVM")
-            kw["model"] = load_dsgplvm(blob, training, kw.get("feature_space", "lab"))
+            # models written before the relative representation store none: they are absolute
+            kw.setdefault("representation", "absolute")
+            kw["model"] = load_dsgplvm(blob, training if kw["representation"] == "absolute" else None,
+                                       kw.get("feature_space", "lab"))
         methods[name] = make_method(name, **kw).fit(training)
     return methods

@@ -27,7 +27,7 @@ def train(args):
     params["dsgplvm"] = {"feature_space": space, "views": wanted, "seed": args.seed}
     params["train_seconds"] = time.perf_counter() - start
     from infer import save_model
-    save_model(args.out, training, params, dsgplvm=model.model, merl_dir=args.merl_dir)
+    save_model(args.out, training, params, dsgplvm=model.model_, merl_dir=args.merl_dir)
     print(f"trained on {len(training)} materials in {params['train_seconds']:.1f} s -> {args.out}")
     return 0
 
