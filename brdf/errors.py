@@ -1,6 +1,14 @@
 """Errors for bad user input: the CLI turns them into exit status 2 and one line on stderr."""
 
 import os
+import zipfile
+import zlib
+
+# What readers of a damaged file raise (a truncated copy, a wrong format, a corrupt member):
+# numpy's np.load, zipfile, zlib, json and struct-like parsing. Readers catch this family around
+# their decoding and turn it into InputError naming the file.
+DECODE_ERRORS = (OSError, ValueError, KeyError, IndexError, EOFError, zipfile.BadZipFile,
+                 zlib.error)
 
 
 class InputError(ValueError):

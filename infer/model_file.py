@@ -8,11 +8,12 @@ per-method hyperparameters), dsgplvm (uint8: the DSGPLVM's own .npz bytes), opti
 import json
 import os
 import tempfile
+import zipfile
 
 import numpy as np
 
 from brdf.atomic import atomic_path
-from brdf.errors import InputError
+from brdf.errors import DECODE_ERRORS, InputError
 from infer.common import TrainingSet
 
 FORMAT = "flashbrdf-infer-model-1"
@@ -42,6 +43,26 @@ def save_model(path, training, params, dsgplvm=None, merl_dir=""):
             np.savez_compressed(f, **arrays)
 
 
+def check_model_file(path):
+    """InputError unless `path` is a whole flashbrdf model: a readable zip whose every member
+    passes its CRC (a truncated or damaged copy fails here in ~0.1 s) and whose format matches.
+    Reads no array beyond the format tag; read_model does the full read."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            bad = archive.testzip()
+        if bad is not None:
+            raise InputError(path, f"damaged model file: member {bad} fails its CRC check")
+        with np.load(path, allow_pickle=False) as z:
+            found = str(z["format"]) if "format" in z.files else None
+    except InputError:
+        raise
+    except DECODE_ERRORS as err:
+        raise InputError(path, f"cannot read model ({type(err).__name__}: {err}); a truncated "
+                               "or damaged copy?") from None
+    if found != FORMAT:
+        raise InputError(path, f"not a flashbrdf model (format {found})")
+
+
 def read_model(path, merl_dir=None):
     """-> (TrainingSet, params dict, dsgplvm npz bytes or None). 3D tables come from the stored rows,
     else lazily from merl_dir (matched by material name). InputError on a bad file."""
@@ -57,8 +78,9 @@ def read_model(path, merl_dir=None):
         blob = z["dsgplvm"].tobytes() if "dsgplvm" in z.files else None
     except InputError:
         raise
-    except (OSError, ValueError, KeyError, EOFError) as err:
-        raise InputError(path, f"cannot read model: {err}") from None
+    except DECODE_ERRORS as err:
+        raise InputError(path, f"cannot read model ({type(err).__name__}: {err}); a truncated "
+                               "or damaged copy?") from None
     if training.valid_3d is None and merl_dir is not None:
         from brdf import merl
         found = dict(merl.list_merl(merl_dir))
@@ -116,6 +138,10 @@ def load_methods(path, names, merl_dir=None, overrides=None):
         if name == "dsgplvm":
             if blob is None:
                 raise InputError(path, "model holds no DS-GPLVM")
-            kw["model"] = load_dsgplvm(blob, training, kw.get("feature_space", "lab"))
+            try:
+                kw["model"] = load_dsgplvm(blob, training, kw.get("feature_space", "lab"))
+            except DECODE_ERRORS as err:
+                raise InputError(path, f"cannot read the DS-GPLVM stored in the model "
+                                       f"({type(err).__name__}: {err})") from None
         methods[name] = make_method(name, **kw).fit(training)
     return methods

@@ -12,6 +12,7 @@ import numpy as np
 from brdf.atomic import write_text
 from brdf.errors import InputError
 from brdf.views import write_slice_csv
+from pipeline.safety import check_outputs, sidecar_json
 
 
 def _options(args):
@@ -32,9 +33,13 @@ def _options(args):
 
 
 def extract(args):
+    import capture
     from slice_extract import extract_slice
     options = _options(args)
-    result = extract_slice(args.scene_dir, options)
+    scene = capture.load_scene(args.scene_dir)
+    check_outputs(inputs=[args.scene_dir, *scene.input_files()],
+                  outputs=[args.out, sidecar_json(args.out)])
+    result = extract_slice(scene, options)
     write_extraction(args.out, args.scene_dir, result, options)
     return 0
 
@@ -63,9 +68,7 @@ def write_extraction(out, scene_dir, result, options):
     report = dict(result.report, slice_csv=str(out.resolve()),
                   spread=[[None if not np.isfinite(v) else float(v) for v in row]
                           for row in result.spread])
-    json_path = out.with_suffix(".json")
-    if json_path == out:  # --out x.json: keep the slice, put the report beside it
-        json_path = out.with_name(out.stem + ".report.json")
+    json_path = Path(sidecar_json(out))  # --out x.json: keep the slice, x.report.json beside it
     text = json.dumps(report, indent=1) + "\n"
     write_slice_csv(out, rho, result.n, comments=comments)
     try:
