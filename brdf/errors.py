@@ -19,5 +19,7 @@ class InputError(ValueError):
 
     def __init__(self, where, problem):
         self.where = os.fspath(where) if where is not None else None
+        # one line, whatever a library's message holds (libpng and OpenImageIO add newlines)
+        problem = "; ".join(part.strip() for part in str(problem).splitlines() if part.strip())
         self.problem = problem
         super().__init__(f"{self.where}: {problem}" if self.where else problem)

@@ -8,7 +8,7 @@ import argparse
 import sys
 
 from brdf.errors import InputError
-from pipeline.safety import Terminated, handle_signals
+from pipeline.safety import Terminated, handle_signals, hold_native_stderr
 
 FORCE_HELP = "replace OUT_DIR if an earlier flashbrdf command made it (never any other folder)"
 
@@ -108,7 +108,7 @@ def main(argv=None):
     from pipeline import commands
     handler = getattr(commands, args.command.replace("-", "_"))
     try:
-        with handle_signals():
+        with hold_native_stderr(), handle_signals():
             return handler(args) or 0
     except InputError as err:
         print(f"flashbrdf {args.command}: error: {err}", file=sys.stderr)

@@ -27,6 +27,7 @@ import json
 import os
 import shutil
 import signal
+import sys
 import tempfile
 import threading
 import time
@@ -157,6 +158,47 @@ def staged_output_dir(path, force=False, command=None):
         shutil.rmtree(tmp, ignore_errors=True)
         remove_empty(created)
         raise
+
+
+@contextlib.contextmanager
+def hold_native_stderr(drop_on=(InputError,)):
+    """Hold what is written to file descriptor 2 while the body runs (libpng, OpenEXR and other C
+    libraries print there directly), and pass it on afterwards, unless the body raised one of
+    `drop_on`: bad input then gets exactly the one stderr line the contract promises.
+
+    Only when stderr is not a terminal: on a terminal progress bars must show as they go.
+    """
+    if not _fd_is_file(2):
+        yield
+        return
+    with contextlib.suppress(AttributeError, OSError, ValueError):
+        sys.stderr.flush()
+    saved = os.dup(2)
+    buffer = tempfile.TemporaryFile()
+    os.dup2(buffer.fileno(), 2)
+    drop = False
+    try:
+        yield
+    except drop_on:
+        drop = True
+        raise
+    finally:
+        with contextlib.suppress(AttributeError, OSError, ValueError):
+            sys.stderr.flush()
+        os.dup2(saved, 2)
+        os.close(saved)
+        buffer.seek(0)
+        held = buffer.read()
+        buffer.close()
+        if held and not drop:
+            os.write(2, held)
+
+
+def _fd_is_file(fd):
+    try:
+        return not os.isatty(fd) and os.fstat(fd) is not None
+    except OSError:
+        return False
 
 
 @contextlib.contextmanager
