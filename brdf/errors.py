@@ -18,8 +18,16 @@ class InputError(ValueError):
     """
 
     def __init__(self, where, problem):
-        self.where = os.fspath(where) if where is not None else None
+        # a file name or a JSON key may hold a newline or other control character: escape it
+        self.where = _printable(os.fspath(where)) if where is not None else None
         # one line, whatever a library's message holds (libpng and OpenImageIO add newlines)
         problem = "; ".join(part.strip() for part in str(problem).splitlines() if part.strip())
         self.problem = problem
         super().__init__(f"{self.where}: {problem}" if self.where else problem)
+
+
+def _printable(text):
+    """`text` with each non-printable character escaped as Python would (\\n, \\x00, ...)."""
+    if isinstance(text, bytes):
+        text = os.fsdecode(text)
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
