@@ -112,7 +112,10 @@ def _check_replaceable(target, force):
     folder this tool made (marker) with force."""
     if not os.path.lexists(target):
         return
-    if os.path.islink(target) or not os.path.isdir(target):
+    if os.path.islink(target):
+        raise InputError(target, "is a symbolic link; give the folder it points to (a link is "
+                                 "never replaced)")
+    if not os.path.isdir(target):
         raise InputError(target, "exists and is not a folder (--out names an output folder here)")
     if not os.listdir(target):
         return
@@ -145,19 +148,34 @@ def staged_output_dir(path, force=False, command=None):
                        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}, f)
             f.write("\n")
         yield tmp
-        _check_replaceable(target, force)
-        old = None
-        if os.path.lexists(target) and os.listdir(target):
-            old = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.", suffix=".old",
-                                   dir=parent)
-            os.replace(target, os.path.join(old, "previous"))
-        os.replace(tmp, target)
+        with _signals_deferred():  # no Ctrl-C between moving the old folder away and renaming
+            _check_replaceable(target, force)
+            old = None
+            if os.path.lexists(target) and os.listdir(target):
+                old = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.", suffix=".old",
+                                       dir=parent)
+                os.replace(target, os.path.join(old, "previous"))
+            os.replace(tmp, target)
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         remove_empty(created)
         raise
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """Hold SIGINT and SIGTERM (main thread) while the body runs; they arrive right after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 @contextlib.contextmanager
