@@ -76,10 +76,10 @@ def _model_path(args, methods):
         if not Path(args.model).is_file():
             raise InputError(args.model, "no such model file")
         return Path(args.model)
+    if all(m in METHODS_NEEDING_NO_MODEL for m in methods):
+        return None  # nothing to read: the default model is 9 MB and takes seconds to load
     if DEFAULT_MODEL.is_file():
         return DEFAULT_MODEL
-    if all(m in METHODS_NEEDING_NO_MODEL for m in methods):
-        return None
     raise InputError("--model", f"no model given and the default {DEFAULT_MODEL} is missing "
                                 "(make it with `flashbrdf train`)")
 

@@ -184,9 +184,10 @@ def hold_native_stderr(drop_on=(InputError,)):
     libraries print there directly), and pass it on afterwards, unless the body raised one of
     `drop_on`: bad input then gets exactly the one stderr line the contract promises.
 
-    Only when stderr is not a terminal: on a terminal progress bars must show as they go.
+    Only when stderr is not a terminal (on a terminal progress bars must show as they go), and
+    only in the main thread (fd 2 is the process's: threads running commands would race on it).
     """
-    if not _fd_is_file(2):
+    if not _fd_is_file(2) or threading.current_thread() is not threading.main_thread():
         yield
         return
     with contextlib.suppress(AttributeError, OSError, ValueError):

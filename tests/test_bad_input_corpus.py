@@ -87,9 +87,23 @@ def snapshot(*roots):
                 if os.path.islink(path):
                     found[path] = ("link", os.readlink(path))
                 elif name in files:
-                    with open(path, "rb") as f:
-                        found[path] = ("file", hashlib.sha256(f.read()).hexdigest())
+                    found[path] = ("file", file_hash(path))
     return found
+
+
+_HASHES = {}
+
+
+def file_hash(path):
+    """sha256 of a file, remembered under its (inode, size, mtime, ctime): any write changes the
+    ctime (which no user call can set back), so an unchanged key means unchanged bytes, and the
+    35 MB tables are hashed once, not twice per case."""
+    st = os.stat(path)
+    key = (path, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+    if key not in _HASHES:
+        with open(path, "rb") as f:
+            _HASHES[key] = hashlib.sha256(f.read()).hexdigest()
+    return _HASHES[key]
 
 
 # ----- helpers that make broken copies in the case's tmp_path --------------------------------

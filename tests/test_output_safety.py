@@ -91,10 +91,9 @@ def test_two_runs_of_one_scene_at_once_do_not_interfere(world, tmp_path):  # noq
     assert sorted(os.listdir(tmp_path)) == ["a", "b"]  # no temporary folder left
 
 
-@pytest.mark.parametrize("sig,status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
-def test_interrupted_run_leaves_nothing(world, tmp_path, sig, status):  # noqa: F811
-    """Stopped while it works in its temporary folder, `run` exits 130 / 143 and leaves neither
-    the output nor the temporary folder, and the scene is unchanged."""
+def test_interrupted_run_leaves_nothing(world, tmp_path):  # noqa: F811
+    """Sent SIGTERM while it works in its temporary folder, `run` exits 143 and leaves neither the
+    output nor the temporary folder, and the scene is unchanged."""
     before = snapshot(world.scene)
     proc = subprocess.Popen(_run_command(world, tmp_path / "out"), cwd=REPO,
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE)
@@ -102,8 +101,29 @@ def test_interrupted_run_leaves_nothing(world, tmp_path, sig, status):  # noqa: 
     while not [p for p in os.listdir(tmp_path) if p.endswith(".part")]:
         assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()
         time.sleep(0.02)
-    proc.send_signal(sig)
+    proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=120)
-    assert proc.returncode == status, err.decode()
+    assert proc.returncode == 143, err.decode()
     assert os.listdir(tmp_path) == []
     assert snapshot(world.scene) == before
+
+
+@pytest.mark.parametrize("sig,status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_signal_inside_a_command_exits_130_or_143_with_nothing_written(tmp_path, monkeypatch,
+                                                                       capsys, sig, status):
+    """In-process: the signal arrives while a command writes its staged folder."""
+    from pipeline import commands
+    from pipeline.cli import main
+
+    def interrupted_compare(args):
+        with staged_output_dir(args.out) as tmp:
+            (Path(tmp) / "half.json").write_text("{}")
+            os.kill(os.getpid(), sig)
+            time.sleep(5)  # the handler raises before this ends
+        return 0
+
+    monkeypatch.setattr(commands, "compare", interrupted_compare)
+    assert main(["compare", "a.exr", "b.exr", "--out", str(tmp_path / "out")]) == status
+    assert os.listdir(tmp_path) == []
+    assert "no output written" in capsys.readouterr().err
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL or sig == signal.SIGINT
