@@ -70,11 +70,23 @@ def read_model(path, merl_dir=None):
         z = np.load(path, allow_pickle=False)
         if str(z["format"]) != FORMAT:
             raise InputError(path, f"not a flashbrdf model (format {z['format']})")
-        names = [str(n) for n in z["names"]]
-        training = TrainingSet(names, z["slices"], np.asarray(z["tables_2d"], np.float64))
+        names = [str(n) for n in np.atleast_1d(z["names"])]
+        slices, tables_2d = z["slices"], np.asarray(z["tables_2d"], np.float64)
+        n = len(names)
+        for key, array, shape in (("slices", slices, (n, 90, 3)),
+                                  ("tables_2d", tables_2d, (n, 90, 90, 3))):
+            if n == 0 or array.shape != shape or not np.issubdtype(array.dtype, np.floating):
+                raise InputError(path, f"damaged model: {key} has shape {array.shape} "
+                                       f"({array.dtype}), expected {shape} floats")
+        training = TrainingSet(names, slices, tables_2d)
         if "valid_3d" in z.files:
             training.valid_3d = z["valid_3d"]
+            if training.valid_3d.ndim != 3 or len(training.valid_3d) != n:
+                raise InputError(path, f"damaged model: valid_3d has shape "
+                                       f"{training.valid_3d.shape} for {n} materials")
         params = json.loads(str(z["params"]))
+        if not isinstance(params, dict):
+            raise InputError(path, "damaged model: params is not a JSON object")
         blob = z["dsgplvm"].tobytes() if "dsgplvm" in z.files else None
     except InputError:
         raise

@@ -94,6 +94,19 @@ def check_outputs(inputs, outputs, folders=()):
                 raise InputError(out, f"output folder contains an input ({src}); refusing to "
                                       "replace it")
         check_output_kind(out, is_folder)
+        _check_parent(out)
+
+
+def _check_parent(path):
+    """InputError when the output cannot be made: its nearest existing ancestor is not a folder
+    (`--out notes.txt/x.csv`) or cannot be written to."""
+    ancestor = os.path.dirname(os.path.abspath(os.fspath(path)))
+    while not os.path.lexists(ancestor):
+        ancestor = os.path.dirname(ancestor)
+    if not os.path.isdir(ancestor):
+        raise InputError(path, f"cannot be made: {ancestor} is not a folder")
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise InputError(path, f"cannot be made: no permission to write in {ancestor}")
 
 
 def sidecar_json(path):

@@ -158,6 +158,15 @@ def npz_of_other_format(tmp):
     return path
 
 
+def npz_of_wrong_shapes(tmp):
+    from infer.model_file import FORMAT
+    path = tmp / "model.npz"
+    np.savez(path, format=np.array(FORMAT), names=np.array(["a", "b"]),
+             slices=np.zeros((2, 90)), tables_2d=np.zeros((2, 90, 90, 3)),
+             params=np.array("{}"), merl_dir=np.array(""))
+    return path
+
+
 def marked_folder(tmp):
     folder = tmp / "old"
     folder.mkdir()
@@ -249,6 +258,8 @@ CASES = [
         "merl-slice", str(w.brdf), "--out", str(link(t / "s.csv", w.brdf))], "s.csv"),
     ("merl-slice", "out is a folder", lambda w, t: ["merl-slice", str(w.brdf), "--out", str(t)],
      HERE),
+    ("merl-slice", "out under a file", lambda w, t: [
+        "merl-slice", str(w.brdf), "--out", str(write(t, "f.txt", "x") / "s.csv")], "f.txt"),
     ("merl-slice", "table is a folder", lambda w, t: ["merl-slice", str(t), "--out",
                                                       _out(t, "s.csv")], HERE),
     # extract
@@ -314,6 +325,9 @@ CASES = [
     ("infer", "model of another format", lambda w, t: [
         "infer", "--model", str(npz_of_other_format(t)), "--slice", str(w.slice), "--out",
         _out(t, "b.binary")], "model.npz"),
+    ("infer", "model arrays of the wrong shape", lambda w, t: [
+        "infer", "--model", str(npz_of_wrong_shapes(t)), "--method", "pca", "--slice",
+        str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
     ("infer", "slice header wrong", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                   str(write(t, "s.csv", "a,b,c\n")), "--out",
                                                   _out(t, "b.binary")], "s.csv"),
@@ -437,6 +451,8 @@ CASES = [
      "mine"),
     ("run", "earlier output without --force", lambda w, t: _run(w.scene, marked_folder(t)),
      "old"),
+    ("run", "out under a file", lambda w, t: _run(w.scene, write(t, "f.txt", "x") / "out"),
+     "f.txt"),
     ("run", "unknown method", lambda w, t: ["run", str(w.scene), "--out", _out(t), "--methods",
                                             "magic"], "--methods"),
     # evaluate
