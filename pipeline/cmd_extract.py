@@ -44,8 +44,11 @@ def extract(args):
     return 0
 
 
-def write_extraction(out, scene_dir, result, options):
+def write_extraction(out, scene_dir, result, options, final_path=None):
     """Write slice.csv (with provenance comments) and the JSON sidecar beside it, both or neither.
+
+    final_path: where slice.csv will end up, when `out` is in a staged folder (run) that is
+    renamed afterwards; the sidecar records it. Default `out`.
 
     Returns the slice as written: rho (90, 3) in 1/sr, NaN where empty.
     """
@@ -65,7 +68,7 @@ def write_extraction(out, scene_dir, result, options):
         comments.append(f"{clamped} bin(s) had a slightly negative estimate (noise around 0) and "
                         "are written as 0")
     rho = result.rho
-    report = dict(result.report, slice_csv=str(out.resolve()),
+    report = dict(result.report, slice_csv=str(Path(final_path or out).resolve()),
                   spread=[[None if not np.isfinite(v) else float(v) for v in row]
                           for row in result.spread])
     json_path = Path(sidecar_json(out))  # --out x.json: keep the slice, x.report.json beside it

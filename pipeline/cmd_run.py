@@ -193,7 +193,8 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
     fitted = stages.run("load model", _load_methods, methods, model_path, not args.no_anchor)
     options = ExtractOptions()
     result = stages.run("extract", extract_slice, scene, options)
-    rho = write_extraction(out / "slice.csv", args.scene_dir, result, options)
+    rho = write_extraction(out / "slice.csv", args.scene_dir, result, options,
+                           final_path=Path(args.out) / "slice.csv")
 
     predictions, two_d = {}, []
     for name in methods:

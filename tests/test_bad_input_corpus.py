@@ -599,5 +599,8 @@ def test_valid_control_exits_0_and_keeps_inputs(world, tmp_path, capfd, command,
         for path in outputs(world, tmp_path):
             assert path.is_file(), path
         assert not [p for p in after if p not in before and ".part" in p]
+        # nothing written names the temporary folder it was built in
+        texts = [p for p in after if p not in before and p.endswith((".json", ".md", ".csv"))]
+        assert texts and not [p for p in texts if ".part" in Path(p).read_text()]
     finally:
         shutil.rmtree(world.scene / "out", ignore_errors=True)  # keep the world as it was
