@@ -43,6 +43,11 @@ def save_model(path, training, params, dsgplvm=None, merl_dir=""):
             np.savez_compressed(f, **arrays)
 
 
+def _unreadable(path, err):
+    return InputError(path, f"cannot read model ({type(err).__name__}: {err}); a truncated or "
+                            "damaged copy?")
+
+
 def check_model_file(path):
     """InputError unless `path` is a whole flashbrdf model: a readable zip whose every member
     passes its CRC (a truncated or damaged copy fails here in ~0.1 s) and whose format matches.
@@ -57,8 +62,7 @@ def check_model_file(path):
     except InputError:
         raise
     except DECODE_ERRORS as err:
-        raise InputError(path, f"cannot read model ({type(err).__name__}: {err}); a truncated "
-                               "or damaged copy?") from None
+        raise _unreadable(path, err) from None
     if found != FORMAT:
         raise InputError(path, f"not a flashbrdf model (format {found})")
 
@@ -91,8 +95,7 @@ def read_model(path, merl_dir=None):
     except InputError:
         raise
     except DECODE_ERRORS as err:
-        raise InputError(path, f"cannot read model ({type(err).__name__}: {err}); a truncated "
-                               "or damaged copy?") from None
+        raise _unreadable(path, err) from None
     if training.valid_3d is None and merl_dir is not None:
         from brdf import merl
         found = dict(merl.list_merl(merl_dir))
