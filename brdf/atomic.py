@@ -17,23 +17,49 @@ def atomic_path(path, suffix=None):
     """
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
-    os.makedirs(folder, exist_ok=True)
+    created = make_parents(folder)
     if suffix is None:
         suffix = os.path.splitext(path)[1]
     fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".part" + suffix,
                                dir=folder)
     os.close(fd)
     # mkstemp makes the file private (0600); the output should get the usual umask permissions.
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)
+    os.chmod(tmp, 0o666 & ~current_umask())
     try:
         yield tmp
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):
             os.remove(tmp)
+        remove_empty(created)
         raise
+
+
+def make_parents(folder):
+    """Create `folder` and its missing parents; return those created, deepest first (so a failed
+    write can take them back with remove_empty and leave no new folder behind)."""
+    created = []
+    folder = os.path.abspath(folder)
+    while not os.path.isdir(folder):
+        created.append(folder)
+        folder = os.path.dirname(folder)
+    for f in reversed(created):
+        os.makedirs(f, exist_ok=True)
+    return created
+
+
+def remove_empty(folders):
+    """Remove each folder of `folders` (deepest first) that is still empty."""
+    for folder in folders:
+        with contextlib.suppress(OSError):
+            os.rmdir(folder)
+
+
+def current_umask():
+    """The process umask (read by setting and restoring it)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return umask
 
 
 def write_text(path, text):

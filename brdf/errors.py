@@ -1,6 +1,14 @@
 """Errors for bad user input: the CLI turns them into exit status 2 and one line on stderr."""
 
 import os
+import zipfile
+import zlib
+
+# What readers of a damaged file raise (a truncated copy, a wrong format, a corrupt member):
+# numpy's np.load, zipfile, zlib, json and struct-like parsing. Readers catch this family around
+# their decoding and turn it into InputError naming the file.
+DECODE_ERRORS = (OSError, ValueError, KeyError, IndexError, EOFError, zipfile.BadZipFile,
+                 zlib.error)
 
 
 class InputError(ValueError):
@@ -10,6 +18,16 @@ class InputError(ValueError):
     """
 
     def __init__(self, where, problem):
-        self.where = os.fspath(where) if where is not None else None
+        # a file name or a JSON key may hold a newline or other control character: escape it
+        self.where = _printable(os.fspath(where)) if where is not None else None
+        # one line, whatever a library's message holds (libpng and OpenImageIO add newlines)
+        problem = "; ".join(part.strip() for part in str(problem).splitlines() if part.strip())
         self.problem = problem
         super().__init__(f"{self.where}: {problem}" if self.where else problem)
+
+
+def _printable(text):
+    """`text` with each non-printable character escaped as Python would (\\n, \\x00, ...)."""
+    if isinstance(text, bytes):
+        text = os.fsdecode(text)
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)

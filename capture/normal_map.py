@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from brdf.errors import InputError
+from brdf.errors import DECODE_ERRORS, InputError
 from capture.geometry import Surface
 
 
@@ -24,7 +24,7 @@ def load_normal_map(geometry, camera):
     if path.suffix.lower() == ".npy":
         try:
             normals = np.load(path, allow_pickle=False)
-        except (OSError, ValueError) as err:
+        except DECODE_ERRORS as err:
             raise InputError(path, f"cannot read normal map: {err}") from None
     else:
         normals = read_float_image(path)

@@ -23,6 +23,8 @@ CAMERA_MODELS = ("pinhole", "orthographic")
 ROLES = ("flash", "ambient", "reference")
 LIGHT_TYPES = ("point", "directional", "envmap")
 ENCODINGS = ("linear", "srgb")
+MAX_IMAGE_SIDE = 1 << 16  # pixels; larger is a typo (or an attack), not a camera
+ROTATION_ATOL = 1e-4
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,6 +127,17 @@ class Scene:
         """The photos whose role is `role`, in file order."""
         return [p for p in self.photos if p.role == role]
 
+    def input_files(self):
+        """Every file this scene reads (resolved Paths): scene.json, geometry, photos, brackets and
+        environment maps, in that order without repeats. Outputs must never replace one."""
+        files = [self.json_path, self.geometry.mesh, self.geometry.normal_map, self.geometry.mask]
+        for photo in self.photos:
+            files.append(photo.file)
+            files += [path for path, _ in photo.brackets or ()]
+            if photo.light is not None:
+                files.append(photo.light.file)
+        return list(dict.fromkeys(f for f in files if f is not None))
+
 
 class _Fields:
     """Typed access to one JSON object, raising InputError with the full field path."""
@@ -167,13 +180,23 @@ class _Fields:
             self.fail(key, f"expected a non-negative number, got {v!r}")
         return float(v)
 
-    def integer(self, key, minimum=1):
+    def integer(self, key, minimum=1, maximum=None):
         v = self.obj.get(key)
         if v is None:
             self.fail(key, "missing")
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or v != int(v) or v < minimum:
-            self.fail(key, f"expected an integer >= {minimum}, got {v!r}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
+                or v != int(v) or v < minimum or (maximum is not None and v > maximum):
+            bounds = f">= {minimum}" if maximum is None else f"in {minimum}..{maximum}"
+            self.fail(key, f"expected an integer {bounds}, got {v!r}")
         return int(v)
+
+    def rotation(self, key, matrix):
+        """Check that (3, 3) `matrix` (read from `key`) is a rotation: orthonormal, det +1."""
+        if not np.allclose(matrix.T @ matrix, np.eye(3), atol=ROTATION_ATOL) or \
+                abs(np.linalg.det(matrix) - 1.0) > ROTATION_ATOL:
+            self.fail(key, "rotation part must be orthonormal with determinant +1 (within "
+                           f"{ROTATION_ATOL:g})")
+        return matrix
 
     def choice(self, key, choices, default=None):
         v = self.obj.get(key, default)
@@ -203,20 +226,22 @@ class _Fields:
 
     def path(self, key, folder):
         v = self.obj.get(key)
-        if not isinstance(v, str) or not v:
+        if not isinstance(v, str) or not v or "\0" in v:
             self.fail(key, "expected a file name (string, relative to the scene folder)")
-        return (folder / v).resolve()
+        try:
+            return (folder / v).resolve()
+        except (OSError, RuntimeError) as err:  # a symlink loop, a name too long
+            self.fail(key, f"cannot resolve the path {v!r} ({err})")
 
 
 def _camera(f):
     model = f.choice("model", CAMERA_MODELS)
-    width, height = f.integer("width"), f.integer("height")
+    width = f.integer("width", maximum=MAX_IMAGE_SIDE)
+    height = f.integer("height", maximum=MAX_IMAGE_SIDE)
     pose = f.array("world_from_camera", (4, 4))
     if not np.allclose(pose[3], [0, 0, 0, 1], atol=1e-9):
         f.fail("world_from_camera", "last row must be [0, 0, 0, 1]")
-    rot = pose[:3, :3]
-    if not np.allclose(rot.T @ rot, np.eye(3), atol=1e-4) or np.linalg.det(rot) < 0:
-        f.fail("world_from_camera", "rotation part must be orthonormal and right-handed")
+    f.rotation("world_from_camera", pose[:3, :3])
     if model == "orthographic":
         return Camera(model, width, height, pose, pixel_size=f.number("pixel_size", positive=True))
     distortion = None
@@ -245,7 +270,8 @@ def _light(f, folder):
         return Light(kind, direction=d / norm,
                      irradiance_rgb=f.array("irradiance_rgb", (3,), nonnegative=True))
     return Light(kind, file=f.path("file", folder),
-                 world_from_envmap=f.array("world_from_envmap", (3, 3), default=np.eye(3)),
+                 world_from_envmap=f.rotation("world_from_envmap", f.array(
+                     "world_from_envmap", (3, 3), default=np.eye(3))),
                  scale=f.number("scale", default=1.0, nonnegative=True))
 
 
@@ -277,6 +303,23 @@ def _photo(f, index, folder, camera):
                  saturation=saturation)
 
 
+def _check_finite(value, json_path, where):
+    """InputError naming the field (e.g. "camera.width") of the first NaN or +-Infinity.
+
+    Python's json reads NaN, Infinity and 1e999 as floats; the contract's JSON has none, and one
+    check over the whole document keeps every reader below from meeting them.
+    """
+    if isinstance(value, float) and not math.isfinite(value):
+        raise InputError(f"{json_path}: {where or '(document)'}",
+                         f"expected a finite number, got {value!r}")
+    if isinstance(value, dict):
+        for key, item in value.items():
+            _check_finite(item, json_path, f"{where}.{key}" if where else str(key))
+    elif isinstance(value, list):
+        for k, item in enumerate(value):
+            _check_finite(item, json_path, f"{where}[{k}]")
+
+
 def load_scene(scene_dir):
     """Read `scene_dir/scene.json` into a validated Scene (no images or meshes are read).
 
@@ -289,7 +332,8 @@ def load_scene(scene_dir):
         raise InputError(json_path, "not found (a scene folder needs a scene.json)")
     try:
         doc = json.loads(json_path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as err:
+        _check_finite(doc, str(json_path), "")
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as err:
         raise InputError(json_path, f"not valid JSON: {err}") from None
     root = _Fields(str(json_path), "", doc)
     camera = _camera(root.sub("camera"))

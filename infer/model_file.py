@@ -8,11 +8,12 @@ per-method hyperparameters), dsgplvm (uint8: the DSGPLVM's own .npz bytes), opti
 import json
 import os
 import tempfile
+import zipfile
 
 import numpy as np
 
 from brdf.atomic import atomic_path
-from brdf.errors import InputError
+from brdf.errors import DECODE_ERRORS, InputError
 from infer.common import TrainingSet
 
 FORMAT = "flashbrdf-infer-model-1"
@@ -42,6 +43,30 @@ def save_model(path, training, params, dsgplvm=None, merl_dir=""):
             np.savez_compressed(f, **arrays)
 
 
+def _unreadable(path, err):
+    return InputError(path, f"cannot read model ({type(err).__name__}: {err}); a truncated or "
+                            "damaged copy?")
+
+
+def check_model_file(path):
+    """InputError unless `path` is a whole flashbrdf model: a readable zip whose every member
+    passes its CRC (a truncated or damaged copy fails here in ~0.1 s) and whose format matches.
+    Reads no array beyond the format tag; read_model does the full read."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            bad = archive.testzip()
+        if bad is not None:
+            raise InputError(path, f"damaged model file: member {bad} fails its CRC check")
+        with np.load(path, allow_pickle=False) as z:
+            found = str(z["format"]) if "format" in z.files else None
+    except InputError:
+        raise
+    except DECODE_ERRORS as err:
+        raise _unreadable(path, err) from None
+    if found != FORMAT:
+        raise InputError(path, f"not a flashbrdf model (format {found})")
+
+
 def read_model(path, merl_dir=None):
     """-> (TrainingSet, params dict, dsgplvm npz bytes or None). 3D tables come from the stored rows,
     else lazily from merl_dir (matched by material name). InputError on a bad file."""
@@ -49,16 +74,28 @@ def read_model(path, merl_dir=None):
         z = np.load(path, allow_pickle=False)
         if str(z["format"]) != FORMAT:
             raise InputError(path, f"not a flashbrdf model (format {z['format']})")
-        names = [str(n) for n in z["names"]]
-        training = TrainingSet(names, z["slices"], np.asarray(z["tables_2d"], np.float64))
+        names = [str(n) for n in np.atleast_1d(z["names"])]
+        slices, tables_2d = z["slices"], np.asarray(z["tables_2d"], np.float64)
+        n = len(names)
+        for key, array, shape in (("slices", slices, (n, 90, 3)),
+                                  ("tables_2d", tables_2d, (n, 90, 90, 3))):
+            if n == 0 or array.shape != shape or not np.issubdtype(array.dtype, np.floating):
+                raise InputError(path, f"damaged model: {key} has shape {array.shape} "
+                                       f"({array.dtype}), expected {shape} floats")
+        training = TrainingSet(names, slices, tables_2d)
         if "valid_3d" in z.files:
             training.valid_3d = z["valid_3d"]
+            if training.valid_3d.ndim != 3 or len(training.valid_3d) != n:
+                raise InputError(path, f"damaged model: valid_3d has shape "
+                                       f"{training.valid_3d.shape} for {n} materials")
         params = json.loads(str(z["params"]))
+        if not isinstance(params, dict):
+            raise InputError(path, "damaged model: params is not a JSON object")
         blob = z["dsgplvm"].tobytes() if "dsgplvm" in z.files else None
     except InputError:
         raise
-    except (OSError, ValueError, KeyError, EOFError) as err:
-        raise InputError(path, f"cannot read model: {err}") from None
+    except DECODE_ERRORS as err:
+        raise _unreadable(path, err) from None
     if training.valid_3d is None and merl_dir is not None:
         from brdf import merl
         found = dict(merl.list_merl(merl_dir))
@@ -118,7 +155,12 @@ def load_methods(path, names, merl_dir=None, overrides=None):
                 raise InputError(path, "model holds no DS-GPLVM")
             # models written before the relative representation store none: they are absolute
             kw.setdefault("representation", "absolute")
-            kw["model"] = load_dsgplvm(blob, training if kw["representation"] == "absolute" else None,
-                                       kw.get("feature_space", "lab"))
+            try:
+                kw["model"] = load_dsgplvm(
+                    blob, training if kw["representation"] == "absolute" else None,
+                    kw.get("feature_space", "lab"))
+            except DECODE_ERRORS as err:
+                raise InputError(path, f"cannot read the DS-GPLVM stored in the model "
+                                       f"({type(err).__name__}: {err})") from None
         methods[name] = make_method(name, **kw).fit(training)
     return methods

@@ -1,13 +1,16 @@
 """The `flashbrdf` command line: argument parsing and error-to-exit-status mapping.
 
 Exit status (contract): 0 success, 2 bad input (one line on stderr naming the file or field),
-1 anything else. Each sub-command lives in pipeline/commands.py.
+1 anything else; 130 on Ctrl-C and 143 on SIGTERM (no output is left behind, see safety.py). Each sub-command lives in pipeline/commands.py.
 """
 
 import argparse
 import sys
 
 from brdf.errors import InputError
+from pipeline.safety import Terminated, handle_signals, hold_native_stderr
+
+FORCE_HELP = "replace OUT_DIR if an earlier flashbrdf command made it (never any other folder)"
 
 
 def _parser():
@@ -58,6 +61,7 @@ def _parser():
     s.add_argument("scene_dir", metavar="SCENE_DIR")
     s.add_argument("--brdf", required=True, metavar="BRDF.binary")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
+    s.add_argument("--force", action="store_true", help=FORCE_HELP)
     s.add_argument("--spp", type=int, default=64)
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--interpolate", action="store_true",
@@ -68,10 +72,12 @@ def _parser():
     s.add_argument("ref", metavar="REF.exr")
     s.add_argument("--mask", metavar="MASK.png")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
+    s.add_argument("--force", action="store_true", help=FORCE_HELP)
 
     s = sub.add_parser("run", help="extract, infer, render and compare in one go")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
+    s.add_argument("--force", action="store_true", help=FORCE_HELP)
     s.add_argument("--model", metavar="MODEL.npz")
     s.add_argument("--methods", default="dsgplvm")
     s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
@@ -82,6 +88,7 @@ def _parser():
     s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
     s.add_argument("--merl-dir", required=True, metavar="DIR")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
+    s.add_argument("--force", action="store_true", help=FORCE_HELP)
     s.add_argument("--render", action="store_true")
     s.add_argument("--quick", action="store_true")
     s.add_argument("--experiments", type=int, help="number of experiments (default 25)")
@@ -92,6 +99,7 @@ def _parser():
     s.add_argument("obj_dir", metavar="OBJ_DIR")
     s.add_argument("--flash", required=True, type=int, metavar="INDEX")
     s.add_argument("--out", required=True, metavar="SCENE_DIR")
+    s.add_argument("--force", action="store_true", help=FORCE_HELP)
     return p
 
 
@@ -100,15 +108,20 @@ def main(argv=None):
     from pipeline import commands
     handler = getattr(commands, args.command.replace("-", "_"))
     try:
-        return handler(args) or 0
+        with hold_native_stderr(), handle_signals():
+            return handler(args) or 0
     except InputError as err:
         print(f"flashbrdf {args.command}: error: {err}", file=sys.stderr)
         return 2
     except NotImplementedError:
         print(f"flashbrdf {args.command}: not implemented yet", file=sys.stderr)
         return 1
-    except KeyboardInterrupt:
-        return 1
+    except KeyboardInterrupt:  # staged outputs were removed on the way out
+        print(f"flashbrdf {args.command}: interrupted; no output written", file=sys.stderr)
+        return 130
+    except Terminated:
+        print(f"flashbrdf {args.command}: terminated; no output written", file=sys.stderr)
+        return 143
 
 
 if __name__ == "__main__":

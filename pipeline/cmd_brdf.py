@@ -4,9 +4,11 @@ import os
 
 from brdf.merl import read_merl
 from brdf.views import flash_slice, write_slice_csv
+from pipeline.safety import check_outputs
 
 
 def merl_slice(args):
+    check_outputs(inputs=[args.brdf], outputs=[args.out])
     table = read_merl(args.brdf)
     rho, n = flash_slice(table)
     write_slice_csv(args.out, rho, n, comments=[

@@ -13,7 +13,8 @@ def import_diligent(args):
         return tqdm(iterable, desc="import-diligent", unit="photo", file=sys.stderr,
                     disable=not sys.stderr.isatty())
 
-    scene = write_scene(args.obj_dir, args.flash, args.out, progress=progress)
+    scene = write_scene(args.obj_dir, args.flash, args.out, progress=progress,
+                        force=getattr(args, "force", False), notify=print)
     n_ref = sum(p["role"] == "reference" for p in scene["photos"])
     flash = next(p for p in scene["photos"] if p["role"] == "flash")
     print(f"wrote {args.out}: flash {flash['file']}, {n_ref} reference photos, "

@@ -12,6 +12,7 @@ import numpy as np
 from brdf.atomic import write_text
 from brdf.errors import InputError
 from brdf.views import write_slice_csv
+from pipeline.safety import check_outputs, sidecar_json
 
 
 def _options(args):
@@ -32,15 +33,22 @@ def _options(args):
 
 
 def extract(args):
+    import capture
     from slice_extract import extract_slice
     options = _options(args)
-    result = extract_slice(args.scene_dir, options)
+    scene = capture.load_scene(args.scene_dir)
+    check_outputs(inputs=[args.scene_dir, *scene.input_files()],
+                  outputs=[args.out, sidecar_json(args.out)])
+    result = extract_slice(scene, options)
     write_extraction(args.out, args.scene_dir, result, options)
     return 0
 
 
-def write_extraction(out, scene_dir, result, options):
+def write_extraction(out, scene_dir, result, options, final_path=None):
     """Write slice.csv (with provenance comments) and the JSON sidecar beside it, both or neither.
+
+    final_path: where slice.csv will end up, when `out` is in a staged folder (run) that is
+    renamed afterwards; the sidecar records it. Default `out`.
 
     Returns the slice as written: rho (90, 3) in 1/sr, NaN where empty.
     """
@@ -60,12 +68,10 @@ def write_extraction(out, scene_dir, result, options):
         comments.append(f"{clamped} bin(s) had a slightly negative estimate (noise around 0) and "
                         "are written as 0")
     rho = result.rho
-    report = dict(result.report, slice_csv=str(out.resolve()),
+    report = dict(result.report, slice_csv=str(Path(final_path or out).resolve()),
                   spread=[[None if not np.isfinite(v) else float(v) for v in row]
                           for row in result.spread])
-    json_path = out.with_suffix(".json")
-    if json_path == out:  # --out x.json: keep the slice, put the report beside it
-        json_path = out.with_name(out.stem + ".report.json")
+    json_path = Path(sidecar_json(out))  # --out x.json: keep the slice, x.report.json beside it
     text = json.dumps(report, indent=1) + "\n"
     write_slice_csv(out, rho, result.n, comments=comments)
     try:

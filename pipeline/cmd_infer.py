@@ -9,6 +9,14 @@ import numpy as np
 from brdf import merl, views
 from brdf.atomic import write_text
 from brdf.errors import InputError
+from pipeline.safety import check_outputs, sidecar_json, staged_output_dir
+
+
+def _merl_inputs(merl_dir):
+    """A MERL folder and its tables (InputError when it is not a folder of tables)."""
+    if merl_dir is None:
+        return []
+    return [merl_dir, *(path for _, path in merl.list_merl(merl_dir))]
 
 
 def train(args):
@@ -16,6 +24,7 @@ def train(args):
     from infer import DSGPLVMMethod, TrainingSet
     from infer.evaluate import tune_baselines
     wanted = args.views.split(",")
+    check_outputs(inputs=_merl_inputs(args.merl_dir), outputs=[args.out])
     start = time.perf_counter()
     training = TrainingSet.from_merl_dir(args.merl_dir, keep_3d="3d" in wanted)
     if len(training) < 3:
@@ -48,6 +57,9 @@ def infer(args):
     """Predict a full MERL table from a slice; write it and BRDF.json beside it."""
     from infer import load_method, make_method
     t0 = time.perf_counter()
+    json_path = sidecar_json(args.out)
+    check_outputs(inputs=[args.model, args.slice, *_merl_inputs(args.merl_dir)],
+                  outputs=[args.out, json_path])
     rho, n = views.read_slice_csv(args.slice)
     view = getattr(args, "view", "auto") or "auto"
     if args.model is None:
@@ -83,7 +95,11 @@ def infer(args):
               "timings": {"load_s": t1 - t0, "predict_s": t2 - t1, "write_s": t3 - t2,
                           "total_s": t3 - t0},
               "uncertainty": _uncertainty_summary(variance, getattr(method, "feature_label", ""))}
-    write_text(Path(args.out).with_suffix(".json"), json.dumps(report, indent=2, default=str) + "\n")
+    try:
+        write_text(json_path, json.dumps(report, indent=2, default=str) + "\n")
+    except BaseException:
+        Path(args.out).unlink(missing_ok=True)  # both files or neither
+        raise
     return 0
 
 
@@ -91,11 +107,14 @@ def evaluate(args):
     """The paper's Table 1 protocol on --merl-dir (see infer.evaluate); with --render also its
     Table 2 (render.table2) on the mean-performing experiment's test materials, 2D predictions."""
     from infer.evaluate import experiment_predictor, run_evaluation
-    result = run_evaluation(args.merl_dir, args.out, quick=args.quick,
-                            experiments=getattr(args, "experiments", None),
-                            time_budget=getattr(args, "time_budget", None))
-    if getattr(args, "render", False):
-        from render import table2
-        names, predict = experiment_predictor(args.merl_dir, result)
-        table2(args.merl_dir, args.out, predict, names=names)
+    check_outputs(inputs=_merl_inputs(args.merl_dir), outputs=[args.out], folders=[args.out])
+    with staged_output_dir(args.out, force=getattr(args, "force", False),
+                           command="evaluate") as out:
+        result = run_evaluation(args.merl_dir, out, quick=args.quick,
+                                experiments=getattr(args, "experiments", None),
+                                time_budget=getattr(args, "time_budget", None))
+        if getattr(args, "render", False):
+            from render import table2
+            names, predict = experiment_predictor(args.merl_dir, result)
+            table2(args.merl_dir, out, predict, names=names)
     return 0

@@ -11,15 +11,16 @@ compare PRED.exr REF.exr [--mask MASK.png] --out OUT_DIR
 """
 
 import json
-import os
 import time
 from pathlib import Path
 
 from brdf.atomic import write_text
 from brdf.errors import InputError
+from pipeline.safety import check_outputs, staged_output_dir
 
 
-def _photo_exists(photo):
+def photo_exists(photo):
+    """Whether a photo entry's file (or every bracket) is on disk; a reference may be absent."""
     if photo.file is not None:
         return Path(photo.file).is_file()
     return bool(photo.brackets) and all(Path(p).is_file() for p, _ in photo.brackets)
@@ -44,6 +45,8 @@ def render(args):
 
     spp = samples_per_pixel(args)
     scene = capture.load_scene(args.scene_dir)
+    check_outputs(inputs=[args.scene_dir, *scene.input_files(), args.brdf], outputs=[args.out],
+                  folders=[args.out])
     references = scene.photos_with_role("reference")
     if not references:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'reference'")
@@ -57,21 +60,22 @@ def render(args):
     for photo, image, mask in render_scene(scene, brdf, spp=spp, seed=seed, photos=references):
         entry = {"photo": photo.stem, "exr": f"{photo.stem}.exr",
                  "seconds": round(time.perf_counter() - started, 3), "pixels": int(mask.sum())}
-        reference = capture.load_photo_entry(photo) if _photo_exists(photo) else None
+        reference = capture.load_photo_entry(photo) if photo_exists(photo) else None
         results.append((photo, image, mask, reference, entry))
         started = time.perf_counter()
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    for photo, image, mask, reference, entry in results:
-        write_exr(out / f"{photo.stem}.exr", image)
-        write_preview(out / f"{photo.stem}.png", image)
-        if reference is not None:
-            rgb, usable = reference
-            entry["compare"] = write_comparison(out, image, rgb, mask & usable,
-                                                json_name=f"{photo.stem}_compare.json",
-                                                png_name=f"{photo.stem}_delta_e.png")
-        report["renders"].append(entry)
-    write_text(out / "render.json", json.dumps(report, indent=2) + "\n")
+    with staged_output_dir(args.out, force=getattr(args, "force", False),
+                           command="render") as staged:
+        out = Path(staged)
+        for photo, image, mask, reference, entry in results:
+            write_exr(out / f"{photo.stem}.exr", image)
+            write_preview(out / f"{photo.stem}.png", image)
+            if reference is not None:
+                rgb, usable = reference
+                entry["compare"] = write_comparison(out, image, rgb, mask & usable,
+                                                    json_name=f"{photo.stem}_compare.json",
+                                                    png_name=f"{photo.stem}_delta_e.png")
+            report["renders"].append(entry)
+        write_text(out / "render.json", json.dumps(report, indent=2) + "\n")
     return 0
 
 
@@ -79,12 +83,15 @@ def compare(args):
     from render.compare import write_comparison
     from render.images import read_image, read_mask
 
+    check_outputs(inputs=[args.pred, args.ref, getattr(args, "mask", None)], outputs=[args.out],
+                  folders=[args.out])
     pred = read_image(args.pred)
     ref = read_image(args.ref)
     if pred.shape != ref.shape:
         raise InputError(args.ref, f"is {ref.shape[1]}x{ref.shape[0]} but {args.pred} is "
                                    f"{pred.shape[1]}x{pred.shape[0]}")
     mask = read_mask(args.mask, pred.shape) if getattr(args, "mask", None) else None
-    os.makedirs(args.out, exist_ok=True)
-    write_comparison(args.out, pred, ref, mask)
+    with staged_output_dir(args.out, force=getattr(args, "force", False),
+                           command="compare") as out:
+        write_comparison(out, pred, ref, mask)
     return 0

@@ -25,6 +25,7 @@ import numpy as np
 
 from brdf.atomic import write_text
 from brdf.errors import InputError
+from pipeline.safety import check_outputs, staged_output_dir
 
 DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "sample_data" / "models" / "merl100_1d2d.npz"
 METHODS_NEEDING_NO_MODEL = ("chandraker",)
@@ -34,7 +35,7 @@ class _Stages:
     """Wall-clock seconds per stage, in run order, printed as a table at the end.
 
     On a terminal a progress bar counts the stages (renders add their own per-photo bars);
-    otherwise each stage prints one line, which keeps logs readable.
+    otherwise each stage prints one line on stdout, which keeps logs readable.
     """
 
     def __init__(self, total):
@@ -43,8 +44,8 @@ class _Stages:
         self.bar = tqdm(total=total, unit="stage", file=sys.stderr, disable=not sys.stderr.isatty())
 
     def run(self, name, fn, *args, **kwargs):
-        if self.bar.disable:
-            print(f"[{name}] ...", file=sys.stderr, flush=True)
+        if self.bar.disable:  # on stdout: stderr is kept for the one error line of bad input
+            print(f"[{name}] ...", flush=True)
         self.bar.set_description(name)
         start = time.perf_counter()
         result = fn(*args, **kwargs)
@@ -75,10 +76,10 @@ def _model_path(args, methods):
         if not Path(args.model).is_file():
             raise InputError(args.model, "no such model file")
         return Path(args.model)
+    if all(m in METHODS_NEEDING_NO_MODEL for m in methods):
+        return None  # nothing to read: the default model is 9 MB and takes seconds to load
     if DEFAULT_MODEL.is_file():
         return DEFAULT_MODEL
-    if all(m in METHODS_NEEDING_NO_MODEL for m in methods):
-        return None
     raise InputError("--model", f"no model given and the default {DEFAULT_MODEL} is missing "
                                 "(make it with `flashbrdf train`)")
 
@@ -113,8 +114,25 @@ def _infer(method, method_name, model_path, rho, out_dir):
     return table, variance, view, label
 
 
-def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, references):
+def _check_references(references):
+    """Read every reference photo and environment map `run` will need, before any slow work:
+    bad input (unreadable, wrong size, not lat-long) fails in seconds, not after inference.
+
+    Returns {photo index: (rgb, usable)} for the photos that exist (render compares with them).
+    """
     import capture
+    from pipeline.cmd_render import photo_exists
+    from render.envmap import read_envmap_pixels
+    loaded = {}
+    for photo in references:
+        if photo.light is not None and photo.light.type == "envmap":
+            read_envmap_pixels(photo.light.file)
+        if photo_exists(photo):
+            loaded[photo.index] = capture.load_photo_entry(photo)
+    return loaded
+
+
+def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, references, loaded):
     from render import TabulatedBRDF, render_scene, write_comparison, write_exr, write_preview
     rows = []
     brdf = TabulatedBRDF(table)
@@ -123,8 +141,8 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
         write_exr(out_dir / f"{photo.stem}.exr", image)
         write_preview(out_dir / f"{photo.stem}.png", image)
         row = {"photo": photo.stem, "method": method_name, "render": image, "mask": mask}
-        if photo.file is not None and Path(photo.file).is_file() or photo.brackets:
-            reference, usable = capture.load_photo_entry(photo)
+        if photo.index in loaded:
+            reference, usable = loaded[photo.index]
             metrics, delta_e = write_comparison(out_dir, image, reference, mask & usable,
                                                 json_name=f"{photo.stem}_compare.json",
                                                 png_name=f"{photo.stem}_delta_e.png",
@@ -138,25 +156,46 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
 
 def run(args):
     import capture
-    from pipeline.cmd_extract import write_extraction
     from pipeline.cmd_render import samples_per_pixel
-    from pipeline.report import write_report
-    from render.scene_render import SceneGeometry
-    from slice_extract import ExtractOptions, extract_slice
 
     methods = _methods(args.methods)
     model_path = _model_path(args, methods)
     spp = samples_per_pixel(args)
-    out = Path(args.out)
-    stages, notes = _Stages(total=5 + 2 * len(methods)), []
+    scene = capture.load_scene(args.scene_dir)
+    check_outputs(inputs=[args.scene_dir, *scene.input_files(), model_path], outputs=[args.out],
+                  folders=[args.out])
+    if model_path is not None:
+        from infer.model_file import check_model_file
+        check_model_file(model_path)
+    references = scene.photos_with_role("reference")
+    loaded = _check_references(references)
+    with staged_output_dir(args.out, force=getattr(args, "force", False), command="run") as staged:
+        stages, report = _run_stages(args, scene, methods, model_path, spp, references, loaded,
+                                     Path(staged))
+    print(stages.table(), file=sys.stderr)
+    for method, summary in report.get("summary", {}).items():
+        mean = summary.get("delta_e_log_mean", {}).get("mean")
+        if mean is not None:
+            print(f"{method}: mean delta_e_log_mean {mean:.3f} over {summary['references']} "
+                  "reference(s)", file=sys.stderr)
+    print(f"report: {(Path(args.out) / 'report.md').resolve()}")
+    return 0
 
-    scene = stages.run("load scene", capture.load_scene, args.scene_dir)
+
+def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
+    """The slow part of `run`, into the staged folder `out`: returns (stages, report dict)."""
+    from pipeline.cmd_extract import write_extraction
+    from pipeline.report import write_report
+    from render.scene_render import SceneGeometry
+    from slice_extract import ExtractOptions, extract_slice
+
+    stages, notes = _Stages(total=4 + 2 * len(methods)), []
+    fitted = stages.run("load model", _load_methods, methods, model_path, not args.no_anchor)
     options = ExtractOptions()
     result = stages.run("extract", extract_slice, scene, options)
-    out.mkdir(parents=True, exist_ok=True)
-    rho = write_extraction(out / "slice.csv", args.scene_dir, result, options)
+    rho = write_extraction(out / "slice.csv", args.scene_dir, result, options,
+                           final_path=Path(args.out) / "slice.csv")
 
-    fitted = stages.run("load model", _load_methods, methods, model_path, not args.no_anchor)
     predictions, two_d = {}, []
     for name in methods:
         table, variance, view, label = stages.run(f"infer {name}", _infer, fitted[name], name,
@@ -169,7 +208,6 @@ def run(args):
     if two_d:
         notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "
                      "3D data); no 3D table was loaded, and renders look the 2D tables up directly.")
-    references = scene.photos_with_role("reference")
     rows = []
     if not references:
         notes.append("The scene has no reference photo: nothing was rendered or compared.")
@@ -181,17 +219,10 @@ def run(args):
             notes.append("Convex mesh: no shadow rays were cast.")
         for name in methods:
             rows += stages.run(f"render+compare {name}", _render_and_compare, scene, geometry, name,
-                               predictions[name]["table"], spp, out / name, references)
+                               predictions[name]["table"], spp, out / name, references, loaded)
     observed = {"rho": rho, "n": result.n, "spread": result.spread}
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                         observed=observed, predictions=predictions, notes=notes,
                         title=f"flashbrdf run {Path(args.scene_dir).name}")
     stages.bar.close()
-    print(stages.table(), file=sys.stderr)
-    for method, summary in report.get("summary", {}).items():
-        mean = summary.get("delta_e_log_mean", {}).get("mean")
-        if mean is not None:
-            print(f"{method}: mean delta_e_log_mean {mean:.3f} over {summary['references']} "
-                  "reference(s)", file=sys.stderr)
-    print(f"report: {(out / 'report.md').resolve()}")
-    return 0
+    return stages, report

@@ -12,23 +12,25 @@ Photos: each 16-bit PNG k is divided by 65535 and by light_intensities.txt row k
 as a linear float32 EXR, so the directional light has irradiance_rgb = (1, 1, 1) and the contract's
 pixel model reads pixel = rho * cos(theta_i) directly. Clipped pixels (65535 in any channel) are
 written as NaN: their true value is unknown, and NaN is the contract's "not a measurement".
+8-bit PNGs (linear crops, the 16-bit value / 257) are divided by 255 instead, which gives the same
+scale; scene.json then records each photo's bit_depth and a provenance precision_note.
 """
 
-import contextlib
 import os
-import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from brdf.errors import InputError
+from pipeline.safety import check_outputs, staged_output_dir
 from render.images import write_exr
 
 CAMERA_FROM_DILIGENT = np.diag([1.0, -1.0, -1.0])
 WORLD_FROM_CAMERA = np.diag([1.0, -1.0, -1.0, 1.0])  # world = DiLiGenT frame
 PNG16_MAX = 65535
+EIGHT_BIT_NOTE = ("8-bit photos, read as linear (value / 255): 256 levels instead of 65536, so "
+                  "dark pixels are coarse and precision is reduced")
 _NOT_PHOTOS = {"mask.png", "normal_gt.png"}
 
 
@@ -88,15 +90,19 @@ def _photo_paths(folder):
     return paths
 
 
-def read_png16_rgb(path):
-    """Read a 16-bit PNG as (H, W, 3) uint16 RGB (OpenCV, BGR flipped); InputError if not 16-bit."""
+def read_png_rgb(path):
+    """Read a 16-bit (or 8-bit) linear PNG as (H, W, 3) uint16 / uint8 RGB (OpenCV, BGR flipped).
+
+    DiLiGenT ships 16-bit photos; many photometric-stereo repositories ship crops of them as
+    linear 8-bit (the 16-bit value / 257), which import_diligent reads as linear with a note.
+    InputError for any other pixel type or channel count.
+    """
     import cv2
     image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
     if image is None:
         raise InputError(path, "cannot be read as an image")
-    if image.dtype != np.uint16:
-        raise InputError(path, f"expected a 16-bit linear PNG, got {image.dtype} "
-                               "(DiLiGenT photos are 16-bit)")
+    if image.dtype not in (np.uint16, np.uint8):
+        raise InputError(path, f"expected a 16-bit (or 8-bit) linear PNG, got {image.dtype}")
     if image.ndim == 2:
         image = np.repeat(image[..., None], 3, axis=2)
     elif image.shape[2] == 4:
@@ -173,41 +179,13 @@ def dumps_scene(scene):
     return number_list.sub(lambda m: "[" + re.sub(r"\s+", " ", m.group(1)) + "]", text) + "\n"
 
 
-@contextlib.contextmanager
-def atomic_folder(target, marker="scene.json"):
-    """Yield a temporary folder beside `target`; on success it replaces `target` in one rename.
-
-    A previous output folder (one holding the file `marker`) at `target` is replaced; any other
-    non-empty folder or a file there is refused, so that nothing unrelated is ever deleted.
-    """
-    target = Path(target).absolute()
-    if target.exists():
-        if not target.is_dir():
-            raise InputError(target, "exists and is not a folder")
-        if any(target.iterdir()) and not (target / marker).is_file():
-            raise InputError(target, f"exists, is not empty and has no {marker}; refusing to "
-                                     "overwrite it")
-    target.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".part", dir=target.parent))
-    try:
-        yield tmp
-        old = None
-        if target.exists():
-            old = target.parent / f".{target.name}.old.{os.getpid()}"
-            os.replace(target, old)
-        os.replace(tmp, target)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
-
-
-def import_diligent(obj_dir, flash_index, out_dir, progress=None):
+def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, notify=None):
     """Write the contract scene folder for a DiLiGenT object; returns the scene dict.
 
     flash_index: 1-based index of the photo used as the flash (directional light near the view).
     progress: optional callable wrapping an iterable (e.g. tqdm) for the photo loop.
+    force: replace an existing out_dir that flashbrdf made (pipeline.safety.staged_output_dir).
+    notify: optional callable taking one line (the reduced-precision note for 8-bit photos).
     """
     import cv2
 
@@ -217,16 +195,26 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None):
         raise InputError("--flash", f"index {flash_index} outside 1..{k_photos}")
     height, width = obj.mask.shape
     loop = progress(range(k_photos)) if progress else range(k_photos)
-    with atomic_folder(out_dir) as tmp:
-        photos = []
+    check_outputs(inputs=[obj.folder, *obj.photo_paths, obj.folder / "light_directions.txt",
+                          obj.folder / "light_intensities.txt", obj.folder / "mask.png",
+                          obj.folder / "Normal_gt.mat"], outputs=[out_dir], folders=[out_dir])
+    with staged_output_dir(out_dir, force=force, command="import-diligent") as staged:
+        tmp = Path(staged)
+        photos, depths = [], set()
         for k in loop:
             src = obj.photo_paths[k]
-            raw = read_png16_rgb(src)
+            raw = read_png_rgb(src)
             if raw.shape[:2] != (height, width):
                 raise InputError(src, f"size {raw.shape[1]}x{raw.shape[0]} differs from mask.png's "
                                       f"{width}x{height}")
-            clipped = np.any(raw >= PNG16_MAX, axis=2)
-            linear = raw.astype(np.float32) / PNG16_MAX / obj.light_intensities[k].astype(np.float32)
+            top = np.iinfo(raw.dtype).max  # 65535, or 255 for 8-bit crops (65535 / 257)
+            depths.add(raw.dtype.itemsize * 8)
+            if len(depths) > 1:  # one photo of another depth is a mix-up, not a crop
+                raise InputError(src, f"is {raw.dtype.itemsize * 8}-bit but the other photos are "
+                                      f"{(depths - {raw.dtype.itemsize * 8}).pop()}-bit")
+            clipped = np.any(raw >= top, axis=2)
+            linear = raw.astype(np.float32) / np.float32(top) \
+                / obj.light_intensities[k].astype(np.float32)
             linear[clipped] = np.nan
             name = src.stem + ".exr"
             write_exr(tmp / name, linear)
@@ -236,8 +224,8 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None):
                 "light": {"type": "directional",
                           "direction": [float(x) for x in obj.light_directions[k]],
                           "irradiance_rgb": [1.0, 1.0, 1.0]},
-                "source": {"file": src.name, "index": k + 1,
-                           "divided_by_65535_and_intensity_rgb":
+                "source": {"file": src.name, "index": k + 1, "bit_depth": raw.dtype.itemsize * 8,
+                           f"divided_by_{top}_and_intensity_rgb":
                                [float(x) for x in obj.light_intensities[k]],
                            "clipped_pixels_set_to_nan": int(clipped.sum())},
             })
@@ -256,11 +244,15 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None):
                 "flash_index": int(flash_index),
                 "world_frame": "DiLiGenT frame (x image right, y image up, z toward the camera); "
                                "world_from_camera = diag(1,-1,-1,1)",
-                "photos": "16-bit PNG / 65535 / light_intensities.txt row (RGB), float32 EXR; "
-                          "clipped pixels (65535) are NaN",
+                "photos": "16-bit PNG / 65535 (8-bit: / 255) / light_intensities.txt row (RGB), "
+                          "float32 EXR; clipped pixels (the top code value) are NaN",
                 "cite": "B. Shi et al., A Benchmark Dataset and Evaluation for Non-Lambertian and "
                         "Uncalibrated Photometric Stereo, CVPR 2016 (research use only)",
             },
         }
+        if 8 in depths:
+            scene["provenance"]["precision_note"] = EIGHT_BIT_NOTE
+            if notify is not None:
+                notify(f"note: {obj.folder.name}: {EIGHT_BIT_NOTE}")
         (tmp / "scene.json").write_text(dumps_scene(scene), encoding="utf-8")
     return scene

@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from brdf.errors import InputError
-from pipeline.diligent import atomic_folder, dumps_scene
+from pipeline.diligent import dumps_scene
+from pipeline.safety import staged_output_dir
 from render.images import write_exr
 
 CM = 0.01  # metres per centimetre
@@ -123,7 +124,9 @@ def planar_card_scenes(src_dir, out_dir, progress=None):
                               f"{len(lights_cm)} light positions: need one of each per view")
     views = []
     loop = progress(range(len(photos))) if progress else range(len(photos))
-    with atomic_folder(out_dir, marker="views.json") as tmp:
+    # force: a dev tool that rebuilds its own output; it still never replaces a folder it did not make
+    with staged_output_dir(out_dir, force=True, command="real_scenes") as staged:
+        tmp = Path(staged)
         for k in loop:
             linear = read_srgb8_as_linear(photos[k])
             height, width = linear.shape[:2]

@@ -139,11 +139,18 @@ def test_refuses_to_clobber_unrelated_folder(tmp_path, capsys):
     assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "1",
                  "--out", str(tmp_path / "mine")]) == 2
     assert (tmp_path / "mine" / "notes.txt").read_text() == "keep me"
-    # ...but a previous scene folder is replaced as a whole.
+    # --force replaces only a folder flashbrdf made.
+    assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "1",
+                 "--out", str(tmp_path / "mine"), "--force"]) == 2
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "keep me"
+    # ...a previous scene folder is kept without --force, and replaced as a whole with it.
     assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "1",
                  "--out", str(tmp_path / "s")]) == 0
     assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "3",
-                 "--out", str(tmp_path / "s")]) == 0
+                 "--out", str(tmp_path / "s")]) == 2
+    assert "--force" in capsys.readouterr().err
+    assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "3",
+                 "--out", str(tmp_path / "s"), "--force"]) == 0
     assert json.loads((tmp_path / "s" / "scene.json").read_text())["photos"][0]["file"] == "003.exr"
 
 
@@ -198,3 +205,72 @@ def test_real_ball_light_sign_convention(tmp_path, capsys):
     # Division by light_intensities.txt makes the ball's albedo the same under every light.
     assert len(rho_medians) == 9
     assert np.std(rho_medians) / np.mean(rho_medians) < 0.05
+
+
+POT2 = SHARED / "data" / "real" / "diligent-pot2"
+
+
+def test_eight_bit_crops_read_as_linear_with_a_note(tmp_path, capsys):
+    """An 8-bit linear copy (the 16-bit value / 257, as photometric-stereo repositories ship
+    DiLiGenT crops) imports to the 16-bit import's values within 8-bit quantisation.
+
+    8-bit code c = round(v16 / 257), read as c / 255 = v16 / 65535 + e with |e| <= 0.5 / 255; after
+    the division by the light intensity (>= 0.35 here) the bound is 0.5 / 255 / 0.35 = 0.0056.
+    A 16-bit reading of the 8-bit codes (c / 65535) would be 257x too dark and fail it.
+    """
+    make_diligent(tmp_path / "obj16")
+    eight = tmp_path / "obj8"
+    eight.mkdir()
+    for path in (tmp_path / "obj16").iterdir():
+        if path.suffix == ".png" and path.name != "mask.png":
+            png16 = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+            cv2.imwrite(str(eight / path.name), np.round(png16 / 257.0).astype(np.uint8))
+        else:
+            (eight / path.name).write_bytes(path.read_bytes())
+    assert main(["import-diligent", str(tmp_path / "obj16"), "--flash", "1",
+                 "--out", str(tmp_path / "s16")]) == 0
+    capsys.readouterr()
+    assert main(["import-diligent", str(eight), "--flash", "1", "--out", str(tmp_path / "s8")]) == 0
+    out = capsys.readouterr()
+    notes = [line for line in out.out.splitlines() if line.startswith("note:")]
+    assert len(notes) == 1 and "8-bit" in notes[0] and "precision" in notes[0] and not out.err
+    scene = json.loads((tmp_path / "s8" / "scene.json").read_text())
+    assert "8-bit" in scene["provenance"]["precision_note"]
+    assert {p["source"]["bit_depth"] for p in scene["photos"]} == {8}
+    scene16 = json.loads((tmp_path / "s16" / "scene.json").read_text())
+    assert {p["source"]["bit_depth"] for p in scene16["photos"]} == {16}
+    assert "precision_note" not in scene16["provenance"]
+    for k in range(1, 5):
+        a, b = _read_exr(tmp_path / "s8" / f"00{k}.exr"), _read_exr(tmp_path / "s16" / f"00{k}.exr")
+        both = np.isfinite(a) & np.isfinite(b)
+        assert both.sum() > 0.9 * a.size
+        assert np.abs(a - b)[both].max() <= 0.5 / 255 / 0.35
+
+
+@pytest.mark.skipif(not POT2.is_dir(), reason=f"real DiLiGenT pot2 (8-bit) not found at {POT2}")
+def test_real_pot2_eight_bit_imports(tmp_path, capsys):
+    """The real 8-bit pot2 crop (read in place, 3 photos linked) imports with the note, and each
+    EXR pixel is the PNG code / 255 / the light's intensity, exactly up to float32 rounding."""
+    names = (POT2 / "filenames.txt").read_text().split()
+    keep = [51, 0, 40]  # 052 (the near-axis flash) and two others, rows in filenames.txt order
+    small = tmp_path / "pot2_subset"
+    small.mkdir()
+    for k in keep:
+        (small / names[k]).symlink_to(POT2 / names[k])
+    for name in ("mask.png", "Normal_gt.mat"):
+        (small / name).symlink_to(POT2 / name)
+    (small / "filenames.txt").write_text("\n".join(names[k] for k in keep) + "\n")
+    intensities = np.loadtxt(POT2 / "light_intensities.txt")[keep]
+    np.savetxt(small / "light_directions.txt", np.loadtxt(POT2 / "light_directions.txt")[keep])
+    np.savetxt(small / "light_intensities.txt", intensities, fmt="%.9g")
+    out = tmp_path / "pot2"
+    assert main(["import-diligent", str(small), "--flash", "1", "--out", str(out)]) == 0
+    assert "precision is reduced" in capsys.readouterr().out
+    scene = json.loads((out / "scene.json").read_text())
+    assert scene["photos"][0]["file"] == names[51].replace(".png", ".exr")
+    png = cv2.imread(str(POT2 / names[51]), cv2.IMREAD_UNCHANGED)[..., ::-1].astype(np.float64)
+    exr = _read_exr(out / scene["photos"][0]["file"]).astype(np.float64)
+    ok = np.isfinite(exr) & (png < 255)
+    assert ok.sum() > 0.5 * ok.size
+    expected = png / 255.0 / intensities[0]
+    np.testing.assert_allclose(exr[ok], expected[ok], rtol=2e-6, atol=1e-9)

@@ -1,0 +1,251 @@
+"""Output safety, in one place: no command overwrites or deletes an input, or a folder it did not
+make, and a failed command leaves no output behind.
+
+The contract ("Exit status and errors"): an output that is an input, or an output folder that is
+or contains an input, is bad input (exit 2); a new file or subfolder inside a capture folder is
+fine. Every command states what it reads and writes and calls, before any slow work:
+
+    check_outputs(inputs=[scene_dir, *scene_input_files(scene), brdf], outputs=[out_dir],
+                  folders=[out_dir])
+
+and builds a folder output in a temporary sibling that is renamed into place only on success:
+
+    with staged_output_dir(out_dir, force=args.force) as tmp:
+        ...write into tmp...
+
+Folders this tool makes carry the marker file MARKER. An existing folder is replaced only when it
+is empty, or when it carries the marker and `--force` was given; anything else is refused (exit 2),
+so a user's own folder is never deleted. File outputs are written with brdf.atomic.atomic_path.
+
+Paths are compared both as given (absolute, normalised) and as real paths (symlinks resolved), so
+`--out link-to-input` and `--out input-seen-through-a-symlinked-folder` are both caught; existing
+files are also compared by inode, which catches hard links.
+"""
+
+import contextlib
+import json
+import os
+import shutil
+import signal
+import sys
+import tempfile
+import threading
+import time
+
+from brdf.atomic import current_umask, make_parents, remove_empty
+from brdf.errors import InputError
+
+MARKER = ".flashbrdf-output"
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised in the main thread so that every `with` block cleans up (exit 143).
+
+    A BaseException like KeyboardInterrupt: no `except Exception` swallows it.
+    """
+
+
+def _forms(path):
+    """The absolute normalised path and the real path of `path` (either may not exist)."""
+    path = os.fspath(path)
+    return {os.path.normpath(os.path.abspath(path)), os.path.realpath(path)}
+
+
+def _inside(child, parent):
+    """Whether path `child` is `parent` or lies under it (both absolute, normalised)."""
+    return child == parent or child.startswith(parent.rstrip(os.sep) + os.sep)
+
+
+def _same_file(a, b):
+    with contextlib.suppress(OSError):
+        return os.path.samefile(a, b)
+    return False
+
+
+def check_output_kind(path, folder):
+    """InputError when `path` exists as the wrong kind: a folder where a file is to be written, or
+    a file (or anything else) where a folder is to be written."""
+    path = os.fspath(path)
+    if folder and os.path.exists(path) and not os.path.isdir(path):
+        raise InputError(path, "exists and is not a folder (--out names an output folder here)")
+    if not folder and os.path.isdir(path):
+        raise InputError(path, "is a folder (--out names an output file here)")
+
+
+def check_outputs(inputs, outputs, folders=()):
+    """Refuse (InputError) any output that would touch an input, or is of the wrong kind.
+
+    inputs: paths (files or folders) the command reads; None entries are ignored.
+    outputs: every path the command writes (files, and output folders as a whole), sidecars too.
+    folders: those of `outputs` that are folders; the others are files.
+    Raised when an output is an input, when an output folder is or contains an input, when an
+    input folder would be replaced by an output file, or when an output exists as the other kind.
+    """
+    inputs = [os.fspath(p) for p in inputs if p is not None]
+    folder_set = {os.fspath(p) for p in folders}
+    for out in (os.fspath(p) for p in outputs):
+        is_folder = out in folder_set
+        out_forms = _forms(out)
+        for src in inputs:
+            src_forms = _forms(src)
+            if out_forms & src_forms or _same_file(out, src):
+                raise InputError(out, f"is an input ({src}); refusing to overwrite it")
+            if is_folder and any(_inside(s, o) for s in src_forms for o in out_forms):
+                raise InputError(out, f"output folder contains an input ({src}); refusing to "
+                                      "replace it")
+        check_output_kind(out, is_folder)
+        _check_parent(out)
+
+
+def _check_parent(path):
+    """InputError when the output cannot be made: its nearest existing ancestor is not a folder
+    (`--out notes.txt/x.csv`) or cannot be written to."""
+    ancestor = os.path.dirname(os.path.abspath(os.fspath(path)))
+    while not os.path.lexists(ancestor):
+        ancestor = os.path.dirname(ancestor)
+    if not os.path.isdir(ancestor):
+        raise InputError(path, f"cannot be made: {ancestor} is not a folder")
+    if not os.access(ancestor, os.W_OK | os.X_OK):
+        raise InputError(path, f"cannot be made: no permission to write in {ancestor}")
+
+
+def sidecar_json(path):
+    """The JSON written beside a file output: SLICE.csv -> SLICE.json (x.json -> x.report.json)."""
+    path = os.fspath(path)
+    root, ext = os.path.splitext(path)
+    return root + ".report.json" if ext.lower() == ".json" else root + ".json"
+
+
+def _is_marked(folder):
+    return os.path.isfile(os.path.join(folder, MARKER))
+
+
+def _check_replaceable(target, force):
+    """InputError unless the existing `target` may be replaced: missing, an empty folder, or a
+    folder this tool made (marker) with force."""
+    if not os.path.lexists(target):
+        return
+    if os.path.islink(target):
+        raise InputError(target, "is a symbolic link; give the folder it points to (a link is "
+                                 "never replaced)")
+    if not os.path.isdir(target):
+        raise InputError(target, "exists and is not a folder (--out names an output folder here)")
+    if not os.listdir(target):
+        return
+    if not _is_marked(target):
+        raise InputError(target, f"exists, is not empty and was not made by flashbrdf (no {MARKER}); "
+                                 "refusing to replace it")
+    if not force:
+        raise InputError(target, "exists (an earlier flashbrdf output); pass --force to replace it")
+
+
+@contextlib.contextmanager
+def staged_output_dir(path, force=False, command=None):
+    """Yield a fresh temporary folder beside `path`; on success it becomes `path` in one rename.
+
+    path: the output folder. force: replace an existing folder that flashbrdf made.
+    command: recorded in the marker file (e.g. "run").
+    Checked before the body runs and again at the rename (another process may have written `path`
+    meanwhile). On any exception, KeyboardInterrupt and SIGTERM (see handle_signals) included,
+    the temporary folder is removed and nothing at `path` changes.
+    """
+    target = os.path.abspath(os.fspath(path))
+    _check_replaceable(target, force)
+    parent = os.path.dirname(target)
+    created = make_parents(parent)
+    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.", suffix=".part", dir=parent)
+    try:
+        os.chmod(tmp, 0o777 & ~current_umask())
+        with open(os.path.join(tmp, MARKER), "w", encoding="utf-8") as f:
+            json.dump({"tool": "flashbrdf", "command": command,
+                       "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}, f)
+            f.write("\n")
+        yield tmp
+        with _signals_deferred():  # no Ctrl-C between moving the old folder away and renaming
+            _check_replaceable(target, force)
+            old = None
+            if os.path.lexists(target) and os.listdir(target):
+                old = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.", suffix=".old",
+                                       dir=parent)
+                os.replace(target, os.path.join(old, "previous"))
+            os.replace(tmp, target)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        remove_empty(created)
+        raise
+
+
+@contextlib.contextmanager
+def _signals_deferred():
+    """Hold SIGINT and SIGTERM (main thread) while the body runs; they arrive right after."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+
+@contextlib.contextmanager
+def hold_native_stderr(drop_on=(InputError,)):
+    """Hold what is written to file descriptor 2 while the body runs (libpng, OpenEXR and other C
+    libraries print there directly), and pass it on afterwards, unless the body raised one of
+    `drop_on`: bad input then gets exactly the one stderr line the contract promises.
+
+    Only when stderr is not a terminal (on a terminal progress bars must show as they go), and
+    only in the main thread (fd 2 is the process's: threads running commands would race on it).
+    """
+    if not _fd_is_file(2) or threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    with contextlib.suppress(AttributeError, OSError, ValueError):
+        sys.stderr.flush()
+    saved = os.dup(2)
+    buffer = tempfile.TemporaryFile()
+    os.dup2(buffer.fileno(), 2)
+    drop = False
+    try:
+        yield
+    except drop_on:
+        drop = True
+        raise
+    finally:
+        with contextlib.suppress(AttributeError, OSError, ValueError):
+            sys.stderr.flush()
+        os.dup2(saved, 2)
+        os.close(saved)
+        buffer.seek(0)
+        held = buffer.read()
+        buffer.close()
+        if held and not drop:
+            os.write(2, held)
+
+
+def _fd_is_file(fd):
+    try:
+        return not os.isatty(fd) and os.fstat(fd) is not None
+    except OSError:
+        return False
+
+
+@contextlib.contextmanager
+def handle_signals():
+    """While the body runs, SIGTERM raises Terminated in the main thread (so staged outputs are
+    cleaned up like on Ctrl-C). Outside the main thread (e.g. a Dask worker) nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def raise_terminated(signum, frame):
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)

@@ -1,0 +1,606 @@
+"""A corpus of bad inputs for every command: each must exit 2 with one stderr line naming the file
+or field, leave no new file anywhere, and leave every input byte-identical.
+
+The world (a tiny 40x40 sphere capture with a flash photo and an envmap-lit reference, one MERL
+(NBRDF proxy) table, its slice, two EXRs, a DiLiGenT folder, a folder of three MERL tables and
+the shipped model) is built once; a case that needs a broken file breaks a copy in its own
+tmp_path. Before and after each case every file under the world, the case's tmp_path and the
+proxy tables is hashed (sha256; symlinks by their target text): a new file, a removed file, a
+temporary folder left behind or a changed byte fails the case. The valid controls at the end run
+the same commands on good input (exit 0), so a harness that passes everything would fail them.
+"""
+
+import hashlib
+import json
+import os
+import shutil
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipeline.cli import main
+from pipeline.cmd_run import DEFAULT_MODEL
+from pipeline.safety import MARKER
+from synthetic import ggx_lambert, pinhole_camera, point_light, sphere_mesh, write_synthetic_scene
+from test_diligent_import import make_diligent
+
+ENVMAP = Path(__file__).resolve().parents[2] / "shared" / "data" / "envmaps" / \
+    "grace_latlong_256x128.hdr"
+TABLES = ("blue-acrylic", "gold-metallic-paint", "red-specular-plastic")
+
+
+@dataclass
+class World:
+    base: Path
+    scene: Path
+    model: Path
+    brdf: Path
+    slice: Path
+    pred: Path
+    ref: Path
+    diligent: Path
+    merl_dir: Path
+    proxy_dir: Path
+
+
+@pytest.fixture(scope="module")
+def world(merl_proxy, tmp_path_factory):
+    if not ENVMAP.is_file():
+        pytest.skip(f"{ENVMAP} is absent (../shared beside the checkout is needed)")
+    base = tmp_path_factory.mktemp("corpus")
+    scene = write_synthetic_scene(base / "scene", sphere_mesh(subdivisions=3), ggx_lambert(),
+                                  pinhole_camera(40, 40, 100.0), [point_light([0.02, 0, 0])])
+    shutil.copy(ENVMAP, scene / "env.hdr")
+    shutil.copy(scene / "flash0.exr", scene / "ref_env.exr")
+    doc = json.loads((scene / "scene.json").read_text())
+    doc["photos"].append({"file": "ref_env.exr", "role": "reference",
+                          "light": {"type": "envmap", "file": "env.hdr",
+                                    "world_from_envmap": np.eye(3).tolist()}})
+    (scene / "scene.json").write_text(json.dumps(doc, indent=1))
+    tables = merl_proxy(*TABLES)
+    merl_dir = base / "merl"
+    merl_dir.mkdir()
+    for table in tables:
+        (merl_dir / table.name).symlink_to(table)
+    model = base / "model.npz"
+    model.symlink_to(DEFAULT_MODEL)
+    w = World(base, scene, model, tables[0], base / "slice.csv", base / "pred.exr",
+              base / "ref.exr", base / "obj", merl_dir, tables[0].parent)
+    assert main(["merl-slice", str(w.brdf), "--out", str(w.slice)]) == 0
+    shutil.copy(scene / "flash0.exr", w.pred)
+    shutil.copy(scene / "ref_env.exr", w.ref)
+    make_diligent(w.diligent)
+    return w
+
+
+def snapshot(*roots):
+    """{path: ("dir",) | ("link", target) | ("file", sha256)} of everything under the roots."""
+    found = {}
+    for root in roots:
+        for folder, dirs, files in os.walk(root):
+            found[folder] = ("dir",)
+            for name in dirs + files:
+                path = os.path.join(folder, name)
+                if os.path.islink(path):
+                    found[path] = ("link", os.readlink(path))
+                elif name in files:
+                    found[path] = ("file", file_hash(path))
+    return found
+
+
+_HASHES = {}
+
+
+def file_hash(path):
+    """sha256 of a file, remembered under its (inode, size, mtime, ctime): any write changes the
+    ctime (which no user call can set back), so an unchanged key means unchanged bytes, and the
+    35 MB tables are hashed once, not twice per case."""
+    st = os.stat(path)
+    key = (path, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+    if key not in _HASHES:
+        with open(path, "rb") as f:
+            _HASHES[key] = hashlib.sha256(f.read()).hexdigest()
+    return _HASHES[key]
+
+
+# ----- helpers that make broken copies in the case's tmp_path --------------------------------
+def scene_copy(w, tmp, edit=None):
+    """A copy of the world's scene in tmp; edit(doc) changes its scene.json (a dict) in place."""
+    folder = tmp / "scene"
+    shutil.copytree(w.scene, folder)
+    if edit is not None:
+        doc = json.loads((folder / "scene.json").read_text())
+        edit(doc)
+        (folder / "scene.json").write_text(json.dumps(doc))  # NaN / Infinity as Python writes them
+    return folder
+
+
+def scene_with_file(w, tmp, name, data):
+    folder = scene_copy(w, tmp)
+    (folder / name).write_bytes(data)
+    return folder
+
+
+def set_field(path, value):
+    """An edit setting doc[path...] = value, path like ("camera", "width")."""
+    def edit(doc):
+        target = doc
+        for key in path[:-1]:
+            target = target[key]
+        target[path[-1]] = value
+    return edit
+
+
+def truncated(path, fraction=0.5):
+    data = Path(path).read_bytes()
+    return data[:int(len(data) * fraction)]
+
+
+def write(tmp, name, data):
+    path = tmp / name
+    path.write_bytes(data if isinstance(data, bytes) else data.encode())
+    return path
+
+
+def zip_without_npz(tmp):
+    path = tmp / "model.npz"
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("readme.txt", "not a model")
+    return path
+
+
+def npz_of_other_format(tmp):
+    path = tmp / "model.npz"
+    np.savez(path, format=np.array("somebody-elses-model"), names=np.array(["x"]))
+    return path
+
+
+def npz_of_wrong_shapes(tmp):
+    from infer.model_file import FORMAT
+    path = tmp / "model.npz"
+    np.savez(path, format=np.array(FORMAT), names=np.array(["a", "b"]),
+             slices=np.zeros((2, 90)), tables_2d=np.zeros((2, 90, 90, 3)),
+             params=np.array("{}"), merl_dir=np.array(""))
+    return path
+
+
+def marked_folder(tmp):
+    folder = tmp / "old"
+    folder.mkdir()
+    (folder / MARKER).write_text("{}\n")
+    (folder / "report.md").write_text("an earlier result\n")
+    return folder
+
+
+def user_folder(tmp):
+    folder = tmp / "mine"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("keep me\n")
+    return folder
+
+
+def merl_copy(w, tmp, broken=None):
+    """A folder of links to the world's tables, plus `broken` (bytes) as bad.binary."""
+    folder = tmp / "merl"
+    folder.mkdir()
+    for table in w.merl_dir.iterdir():
+        (folder / table.name).symlink_to(os.readlink(table))
+    if broken is not None:
+        (folder / "bad.binary").write_bytes(broken)
+    return folder
+
+
+def diligent_copy(w, tmp, edit=None):
+    folder = tmp / "obj"
+    shutil.copytree(w.diligent, folder)
+    if edit is not None:
+        edit(folder)
+    return folder
+
+
+def merl_header(w, values):
+    data = bytearray(w.brdf.read_bytes())
+    data[:12] = np.array(values, "<i4").tobytes()
+    return bytes(data)
+
+
+def nan_table(w):
+    data = bytearray(w.brdf.read_bytes())
+    data[12 + 8 * 1000:12 + 8 * 1001] = np.array([np.nan]).tobytes()
+    return bytes(data)
+
+
+def png8(folder):
+    import cv2
+    png16 = cv2.imread(str(folder / "002.png"), cv2.IMREAD_UNCHANGED)
+    cv2.imwrite(str(folder / "002.png"), (png16 // 257).astype(np.uint8))
+
+
+def small_exr(tmp, name="small.exr"):
+    from render.images import write_exr
+    path = tmp / name
+    write_exr(path, np.ones((10, 12, 3), np.float32))
+    return path
+
+
+# ----- the corpus: (command, case id, argv builder (world, tmp) -> list, what the line names) ----
+HERE = "<the case's tmp_path>"  # the error line must name the case's own folder
+
+
+def _out(tmp, name="out"):
+    return str(tmp / name)
+
+
+def _run(scene, out, *extra):
+    return ["run", str(scene), "--out", str(out), "--methods", "chandraker", "--spp", "2", *extra]
+
+
+def _render(scene, brdf, out, *extra):
+    return ["render", str(scene), "--brdf", str(brdf), "--out", str(out), "--spp", "2", *extra]
+
+
+CASES = [
+    # merl-slice
+    ("merl-slice", "missing table", lambda w, t: ["merl-slice", str(t / "no.binary"), "--out",
+                                                  _out(t, "s.csv")], "no.binary"),
+    ("merl-slice", "truncated table", lambda w, t: ["merl-slice", str(write(
+        t, "m.binary", truncated(w.brdf))), "--out", _out(t, "s.csv")], "m.binary"),
+    ("merl-slice", "wrong header", lambda w, t: ["merl-slice", str(write(
+        t, "m.binary", merl_header(w, [90, 90, 90]))), "--out", _out(t, "s.csv")], "m.binary"),
+    ("merl-slice", "NaN in the table", lambda w, t: ["merl-slice", str(write(
+        t, "m.binary", nan_table(w))), "--out", _out(t, "s.csv")], "m.binary"),
+    ("merl-slice", "out is the table", lambda w, t: ["merl-slice", str(w.brdf), "--out",
+                                                     str(w.brdf)], TABLES[0]),
+    ("merl-slice", "out is a link to the table", lambda w, t: [
+        "merl-slice", str(w.brdf), "--out", str(link(t / "s.csv", w.brdf))], "s.csv"),
+    ("merl-slice", "out is a folder", lambda w, t: ["merl-slice", str(w.brdf), "--out", str(t)],
+     HERE),
+    ("merl-slice", "out under a file", lambda w, t: [
+        "merl-slice", str(w.brdf), "--out", str(write(t, "f.txt", "x") / "s.csv")], "f.txt"),
+    ("merl-slice", "table is a folder", lambda w, t: ["merl-slice", str(t), "--out",
+                                                      _out(t, "s.csv")], HERE),
+    # extract
+    ("extract", "no scene folder", lambda w, t: ["extract", str(t / "none"), "--out",
+                                                 _out(t, "s.csv")], "none"),
+    ("extract", "scene.json not JSON", lambda w, t: ["extract", str(scene_with_file(
+        w, t, "scene.json", b"{camera: oops")), "--out", _out(t, "s.csv")], "scene.json"),
+    ("extract", "camera.width NaN", lambda w, t: ["extract", str(scene_copy(
+        w, t, set_field(("camera", "width"), float("nan")))), "--out", _out(t, "s.csv")],
+     "scene.json: camera.width"),
+    ("extract", "camera.height Infinity", lambda w, t: ["extract", str(scene_copy(
+        w, t, set_field(("camera", "height"), float("inf")))), "--out", _out(t, "s.csv")],
+     "scene.json: camera.height"),
+    ("extract", "camera.width huge", lambda w, t: ["extract", str(scene_copy(
+        w, t, set_field(("camera", "width"), 10 ** 12))), "--out", _out(t, "s.csv")],
+     "scene.json: camera.width"),
+    ("extract", "light position -Infinity", lambda w, t: ["extract", str(scene_copy(
+        w, t, lambda d: d["photos"][0]["light"]["position"].__setitem__(1, float("-inf")))),
+        "--out", _out(t, "s.csv")], "photos[0].light.position[1]"),
+    ("extract", "NaN in an unknown field", lambda w, t: ["extract", str(scene_copy(
+        w, t, set_field(("provenance",), {"x": [1, float("nan")]}))), "--out", _out(t, "s.csv")],
+     "provenance.x[1]"),
+    ("extract", "camera pose not a rotation", lambda w, t: ["extract", str(scene_copy(
+        w, t, set_field(("camera", "world_from_camera"), (2 * np.eye(4)).tolist()))), "--out",
+        _out(t, "s.csv")], "camera.world_from_camera"),
+    ("extract", "flash photo missing", lambda w, t: ["extract", str(scene_copy(
+        w, t, lambda d: d["photos"][0].__setitem__("file", "gone.exr"))), "--out",
+        _out(t, "s.csv")], "gone.exr"),
+    ("extract", "flash photo truncated", lambda w, t: ["extract", str(scene_with_file(
+        w, t, "flash0.exr", truncated(w.scene / "flash0.exr"))), "--out", _out(t, "s.csv")],
+     "flash0.exr"),
+    ("extract", "mesh is garbage", lambda w, t: ["extract", str(scene_with_file(
+        w, t, "object.ply", b"ply\nformat nonsense\n")), "--out", _out(t, "s.csv")],
+     "object.ply"),
+    ("extract", "out is scene.json", lambda w, t: ["extract", str(w.scene), "--out",
+                                                   str(w.scene / "scene.json")], "scene.json"),
+    ("extract", "out is the flash photo", lambda w, t: ["extract", str(w.scene), "--out",
+                                                        str(w.scene / "flash0.exr")], "flash0"),
+    ("extract", "sidecar would replace scene.json", lambda w, t: [
+        "extract", str(w.scene), "--out", str(w.scene / "scene.csv")], "scene"),
+    ("extract", "out is a folder", lambda w, t: ["extract", str(w.scene), "--out", str(t)],
+     HERE),
+    ("extract", "out is the scene folder", lambda w, t: ["extract", str(w.scene), "--out",
+                                                         str(w.scene)], "scene"),
+    ("extract", "max-theta-d 0", lambda w, t: ["extract", str(w.scene), "--out", _out(t, "s.csv"),
+                                               "--max-theta-d", "0"], "--max-theta-d"),
+    # infer
+    ("infer", "model missing", lambda w, t: ["infer", "--model", str(t / "none.npz"), "--slice",
+                                             str(w.slice), "--out", _out(t, "b.binary")],
+     "none.npz"),
+    ("infer", "model truncated", lambda w, t: ["infer", "--model", str(write(
+        t, "m.npz", truncated(w.model, 0.7))), "--slice", str(w.slice), "--out",
+        _out(t, "b.binary")], "m.npz"),
+    ("infer", "model empty", lambda w, t: ["infer", "--model", str(write(t, "m.npz", b"")),
+                                           "--slice", str(w.slice), "--out", _out(t, "b.binary")],
+     "m.npz"),
+    ("infer", "model is text", lambda w, t: ["infer", "--model", str(write(
+        t, "m.npz", "a model, honest\n")), "--slice", str(w.slice), "--out", _out(t, "b.binary")],
+     "m.npz"),
+    ("infer", "model is another zip", lambda w, t: ["infer", "--model", str(zip_without_npz(t)),
+                                                    "--slice", str(w.slice), "--out",
+                                                    _out(t, "b.binary")], "model.npz"),
+    ("infer", "model of another format", lambda w, t: [
+        "infer", "--model", str(npz_of_other_format(t)), "--slice", str(w.slice), "--out",
+        _out(t, "b.binary")], "model.npz"),
+    ("infer", "model arrays of the wrong shape", lambda w, t: [
+        "infer", "--model", str(npz_of_wrong_shapes(t)), "--method", "pca", "--slice",
+        str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
+    ("infer", "slice header wrong", lambda w, t: ["infer", "--method", "chandraker", "--slice",
+                                                  str(write(t, "s.csv", "a,b,c\n")), "--out",
+                                                  _out(t, "b.binary")], "s.csv"),
+    ("infer", "slice too short", lambda w, t: ["infer", "--method", "chandraker", "--slice", str(
+        write(t, "s.csv", "".join(w.slice.read_text().splitlines(True)[:40]))), "--out",
+        _out(t, "b.binary")], "s.csv"),
+    ("infer", "slice holds NaN", lambda w, t: ["infer", "--method", "chandraker", "--slice", str(
+        write(t, "s.csv", nan_slice(w))), "--out", _out(t, "b.binary")], "s.csv"),
+    ("infer", "out is the slice", lambda w, t: ["infer", "--method", "chandraker", "--slice",
+                                                str(w.slice), "--out", str(w.slice)], "slice.csv"),
+    ("infer", "out is the model", lambda w, t: ["infer", "--model", str(w.model), "--slice",
+                                                str(w.slice), "--out", str(w.model)], "model.npz"),
+    ("infer", "sidecar would replace the slice", lambda w, t: [
+        "infer", "--method", "chandraker", "--slice",
+        str(write(t, "s.json", w.slice.read_bytes())), "--out", _out(t, "s.binary")], "s.json"),
+    ("infer", "out is a folder", lambda w, t: ["infer", "--method", "chandraker", "--slice",
+                                               str(w.slice), "--out", str(t)], HERE),
+    # train
+    ("train", "merl-dir missing", lambda w, t: ["train", "--merl-dir", str(t / "none"), "--out",
+                                                _out(t, "m.npz")], "none"),
+    ("train", "merl-dir empty", lambda w, t: ["train", "--merl-dir", str(empty(t)), "--out",
+                                              _out(t, "m.npz")], "empty"),
+    ("train", "merl-dir is a file", lambda w, t: ["train", "--merl-dir", str(w.slice), "--out",
+                                                  _out(t, "m.npz")], "slice.csv"),
+    ("train", "a truncated table", lambda w, t: ["train", "--merl-dir", str(merl_copy(
+        w, t, truncated(w.brdf, 0.1))), "--out", _out(t, "m.npz")], "bad.binary"),
+    ("train", "out is a table", lambda w, t: ["train", "--merl-dir", str(w.merl_dir), "--out",
+                                              str(w.merl_dir / f"{TABLES[1]}.binary")], TABLES[1]),
+    ("train", "out is the merl-dir", lambda w, t: ["train", "--merl-dir", str(w.merl_dir),
+                                                   "--out", str(w.merl_dir)], "merl"),
+    ("train", "out is a folder", lambda w, t: ["train", "--merl-dir", str(w.merl_dir), "--out",
+                                               str(t)], HERE),
+    # render
+    ("render", "brdf missing", lambda w, t: _render(w.scene, t / "none.binary", _out(t)),
+     "none.binary"),
+    ("render", "brdf truncated", lambda w, t: _render(
+        w.scene, write(t, "b.binary", truncated(w.brdf)), _out(t)), "b.binary"),
+    ("render", "out is the scene", lambda w, t: _render(w.scene, w.brdf, w.scene), "scene"),
+    ("render", "out holds the scene", lambda w, t: _render(w.scene, w.brdf, w.base), "corpus"),
+    ("render", "out is a file", lambda w, t: _render(w.scene, w.brdf, write(t, "f.txt", "x")),
+     "f.txt"),
+    ("render", "out is someone's folder", lambda w, t: _render(w.scene, w.brdf, user_folder(t)),
+     "mine"),
+    ("render", "force on someone's folder", lambda w, t: _render(
+        w.scene, w.brdf, user_folder(t), "--force"), "mine"),
+    ("render", "earlier output without --force", lambda w, t: _render(
+        w.scene, w.brdf, marked_folder(t)), "old"),
+    ("render", "envmap missing", lambda w, t: _render(scene_copy(
+        w, t, lambda d: d["photos"][1]["light"].__setitem__("file", "gone.hdr")), w.brdf,
+        _out(t)), "gone.hdr"),
+    ("render", "envmap garbage", lambda w, t: _render(scene_with_file(
+        w, t, "env.hdr", b"#?RADIANCE\nnonsense"), w.brdf, _out(t)), "env.hdr"),
+    ("render", "world_from_envmap zero", lambda w, t: _render(scene_copy(
+        w, t, lambda d: d["photos"][1]["light"].__setitem__("world_from_envmap",
+                                                            np.zeros((3, 3)).tolist())),
+        w.brdf, _out(t)), "photos[1].light.world_from_envmap"),
+    ("render", "world_from_envmap 3I", lambda w, t: _render(scene_copy(
+        w, t, lambda d: d["photos"][1]["light"].__setitem__("world_from_envmap",
+                                                            (3 * np.eye(3)).tolist())),
+        w.brdf, _out(t)), "photos[1].light.world_from_envmap"),
+    ("render", "world_from_envmap a mirror", lambda w, t: _render(scene_copy(
+        w, t, lambda d: d["photos"][1]["light"].__setitem__(
+            "world_from_envmap", np.diag([1.0, 1.0, -1.0]).tolist())),
+        w.brdf, _out(t)), "photos[1].light.world_from_envmap"),
+    ("render", "reference photo wrong size", lambda w, t: _render(scene_with_file(
+        w, t, "ref_env.exr", small_exr(t).read_bytes()), w.brdf, _out(t)), "ref_env.exr"),
+    ("render", "spp 0", lambda w, t: _render(w.scene, w.brdf, _out(t), "--spp", "0"), "--spp"),
+    # compare
+    ("compare", "pred missing", lambda w, t: ["compare", str(t / "none.exr"), str(w.ref),
+                                              "--out", _out(t)], "none.exr"),
+    ("compare", "ref garbage", lambda w, t: ["compare", str(w.pred), str(write(
+        t, "r.exr", b"\x76\x2f\x31\x01garbage")), "--out", _out(t)], "r.exr"),
+    ("compare", "sizes differ", lambda w, t: ["compare", str(w.pred), str(small_exr(t)),
+                                              "--out", _out(t)], "small.exr"),
+    ("compare", "mask wrong size", lambda w, t: ["compare", str(w.pred), str(w.ref), "--mask",
+                                                 str(small_exr(t, "m.exr")), "--out", _out(t)],
+     "m.exr"),
+    ("compare", "mask garbage", lambda w, t: ["compare", str(w.pred), str(w.ref), "--mask",
+                                              str(write(t, "m.png", b"\x89PNG\r\n\x1a\nxx")),
+                                              "--out", _out(t)], "m.png"),
+    ("compare", "out is pred", lambda w, t: ["compare", str(w.pred), str(w.ref), "--out",
+                                             str(w.pred)], "pred.exr"),
+    ("compare", "out holds pred", lambda w, t: ["compare", str(w.pred), str(w.ref), "--out",
+                                                str(w.base)], "corpus"),
+    ("compare", "out is a file", lambda w, t: ["compare", str(w.pred), str(w.ref), "--out",
+                                               str(write(t, "f.txt", "x"))], "f.txt"),
+    # run
+    ("run", "model truncated", lambda w, t: _run(w.scene, _out(t), "--model", str(write(
+        t, "m.npz", truncated(w.model, 0.7)))), "m.npz"),
+    ("run", "model is text", lambda w, t: _run(w.scene, _out(t), "--model", str(write(
+        t, "m.npz", "not a model\n"))), "m.npz"),
+    ("run", "model damaged inside", lambda w, t: _run(w.scene, _out(t), "--model", str(write(
+        t, "m.npz", flipped_byte(w.model)))), "m.npz"),
+    ("run", "model of another format", lambda w, t: _run(w.scene, _out(t), "--model",
+                                                         str(npz_of_other_format(t))),
+     "model.npz"),
+    ("run", "model missing", lambda w, t: _run(w.scene, _out(t), "--model", str(t / "n.npz")),
+     "n.npz"),
+    ("run", "envmap missing", lambda w, t: _run(scene_copy(
+        w, t, lambda d: d["photos"][1]["light"].__setitem__("file", "gone.hdr")), _out(t)),
+     "gone.hdr"),
+    ("run", "envmap not lat-long", lambda w, t: _run(scene_with_file(
+        w, t, "env.hdr", small_exr(t, "e.exr").read_bytes()), _out(t)), "env.hdr"),
+    ("run", "reference photo wrong size", lambda w, t: _run(scene_with_file(
+        w, t, "ref_env.exr", small_exr(t).read_bytes()), _out(t)), "ref_env.exr"),
+    ("run", "flash photo truncated", lambda w, t: _run(scene_with_file(
+        w, t, "flash0.exr", truncated(w.scene / "flash0.exr")), _out(t)), "flash0.exr"),
+    ("run", "scale NaN", lambda w, t: _run(scene_copy(
+        w, t, lambda d: d["photos"][1]["light"].__setitem__("scale", float("nan"))), _out(t)),
+     "photos[1].light.scale"),
+    ("run", "world_from_envmap 3I", lambda w, t: _run(scene_copy(
+        w, t, lambda d: d["photos"][1]["light"].__setitem__("world_from_envmap",
+                                                            (3 * np.eye(3)).tolist())), _out(t)),
+     "world_from_envmap"),
+    ("run", "out is the scene", lambda w, t: _run(w.scene, w.scene), "scene"),
+    ("run", "out holds the model", lambda w, t: _run(w.scene, w.base), "corpus"),
+    ("run", "out is the model", lambda w, t: _run(w.scene, w.model, "--model", str(w.model)),
+     "model.npz"),
+    ("run", "out is a file", lambda w, t: _run(w.scene, write(t, "f.txt", "x")), "f.txt"),
+    ("run", "out is someone's folder", lambda w, t: _run(w.scene, user_folder(t), "--force"),
+     "mine"),
+    ("run", "earlier output without --force", lambda w, t: _run(w.scene, marked_folder(t)),
+     "old"),
+    ("run", "out under a file", lambda w, t: _run(w.scene, write(t, "f.txt", "x") / "out"),
+     "f.txt"),
+    ("run", "unknown method", lambda w, t: ["run", str(w.scene), "--out", _out(t), "--methods",
+                                            "magic"], "--methods"),
+    # evaluate
+    ("evaluate", "merl-dir missing", lambda w, t: ["evaluate", "--merl-dir", str(t / "none"),
+                                                   "--out", _out(t)], "none"),
+    ("evaluate", "merl-dir empty", lambda w, t: ["evaluate", "--merl-dir", str(empty(t)),
+                                                 "--out", _out(t)], "empty"),
+    ("evaluate", "out is the merl-dir", lambda w, t: ["evaluate", "--merl-dir", str(w.merl_dir),
+                                                      "--out", str(w.merl_dir)], "merl"),
+    ("evaluate", "out holds the merl-dir", lambda w, t: ["evaluate", "--merl-dir",
+                                                         str(w.merl_dir), "--out", str(w.base)],
+     "corpus"),
+    ("evaluate", "out is a file", lambda w, t: ["evaluate", "--merl-dir", str(w.merl_dir),
+                                                "--out", str(write(t, "f.txt", "x"))], "f.txt"),
+    ("evaluate", "out is someone's folder", lambda w, t: [
+        "evaluate", "--merl-dir", str(w.merl_dir), "--out", str(user_folder(t))], "mine"),
+    # import-diligent
+    ("import-diligent", "folder missing", lambda w, t: [
+        "import-diligent", str(t / "none"), "--flash", "1", "--out", _out(t)], "none"),
+    ("import-diligent", "intensities missing", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "light_intensities.txt")
+                                             .unlink())), "--flash", "1", "--out", _out(t)],
+     "light_intensities.txt"),
+    ("import-diligent", "Normal_gt.mat truncated", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "Normal_gt.mat").write_bytes(
+            truncated(f / "Normal_gt.mat")))), "--flash", "1", "--out", _out(t)], "Normal_gt.mat"),
+    ("import-diligent", "photo garbage", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "003.png").write_bytes(
+            b"\x89PNG\r\n\x1a\n..."))), "--flash", "1", "--out", _out(t)], "003.png"),
+    ("import-diligent", "light directions NaN", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "light_directions.txt")
+                                             .write_text("nan 0 1\n0 0 1\n0 0 1\n0 0 1\n"))),
+        "--flash", "1", "--out", _out(t)], "light_directions.txt"),
+    ("import-diligent", "8-bit among 16-bit", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, png8)), "--flash", "1", "--out", _out(t)],
+     "002.png"),
+    ("import-diligent", "out is the folder", lambda w, t: [
+        "import-diligent", str(w.diligent), "--flash", "1", "--out", str(w.diligent)], "obj"),
+    ("import-diligent", "out holds the folder", lambda w, t: [
+        "import-diligent", str(w.diligent), "--flash", "1", "--out", str(w.base)], "corpus"),
+    ("import-diligent", "out is a capture folder", lambda w, t: [
+        "import-diligent", str(w.diligent), "--flash", "1", "--out", str(scene_copy(w, t))],
+     "scene"),
+    ("import-diligent", "flash index 0", lambda w, t: [
+        "import-diligent", str(w.diligent), "--flash", "0", "--out", _out(t)], "--flash"),
+]
+
+
+def link(path, target):
+    path.symlink_to(target)
+    return path
+
+
+def empty(tmp):
+    folder = tmp / "empty"
+    folder.mkdir()
+    return folder
+
+
+def nan_slice(w):
+    lines = w.slice.read_text().splitlines(True)
+    k = next(i for i, line in enumerate(lines) if line[0].isdigit() and ",," not in line)
+    fields = lines[k].split(",")
+    fields[1] = "nan"
+    lines[k] = ",".join(fields)
+    return "".join(lines)
+
+
+def flipped_byte(path):
+    data = bytearray(Path(path).read_bytes())
+    data[len(data) // 2] ^= 0xFF
+    return bytes(data)
+
+
+def test_corpus_size_and_spread():
+    """The issue asks for >= 60 cases over every command."""
+    by_command = {}
+    for command, *_ in CASES:
+        by_command[command] = by_command.get(command, 0) + 1
+    assert len(CASES) >= 60 and len({name for _, name, *_ in CASES}) > 50
+    assert set(by_command) == {"merl-slice", "extract", "infer", "train", "render", "compare",
+                               "run", "evaluate", "import-diligent"}
+
+
+@pytest.mark.parametrize("command,name,argv,names", CASES,
+                         ids=[f"{c}: {n}" for c, n, *_ in CASES])
+def test_bad_input_exits_2_cleanly(world, tmp_path, capfd, command, name, argv, names):
+    args = argv(world, tmp_path)  # builds the broken inputs: part of the "before"
+    assert args[0] == command
+    roots = (world.base, tmp_path, world.proxy_dir)
+    before = snapshot(*roots)
+    capfd.readouterr()
+    status = main([str(a) for a in args])
+    err = capfd.readouterr().err
+    lines = err.strip().splitlines()
+    assert status == 2, err
+    assert len(lines) == 1, err
+    assert (str(tmp_path) if names == HERE else names) in lines[0], lines[0]
+    assert snapshot(*roots) == before
+
+
+# ----- valid controls: the same harness passes good input -------------------------------------
+CONTROLS = [
+    ("merl-slice", lambda w, t: ["merl-slice", str(w.brdf), "--out", _out(t, "s.csv")],
+     lambda w, t: [t / "s.csv"]),
+    ("extract", lambda w, t: ["extract", str(w.scene), "--out", str(t / "s.csv")],
+     lambda w, t: [t / "s.csv", t / "s.json"]),
+    ("infer", lambda w, t: ["infer", "--method", "chandraker", "--slice", str(w.slice),
+                            "--out", str(t / "b.binary")],
+     lambda w, t: [t / "b.binary", t / "b.json"]),
+    ("render", lambda w, t: _render(w.scene, w.brdf, t / "r"),
+     lambda w, t: [t / "r" / "ref_env.exr", t / "r" / "ref_env_compare.json", t / "r" / MARKER]),
+    ("compare", lambda w, t: ["compare", str(w.pred), str(w.ref), "--out", str(t / "c")],
+     lambda w, t: [t / "c" / "compare.json"]),
+    # a new subfolder inside the capture folder is allowed
+    ("run", lambda w, t: _run(w.scene, w.scene / "out"),
+     lambda w, t: [w.scene / "out" / "report.json", w.scene / "out" / "chandraker" /
+                   "ref_env_compare.json"]),
+    ("import-diligent", lambda w, t: ["import-diligent", str(diligent_copy(w, t, png8_all)),
+                                      "--flash", "1", "--out", str(t / "s")],
+     lambda w, t: [t / "s" / "scene.json", t / "s" / "001.exr"]),
+]
+
+
+def png8_all(folder):
+    import cv2
+    for path in folder.glob("0*.png"):
+        png16 = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(path), (png16 // 257).astype(np.uint8))
+
+
+@pytest.mark.parametrize("command,argv,outputs", CONTROLS, ids=[c for c, *_ in CONTROLS])
+def test_valid_control_exits_0_and_keeps_inputs(world, tmp_path, capfd, command, argv,
+                                                 outputs):
+    args = argv(world, tmp_path)
+    roots = (world.base, tmp_path, world.proxy_dir)
+    before = snapshot(*roots)
+    try:
+        status = main([str(a) for a in args])
+        err = capfd.readouterr().err
+        assert status == 0, err
+        after = snapshot(*roots)
+        assert {k: after.get(k) for k in before} == before  # every input unchanged
+        for path in outputs(world, tmp_path):
+            assert path.is_file(), path
+        assert not [p for p in after if p not in before and ".part" in p]
+        # nothing written names the temporary folder it was built in
+        texts = [p for p in after if p not in before and p.endswith((".json", ".md", ".csv"))]
+        assert texts and not [p for p in texts if ".part" in Path(p).read_text()]
+    finally:
+        shutil.rmtree(world.scene / "out", ignore_errors=True)  # keep the world as it was

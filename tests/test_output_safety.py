@@ -1,0 +1,129 @@
+"""pipeline.safety: outputs never touch inputs, folder outputs appear whole or not at all, --force
+replaces only folders flashbrdf made, Ctrl-C / SIGTERM leave nothing, concurrent runs keep apart.
+"""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from brdf.errors import InputError
+from pipeline.safety import MARKER, check_outputs, staged_output_dir
+from test_bad_input_corpus import snapshot, world  # noqa: F401  (the corpus's tiny capture)
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_check_outputs_sees_through_symlinks_and_hard_links(tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    table = data / "t.binary"
+    table.write_bytes(b"x")
+    (tmp_path / "alias").symlink_to(data)
+    os.link(table, tmp_path / "hard.binary")
+    for out in (tmp_path / "alias" / "t.binary", tmp_path / "hard.binary"):
+        with pytest.raises(InputError, match="is an input"):
+            check_outputs(inputs=[table], outputs=[out])
+    # a folder output that holds an input, seen through the link
+    with pytest.raises(InputError, match="contains an input"):
+        check_outputs(inputs=[tmp_path / "alias" / "t.binary"], outputs=[data], folders=[data])
+    # a new file or subfolder inside an input folder is fine
+    check_outputs(inputs=[data, table], outputs=[data / "new.csv", data / "sub"],
+                  folders=[data / "sub"])
+
+
+def test_staged_output_dir_is_all_or_nothing_and_force_replaces_only_its_own(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(RuntimeError):
+        with staged_output_dir(out) as tmp:
+            (Path(tmp) / "half.txt").write_text("half")
+            raise RuntimeError("a bug part-way")
+    assert sorted(os.listdir(tmp_path)) == []  # neither the output nor its temporary sibling
+    with staged_output_dir(out, command="test") as tmp:
+        (Path(tmp) / "a.txt").write_text("first")
+    assert json.loads((out / MARKER).read_text())["command"] == "test"
+    with pytest.raises(InputError, match="--force"):
+        with staged_output_dir(out):
+            pass
+    with staged_output_dir(out, force=True) as tmp:
+        (Path(tmp) / "b.txt").write_text("second")
+    assert sorted(os.listdir(out)) == sorted([MARKER, "b.txt"])
+    assert sorted(os.listdir(tmp_path)) == ["out"]
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep")
+    with pytest.raises(InputError, match="not made by flashbrdf"):
+        with staged_output_dir(tmp_path / "mine", force=True):
+            pass
+    # Another process wrote the output meanwhile: refused at the rename, the newcomer's is kept.
+    with pytest.raises(InputError):
+        with staged_output_dir(tmp_path / "late") as tmp:
+            (tmp_path / "late").mkdir()
+            (tmp_path / "late" / "theirs.txt").write_text("theirs")
+    assert os.listdir(tmp_path / "late") == ["theirs.txt"]
+    assert not [p for p in os.listdir(tmp_path) if p.endswith(".part")]
+
+
+def _run_command(world, out):
+    return [sys.executable, "-m", "pipeline", "run", str(world.scene), "--out", str(out),
+            "--methods", "chandraker", "--spp", "2"]
+
+
+def test_two_runs_of_one_scene_at_once_do_not_interfere(world, tmp_path):  # noqa: F811
+    """Both succeed, each output is whole, and the two predictions are byte-identical (the run
+    is deterministic, so any cross-talk through a shared temporary file would show)."""
+    procs = [subprocess.Popen(_run_command(world, tmp_path / name), cwd=REPO,
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+             for name in ("a", "b")]
+    results = [p.communicate(timeout=300) for p in procs]
+    assert [p.returncode for p in procs] == [0, 0], [r[1].decode() for r in results]
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert (a / "chandraker" / "brdf.binary").read_bytes() == \
+        (b / "chandraker" / "brdf.binary").read_bytes()
+    assert (a / "slice.csv").read_text().splitlines()[1:] == \
+        (b / "slice.csv").read_text().splitlines()[1:]
+    rows = [json.loads((x / "report.json").read_text())["references"] for x in (a, b)]
+    assert [r["delta_e_log_mean"] for r in rows[0]] == [r["delta_e_log_mean"] for r in rows[1]]
+    assert sorted(os.listdir(tmp_path)) == ["a", "b"]  # no temporary folder left
+
+
+def test_interrupted_run_leaves_nothing(world, tmp_path):  # noqa: F811
+    """Sent SIGTERM while it works in its temporary folder, `run` exits 143 and leaves neither the
+    output nor the temporary folder, and the scene is unchanged."""
+    before = snapshot(world.scene)
+    proc = subprocess.Popen(_run_command(world, tmp_path / "out"), cwd=REPO,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    while not [p for p in os.listdir(tmp_path) if p.endswith(".part")]:
+        assert proc.poll() is None and time.monotonic() < deadline, proc.stderr.read().decode()
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 143, err.decode()
+    assert os.listdir(tmp_path) == []
+    assert snapshot(world.scene) == before
+
+
+@pytest.mark.parametrize("sig,status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+def test_signal_inside_a_command_exits_130_or_143_with_nothing_written(tmp_path, monkeypatch,
+                                                                       capsys, sig, status):
+    """In-process: the signal arrives while a command writes its staged folder."""
+    from pipeline import commands
+    from pipeline.cli import main
+
+    def interrupted_compare(args):
+        with staged_output_dir(args.out) as tmp:
+            (Path(tmp) / "half.json").write_text("{}")
+            os.kill(os.getpid(), sig)
+            time.sleep(5)  # the handler raises before this ends
+        return 0
+
+    monkeypatch.setattr(commands, "compare", interrupted_compare)
+    assert main(["compare", "a.exr", "b.exr", "--out", str(tmp_path / "out")]) == status
+    assert os.listdir(tmp_path) == []
+    assert "no output written" in capsys.readouterr().err
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL or sig == signal.SIGINT
