@@ -167,8 +167,9 @@ class DSGPLVMMethod(InferenceMethod):
         table = colour.features_to_rho(np.nan_to_num(mean), space=self.feature_space)
         invalid = ~valid_mask_2d() | ~np.isfinite(mean).all(axis=-1)
         table[invalid] = np.nan
-        var = np.asarray(var, float)
-        var = var.reshape(90, 90, 3).copy() if var.size > 1 else self.bin_variance(var.ravel()[0])
+        # the GP's variance is one number per view (isotropic), broadcast over its dimensions
+        var = np.asarray(var, float).ravel()
+        var = self.bin_variance(var[np.isfinite(var)][0] if np.isfinite(var).any() else np.nan)
         var[invalid] = np.nan
         return table, var
 
@@ -214,3 +215,26 @@ def optimise_latent(model, feats, n_starts=5):
     starts = [model.project(feats)[0]] + [model.latent_[i] for i in np.argsort(d2)[:n_starts - 1]]
     best = min((minimize(nll, x0, method="L-BFGS-B") for x0 in starts), key=lambda r: r.fun)
     return best.x[None]
+
+
+def calibration_factor(method, slices, tables_2d, coverage=0.9):
+    """κ that makes a fitted method's central `coverage` intervals cover that share of held-out
+    bins: the squared ratio of the `coverage` quantile of |z| to the normal one, z the residual of
+    each (θh, θd > 0, channel) bin in the method's feature space over its predicted standard
+    deviation. slices (M, 90, 3), tables_2d (M, 90, 90, 3) in 1/sr, never trained on. The θd = 0
+    row is left out: anchoring makes it the observation."""
+    from scipy.stats import norm
+    z = []
+    for rho, true in zip(slices, tables_2d):
+        pred, var = method.predict(rho, "2d")
+        space = getattr(method, "feature_space", "rgb")
+        resid = (colour.rho_to_features(np.nan_to_num(true), space=space)
+                 - colour.rho_to_features(np.nan_to_num(pred), space=space))
+        ok = np.isfinite(true).all(-1)[..., None] & np.isfinite(var) & (var > 0)
+        ok[:, 0] = False
+        z.append(np.abs(resid[ok]) / np.sqrt(var[ok]))
+    z = np.concatenate(z)
+    if not z.size:
+        return 1.0
+    return float((np.quantile(z, coverage) / norm.ppf(0.5 + coverage / 2)) ** 2)
+

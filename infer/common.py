@@ -192,6 +192,11 @@ class InferenceMethod:
         values = stream_combination(self.training_, weights, space)
         return scatter_valid(values), None
 
+    def novelty(self, flash_slice):
+        """How far a slice lies from what the method was trained on (> 1: outside), or None for
+        methods that do not measure it."""
+        return None
+
     def get_params(self):
         return {}
 

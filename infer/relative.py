@@ -18,6 +18,8 @@ For one channel c with level L (median of the observed slice over θh < LEVEL_MA
 are (90,) over θh, (90, 90) over (θh, θd) or (n, ) over valid 3D bins with their θh index.
 """
 
+import warnings
+
 import numpy as np
 
 from brdf import merl
@@ -134,7 +136,8 @@ class RelativeDSGPLVMMethod(InferenceMethod):
                                   max_cycles=self.max_cycles, seed=self.seed,
                                   views=("1d", "2d"), **self.model_kw).fit(
                 {"1d": feats, "2d": ratios}, labels=None if labels is None else np.repeat(labels, 3))
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)   # columns no training row has
             self.ratio_range_ = (np.nanmin(ratios, axis=0), np.nanmax(ratios, axis=0))
         self.bin_variance_ = loo_bin_variance(self.model_.posteriors_["2d"],
                                               self.model_.view_data_["2d"].data)

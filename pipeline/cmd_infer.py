@@ -1,6 +1,7 @@
 """`flashbrdf train`, `infer` and `evaluate`: the infer stage's commands."""
 
 import json
+import sys
 import time
 from pathlib import Path
 
@@ -33,7 +34,8 @@ def train(args):
                             feature_space=getattr(args, "feature_space", "auto"))
     space = params["dsgplvm"]["feature_space"]
     model = DSGPLVMMethod(views=wanted, seed=args.seed, feature_space=space).fit(training)
-    params["dsgplvm"] = {"feature_space": space, "views": wanted, "seed": args.seed}
+    params["dsgplvm"] = {"feature_space": space, "views": wanted, "seed": args.seed,
+                         "calibration": params["dsgplvm"]["calibration"]}
     params["train_seconds"] = time.perf_counter() - start
     from infer import save_model
     save_model(args.out, training, params, dsgplvm=model.model_, merl_dir=args.merl_dir)
@@ -55,7 +57,7 @@ def _uncertainty_summary(variance, feature_label):
 
 def infer(args):
     """Predict a full MERL table from a slice; write it and BRDF.json beside it."""
-    from infer import load_method, make_method
+    from infer import load_method, make_method, novelty_warning
     t0 = time.perf_counter()
     json_path = sidecar_json(args.out)
     check_outputs(inputs=[args.model, args.slice, *_merl_inputs(args.merl_dir)],
@@ -81,6 +83,9 @@ def infer(args):
     t1 = time.perf_counter()
     table, variance = method.predict(rho, view=view)
     t2 = time.perf_counter()
+    novelty, warning = novelty_warning(method, rho, args.slice)
+    if warning:
+        print(warning, file=sys.stderr)
     if view == "2d":
         table = views.table_3d_from_2d(table)
     table = np.where(np.isfinite(table), table, -1.0)
@@ -94,7 +99,9 @@ def infer(args):
               "params": method.get_params(),
               "timings": {"load_s": t1 - t0, "predict_s": t2 - t1, "write_s": t3 - t2,
                           "total_s": t3 - t0},
-              "uncertainty": _uncertainty_summary(variance, getattr(method, "feature_label", ""))}
+              "uncertainty": _uncertainty_summary(variance, getattr(method, "feature_label", "")),
+              "novelty": None if novelty is None else
+              {"score": novelty, "out_of_distribution": bool(novelty > 1.0)}}
     try:
         write_text(json_path, json.dumps(report, indent=2, default=str) + "\n")
     except BaseException:

@@ -96,11 +96,13 @@ def _load_methods(names, model_path, anchor):
 def _infer(method, method_name, model_path, rho, out_dir):
     """Predict a 2D table (or 3D where the model stores 3D data); write brdf.binary + brdf.json."""
     from brdf import merl, views
+    from infer import novelty_warning
     start = time.perf_counter()
     view = "3d" if getattr(getattr(method, "training_", None), "valid_3d", None) is not None \
         else "2d"
     table, variance = method.predict(rho, view=view)
     seconds = time.perf_counter() - start
+    novelty, warning = novelty_warning(method, rho, f"{method_name}")
     full = views.table_3d_from_2d(table) if view == "2d" else table
     full = np.where(np.isfinite(full), full, -1.0)
     full[~merl.merl_valid_mask()] = -1.0
@@ -108,10 +110,10 @@ def _infer(method, method_name, model_path, rho, out_dir):
     merl.write_merl(out_dir / "brdf.binary", full)
     write_text(out_dir / "brdf.json", json.dumps({
         "method": method_name, "model": None if model_path is None else str(model_path),
-        "view": view, "predict_seconds": seconds,
+        "view": view, "predict_seconds": seconds, "novelty": novelty,
         "predicted": "2D table copied across phi_d" if view == "2d" else "3D table"}, indent=2))
     label = "predictive variance (" + getattr(method, "feature_label", "features") + ")"
-    return table, variance, view, label
+    return table, variance, view, label, warning
 
 
 def _check_references(references):
@@ -196,10 +198,13 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
     rho = write_extraction(out / "slice.csv", args.scene_dir, result, options,
                            final_path=Path(args.out) / "slice.csv")
 
-    predictions, two_d = {}, []
+    predictions, two_d, ood_warnings = {}, [], []
     for name in methods:
-        table, variance, view, label = stages.run(f"infer {name}", _infer, fitted[name], name,
-                                                  model_path, rho, out / name)
+        table, variance, view, label, warning = stages.run(
+            f"infer {name}", _infer, fitted[name], name, model_path, rho, out / name)
+        if warning:
+            print(warning, file=sys.stderr)
+            ood_warnings.append(warning.removeprefix("warning: "))
         predictions[name] = {"table": table, "variance": variance, "file": f"{name}/brdf.binary",
                              "variance_label": label}
         if view == "2d":
@@ -223,6 +228,7 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
     observed = {"rho": rho, "n": result.n, "spread": result.spread}
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                         observed=observed, predictions=predictions, notes=notes,
+                        warnings=ood_warnings,
                         title=f"flashbrdf run {Path(args.scene_dir).name}")
     stages.bar.close()
     return stages, report

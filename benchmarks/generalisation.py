@@ -1,0 +1,208 @@
+"""Generalisation beyond MERL: every method scored on measured materials it was not trained on.
+
+    PYTHONPATH=$PWD nice -n 10 python benchmarks/generalisation.py --merl-dir MERL --test-dir RGL
+        [--folds 5] [--seed 0] [--out benchmarks/results]
+
+MERL and RGL here are the MERL (NBRDF proxy) and RGL (NBRDF proxy) tables written by
+../shared/tools/merl_proxy.py (the RGL ones with --weights ../shared/data/rgl-nbrdf-dev/...).
+
+Two settings, each 2D Table-1 metrics per material and per θd band:
+- "merl-only": trained on every --merl-dir table, tested on every --test-dir table (what the shipped
+  model, trained on MERL only, meets on a felt or a paper);
+- "merl+test-folds": the --test-dir tables cut into seeded folds; each fold is predicted by methods
+  trained on MERL plus the other folds, so no claim rests on a material that was trained on (what
+  `flashbrdf train --merl-dir MERL --merl-dir MY_TABLES` gives for materials of the same kinds).
+Hyperparameters are chosen exactly as `flashbrdf train` chooses them (infer.evaluate.tune_baselines:
+a seeded 80/20 split of the training tables, never the test tables), including the DS-GPLVM's
+variance calibration κ. Also reported: the share of held-out (θh, θd > 0, channel) bins inside the
+central 90% interval of the default method, the novelty warnings, and prediction / fit times.
+"dsgplvm-relative" is the relative representation (infer.relative), scored beside the default.
+Writes OUT/generalisation.{json,md}.
+"""
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from brdf import colour, merl, metrics  # noqa: E402
+from infer import TrainingSet, make_method, novelty_warning  # noqa: E402
+from infer.evaluate import PAPER_FIXED, tune_baselines  # noqa: E402
+
+BANDS_DEG = ((0, 30), (30, 60), (60, 75), (75, 90))
+METHODS = ("dsgplvm", "dsgplvm-paper", "dsgplvm-relative", "pca", "noll", "chandraker",
+           "ashikhmin")
+BASELINES = ("pca", "noll", "chandraker", "ashikhmin")
+
+
+def band_errors(pred, true):
+    """2D LAB-log over all bins and over each θd band of BANDS_DEG: [all, band...]."""
+    theta_d = np.degrees(merl.theta_d_centres())
+    out = [metrics.brdf_error(pred, true)]
+    for low, high in BANDS_DEG:
+        cols = (theta_d >= low) & (theta_d < high)
+        out.append(metrics.brdf_error(pred[:, cols], true[:, cols]))
+    return out
+
+
+def interval_hits(method, pred, variance, true, coverage=0.9):
+    """(bins inside the central `coverage` interval, bins scored) in the method's feature space,
+    θd > 0 (θd = 0 is the observation)."""
+    from scipy.stats import norm
+    space = getattr(method, "feature_space", "rgb")
+    resid = (colour.rho_to_features(np.nan_to_num(true), space=space)
+             - colour.rho_to_features(np.nan_to_num(pred), space=space))
+    ok = np.isfinite(true).all(-1)[..., None] & np.isfinite(variance) & (variance > 0)
+    ok[:, 0] = False
+    z = np.abs(resid[ok]) / np.sqrt(variance[ok])
+    return int((z <= norm.ppf(0.5 + coverage / 2)).sum()), int(ok.sum())
+
+
+def fit_all(training, seed):
+    """{method: fitted estimator}, {method: fit seconds}, hyperparameters as `flashbrdf train`."""
+    t0 = time.perf_counter()
+    params = tune_baselines(training, seed=seed)
+    tune_s = time.perf_counter() - t0
+    fitted, seconds = {}, {}
+    for name in METHODS:
+        if name == "dsgplvm":
+            kw = params["dsgplvm"] | {"anchor": True, "seed": seed}
+        elif name == "dsgplvm-paper":
+            kw = {"seed": seed} | PAPER_FIXED
+        elif name == "dsgplvm-relative":
+            kw = {"representation": "relative", "seed": seed}
+        else:
+            kw = params.get(name, {})
+        start = time.perf_counter()
+        fitted[name] = make_method("dsgplvm" if name.startswith("dsgplvm") else name, **kw) \
+            .fit(training)
+        seconds[name] = time.perf_counter() - start
+    seconds["tune"] = tune_s
+    return fitted, seconds, params
+
+
+def score(fitted, test, index, records):
+    """Append one record per (method, test material) to `records`."""
+    for name, method in fitted.items():
+        for i in index:
+            start = time.perf_counter()
+            pred, variance = method.predict(test.slices[i], "2d")
+            ms = 1e3 * (time.perf_counter() - start)
+            errs = band_errors(pred, test.tables_2d[i])
+            rec = {"method": name, "material": test.names[i], "lab_log": errs[0],
+                   "bands": errs[1:], "predict_ms": ms}
+            if name == "dsgplvm":
+                rec["hits"], rec["bins"] = interval_hits(method, pred, variance, test.tables_2d[i])
+                rec["novelty"], warning = novelty_warning(method, test.slices[i])
+                rec["warned"] = warning is not None
+            records.append(rec)
+
+
+def summarise(records):
+    out = {}
+    for name in METHODS:
+        rs = [r for r in records if r["method"] == name]
+        if not rs:
+            continue
+        lab = np.array([r["lab_log"] for r in rs])
+        bands = np.array([r["bands"] for r in rs])
+        out[name] = {"lab_log_mean": float(lab.mean()), "lab_log_median": float(np.median(lab)),
+                     "bands_mean": bands.mean(0).tolist(),
+                     "predict_ms": float(np.median([r["predict_ms"] for r in rs])),
+                     "materials": len(rs)}
+        if name == "dsgplvm":
+            out[name]["coverage90"] = float(sum(r["hits"] for r in rs) / sum(r["bins"] for r in rs))
+            out[name]["warned"] = int(sum(r["warned"] for r in rs))
+    return out
+
+
+def markdown(result):
+    lines = ["# Generalisation: methods trained on MERL (NBRDF proxy), tested on RGL (NBRDF proxy)",
+             "", f"`{result['command']}`", ""]
+    for setting, block in result["settings"].items():
+        s = block["summary"]
+        best = min(BASELINES, key=lambda m: s[m]["lab_log_mean"])
+        lines += [f"## {setting}", "", block["what"], "",
+                  "| method | 2D LAB-log mean / median | " + " | ".join(
+                      f"θd {a}–{b}°" for a, b in BANDS_DEG) + " | predict ms |",
+                  "|---|---|" + "---|" * len(BANDS_DEG) + "---|"]
+        for name in METHODS:
+            r = s[name]
+            lines.append(f"| {name} | {r['lab_log_mean']:.2f} / {r['lab_log_median']:.2f} | "
+                         + " | ".join(f"{v:.2f}" for v in r["bands_mean"])
+                         + f" | {r['predict_ms']:.0f} |")
+        d = s["dsgplvm"]
+        lines += ["", f"- Best baseline by mean: **{best}**. dsgplvm / {best}: mean "
+                  f"{d['lab_log_mean'] / s[best]['lab_log_mean']:.2f}×, median "
+                  f"{d['lab_log_median'] / s[best]['lab_log_median']:.2f}× (target ≤ 0.9×).",
+                  f"- Central 90% intervals of dsgplvm hold {100 * d['coverage90']:.1f}% of the "
+                  f"held-out bins (θd > 0; target 80–95%).",
+                  f"- Novelty warnings: {d['warned']} of {d['materials']} materials.",
+                  f"- Fit seconds: " + ", ".join(f"{k} {v:.0f}" for k, v in
+                                                  block["fit_seconds"].items()), ""]
+        lines += ["| material | " + " | ".join(METHODS) + " |",
+                  "|---|" + "---|" * len(METHODS)]
+        for mat in block["materials"]:
+            row = {r["method"]: r["lab_log"] for r in block["records"] if r["material"] == mat}
+            lines.append(f"| {mat} | " + " | ".join(f"{row[m]:.2f}" for m in METHODS) + " |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--merl-dir", required=True)
+    p.add_argument("--test-dir", required=True)
+    p.add_argument("--folds", type=int, default=5)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--settings", default="merl-only,merl+test-folds")
+    p.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
+    args = p.parse_args(argv)
+    merl_set = TrainingSet.from_merl_dir(args.merl_dir)
+    test = TrainingSet.from_merl_dir(args.test_dir)
+    result = {"command": "PYTHONPATH=$PWD nice -n 10 python benchmarks/generalisation.py "
+                         + " ".join(sys.argv[1:] if argv is None else argv),
+              "train": "MERL (NBRDF proxy)", "test": "RGL (NBRDF proxy)", "settings": {}}
+    wanted = args.settings.split(",")
+    if "merl-only" in wanted:
+        fitted, seconds, params = fit_all(merl_set, args.seed)
+        records = []
+        score(fitted, test, range(len(test)), records)
+        result["settings"]["merl-only"] = {
+            "what": f"Trained on the {len(merl_set)} MERL (NBRDF proxy) tables only.",
+            "fit_seconds": seconds, "params": params, "records": records,
+            "materials": list(test.names), "summary": summarise(records)}
+        print("merl-only", json.dumps(summarise(records)["dsgplvm"]), flush=True)
+    if "merl+test-folds" in wanted:
+        order = np.random.default_rng(args.seed).permutation(len(test))
+        folds = np.array_split(order, args.folds)
+        records, fit_s = [], {}
+        for k, fold in enumerate(folds):
+            rest = np.sort(np.concatenate([f for j, f in enumerate(folds) if j != k]))
+            both = TrainingSet(list(merl_set.names) + [test.names[i] for i in rest],
+                               np.concatenate([merl_set.slices, test.slices[rest]]),
+                               np.concatenate([merl_set.tables_2d, test.tables_2d[rest]]))
+            fitted, seconds, _ = fit_all(both, args.seed)
+            score(fitted, test, np.sort(fold), records)
+            for name, s in seconds.items():
+                fit_s[name] = fit_s.get(name, 0.0) + s / len(folds)
+            print(f"fold {k}", json.dumps(summarise(records)["dsgplvm"]), flush=True)
+        result["settings"]["merl+test-folds"] = {
+            "what": f"{args.folds} seeded folds of the test tables: each fold predicted by methods "
+                    f"trained on MERL plus the other folds (never on the fold itself).",
+            "fit_seconds": fit_s, "records": records, "materials": list(test.names),
+            "summary": summarise(records)}
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "generalisation.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
+    (out / "generalisation.md").write_text(markdown(result) + "\n")
+    print(markdown(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

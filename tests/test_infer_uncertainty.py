@@ -1,0 +1,101 @@
+"""Per-bin uncertainty, its calibration, the novelty warning, the estimator contract of the DS-GPLVM
+adapter and the relative representation, on synthetic Ashikhmin–Premože materials whose tables are
+known (tests/test_infer_baselines.py builds them on MERL bin centres)."""
+
+import numpy as np
+import pytest
+
+from infer import DSGPLVMMethod, RelativeDSGPLVMMethod, make_method, novelty_warning
+from infer.adapter import calibration_factor
+from infer.relative import channel_levels, from_ratio, ratio_field
+from infer.common import fill_slice
+from tests.test_infer_baselines import ap_material, training_set
+
+
+@pytest.fixture(scope="module")
+def materials():
+    rng = np.random.default_rng(7)
+    rows = [ap_material(a, r0, rng.uniform(0.1, 1, 3), diffuse=d)
+            for a, r0, d in [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02),
+                             (0.5, 0.9, 0.5), (0.15, 0.2, 0.05), (0.7, 0.05, 0.8),
+                             (0.25, 0.3, 0.2), (0.12, 0.06, 0.4), (0.45, 0.15, 0.1)]]
+    return training_set(rows)
+
+
+@pytest.fixture(scope="module")
+def fitted(materials):
+    return DSGPLVMMethod(max_cycles=3, anchor=True, feature_space="rgb").fit(materials.subset(range(7)))
+
+
+def test_variance_is_per_bin_and_scales_with_calibration(fitted, materials):
+    table, var = fitted.predict(materials.slices[7], "2d")
+    valid = np.isfinite(materials.tables_2d[7]).all(-1)
+    assert var.shape == (90, 90, 3) and np.isfinite(var[valid]).all() and (var[valid] > 0).all()
+    # per bin, not one number per view: the leave-one-out shape varies over (θh, θd)
+    assert np.nanstd(var) / np.nanmean(var) > 0.1
+    # κ multiplies the variance and nothing else
+    scaled = make_method("dsgplvm", **(fitted.get_params() | {"calibration": 4.0}),
+                         model=fitted.model_).fit(materials.subset(range(7)))
+    table4, var4 = scaled.predict(materials.slices[7], "2d")
+    np.testing.assert_array_equal(table4, table)
+    np.testing.assert_allclose(var4[valid], 4.0 * var[valid], rtol=1e-12)
+
+
+def test_calibration_factor_undoes_a_known_miscalibration(fitted, materials):
+    held = [7, 8]
+    kappa = calibration_factor(fitted, materials.slices[held], materials.tables_2d[held])
+    assert np.isfinite(kappa) and kappa > 0
+    # z ∝ 1/sqrt(κ): a method already scaled by c needs κ/c, exactly (same residuals)
+    scaled = make_method("dsgplvm", **(fitted.get_params() | {"calibration": 3.0}),
+                         model=fitted.model_).fit(materials.subset(range(7)))
+    again = calibration_factor(scaled, materials.slices[held], materials.tables_2d[held])
+    assert again == pytest.approx(kappa / 3.0, rel=1e-9)
+    calibrated = make_method("dsgplvm", **(fitted.get_params() | {"calibration": kappa}),
+                             model=fitted.model_).fit(materials.subset(range(7)))
+    # after calibration, the 90% quantile of |z| on the same bins is the normal one: κ becomes 1
+    assert calibration_factor(calibrated, materials.slices[held],
+                              materials.tables_2d[held]) == pytest.approx(1.0, rel=1e-9)
+
+
+def test_novelty_is_zero_on_training_slices_and_warns_off_them(fitted, materials):
+    score, warning = novelty_warning(fitted, materials.slices[0])
+    assert score < 1e-6 and warning is None
+    th = np.linspace(0, 1, 90)[:, None]
+    chrome = 10 ** (np.log10(4e3) - (np.log10(4e3) + 3) * th) * np.ones((1, 3))
+    one_bin = np.full((90, 3), np.nan)
+    one_bin[40] = 0.1
+    grazing = np.full((90, 3), np.nan)
+    grazing[80:] = 0.05                                   # only θh > 70° observed
+    valid = np.isfinite(materials.tables_2d[0]).all(-1)
+    for s in (chrome, np.zeros((90, 3)), one_bin, grazing):
+        _, warning = novelty_warning(fitted, s, "s.csv")
+        assert warning is not None and warning.startswith("warning: s.csv:") and "\n" not in warning
+        table, var = fitted.predict(s, "2d")
+        assert np.isfinite(table[valid]).all() and np.isfinite(var[valid]).all()
+
+
+def test_refit_on_other_data_equals_a_fresh_fit(materials):
+    # fit() must not keep the first data set's model: fit(A) then fit(B) == fresh fit(B)
+    a, b = materials.subset(range(5)), materials.subset(range(3, 9))
+    method = DSGPLVMMethod(max_cycles=2, feature_space="rgb")
+    method.fit(a)
+    assert method.model is None                           # the constructor argument is untouched
+    refit = method.fit(b).predict(materials.slices[2], "2d")[0]
+    fresh = DSGPLVMMethod(max_cycles=2, feature_space="rgb").fit(b).predict(materials.slices[2],
+                                                                            "2d")[0]
+    np.testing.assert_allclose(refit, fresh, rtol=1e-12, equal_nan=True)
+
+
+def test_relative_representation_round_trips_and_anchors_exactly(materials):
+    table = materials.tables_2d[4]
+    levels = channel_levels(table[:, 0])
+    filled = fill_slice(table[:, 0])
+    ratio = np.moveaxis(ratio_field(table, filled, levels).reshape(3, 90, 90), 0, -1)
+    # the inverse of the representation is exact up to float round-off
+    np.testing.assert_allclose(from_ratio(ratio, filled, levels), table, rtol=1e-9, atol=1e-15)
+    assert np.all(np.abs(ratio[:, 0]) < 1e-12)            # θd = 0 is the slice itself
+    method = RelativeDSGPLVMMethod(max_cycles=2).fit(materials.subset(range(7)))
+    pred, var = method.predict(materials.slices[8], "2d")
+    # every training ratio row is 0 at θd = 0, so the prediction's θd = 0 row is the observation
+    np.testing.assert_allclose(pred[:, 0], materials.slices[8], rtol=1e-9)
+    assert var.shape == (90, 90, 3) and np.isfinite(pred[np.isfinite(materials.tables_2d[8])]).all()
