@@ -88,6 +88,12 @@ def _parser():
     s.add_argument("--time-budget", type=float, metavar="SECONDS",
                    help="stop starting experiments when this wall time would be exceeded")
 
+    s = sub.add_parser("export", help="a MERL table for Mitsuba 3, Blender and glTF")
+    s.add_argument("brdf", metavar="BRDF.binary")
+    s.add_argument("--out", required=True, metavar="DIR")
+    s.add_argument("--formats", default="mitsuba,principled,gltf",
+                   help="comma-separated, some of mitsuba,principled,gltf (default: all three)")
+
     s = sub.add_parser("import-diligent", help="turn a DiLiGenT object folder into a scene folder")
     s.add_argument("obj_dir", metavar="OBJ_DIR")
     s.add_argument("--flash", required=True, type=int, metavar="INDEX")
