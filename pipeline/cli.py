@@ -78,6 +78,9 @@ def _parser():
     s.add_argument("--no-anchor", action="store_true",
                    help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
                         "theta_h to pass through the observed slice, carried over theta_d")
+    s.add_argument("--export", action="store_true",
+                   help="also export the default method's BRDF (flashbrdf export) into OUT_DIR/export "
+                        "and render its Principled fit beside the tabulated BRDF")
 
     s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
     s.add_argument("--merl-dir", required=True, metavar="DIR")

@@ -148,7 +148,8 @@ def run(args):
     model_path = _model_path(args, methods)
     spp = samples_per_pixel(args)
     out = Path(args.out)
-    stages, notes = _Stages(total=5 + 2 * len(methods)), []
+    export = getattr(args, "export", False)
+    stages, notes = _Stages(total=5 + 2 * len(methods) + 2 * export), []
 
     scene = stages.run("load scene", capture.load_scene, args.scene_dir)
     options = ExtractOptions()
@@ -166,6 +167,11 @@ def run(args):
         if view == "2d":
             two_d.append(name)
 
+    exported = None
+    if export:
+        from pipeline.run_export import export_for_report, export_method
+        exported = stages.run("export", export_for_report, out, export_method(methods))
+        notes.append(exported[2])
     if two_d:
         notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "
                      "3D data); no 3D table was loaded, and renders look the 2D tables up directly.")
@@ -182,6 +188,10 @@ def run(args):
         for name in methods:
             rows += stages.run(f"render+compare {name}", _render_and_compare, scene, geometry, name,
                                predictions[name]["table"], spp, out / name, references)
+        if exported is not None:
+            label, table = exported[:2]
+            rows += stages.run(f"render+compare {label}", _render_and_compare, scene, geometry,
+                               label, table, spp, out / label, references)
     observed = {"rho": rho, "n": result.n, "spread": result.spread}
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                         observed=observed, predictions=predictions, notes=notes,
