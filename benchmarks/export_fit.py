@@ -114,6 +114,43 @@ def part_plugin(args):
                        f"{args.plugin_materials}", "envmap": str(pisa), "rows": rows}
 
 
+def part_noise(args):
+    """Per-pixel noise of the plugin against Mitsuba's own BSDFs of a similar look, all through
+    Mitsuba's path integrator with the same sampler and spp: the plugin's sampling against
+    roughplastic's and principled's (fitted to the same table)."""
+    import render.mitsuba_bsdf as mbsdf
+    from render.scene_render import sphere_view
+    from render.table2 import default_envmaps
+    mbsdf.register("llvm_ad_rgb")
+    pisa = default_envmaps()[0]
+    mask = sphere_view(args.size)[0]
+    rows = []
+    for name in args.plugin_materials.split(","):
+        path = Path(args.merl_dir) / f"{name}.binary"
+        p = fit_principled(read_merl(path))["params"]
+        bsdfs = {
+            "flashbrdf_tabulated": {"type": "flashbrdf_tabulated", "filename": str(path)},
+            "principled (fitted)": {"type": "principled", **{
+                k: ({"type": "rgb", "value": v} if k == "base_color" else v)
+                for k, v in p.items()}},
+            "roughplastic (GGX, alpha = fitted roughness^2)": {
+                "type": "roughplastic", "distribution": "ggx",
+                "alpha": max(0.001, p["roughness"] ** 2),
+                "diffuse_reflectance": {"type": "rgb", "value": p["base_color"]}}}
+        for label, bsdf in bsdfs.items():
+            start = time.perf_counter()
+            i0, _ = mbsdf.render_sphere_mitsuba(bsdf, pisa, size=args.size, spp=args.spp, seed=0)
+            i1, _ = mbsdf.render_sphere_mitsuba(bsdf, pisa, size=args.size, spp=args.spp, seed=1)
+            noise = np.sqrt(np.mean((i0[mask] - i1[mask]) ** 2) / 2.0) / np.mean(i0[mask])
+            rows.append({"material": name, "bsdf": label, "size": args.size, "spp": args.spp,
+                         "noise_rel": float(noise),
+                         "seconds": (time.perf_counter() - start) / 2})
+            print(rows[-1], flush=True)
+    return {"command": "nice -n 10 python benchmarks/export_fit.py --part noise "
+                       f"--spp {args.spp} --size {args.size} --plugin-materials "
+                       f"{args.plugin_materials}", "rows": rows}
+
+
 def part_recovery(args):
     rows = []
     for name, truth in KNOWN.items():
@@ -132,26 +169,40 @@ def part_measured(args):
     pisa = default_envmaps()[0]
     rows = []
     sets = [("MERL (NBRDF proxy)", args.merl_dir), ("RGL (NBRDF proxy)", args.rgl_dir)]
-    k = 0
-    for label, folder in sets:
-        if not folder:
-            continue
-        for name, path in list_merl(folder):
-            table = read_merl(path)
-            result = fit_principled(table)
-            render = args.render_every and k % args.render_every == 0
-            quality = fit_quality(table, result["params"], pisa if render else None)
-            rows.append({"set": label, "material": name, "kind": kind_of(name),
-                         "lab_log_2d": quality["lab_log_2d"], "seconds": result["seconds"],
-                         "render_delta_e_log": (quality["render"]["delta_e_log_mean"]
-                                                if quality["render"] else None),
-                         "params": result["params"]})
-            print(label, name, f"{quality['lab_log_2d']:.2f}", f"{result['seconds']:.1f}s",
-                  flush=True)
-            k += 1
-    return {"command": "nice -n 10 python benchmarks/export_fit.py --part measured --merl-dir "
-                       f"{args.merl_dir} --rgl-dir {args.rgl_dir} --render-every "
-                       f"{args.render_every}", "rows": rows}
+    jobs = [[(label, name, path) for name, path in list_merl(folder)] for label, folder in sets
+            if folder]
+    # Shuffle each set (seed 0) and interleave them, so a run cut short is a random subset of both.
+    jobs = [[group[i] for i in np.random.default_rng(0).permutation(len(group))] for group in jobs]
+    order = [job for group in _interleave(jobs) for job in group]
+    command = ("nice -n 10 python benchmarks/export_fit.py --part measured --merl-dir "
+               f"{args.merl_dir} --rgl-dir {args.rgl_dir} --render-every {args.render_every}")
+    for k, (label, name, path) in enumerate(order):
+        table = read_merl(path)
+        result = fit_principled(table)
+        render = args.render_every and k % args.render_every == 0
+        quality = fit_quality(table, result["params"], pisa if render else None)
+        rows.append({"set": label, "material": name, "kind": kind_of(name),
+                     "lab_log_2d": quality["lab_log_2d"], "seconds": result["seconds"],
+                     "render_delta_e_log": (quality["render"]["delta_e_log_mean"]
+                                            if quality["render"] else None),
+                     "params": result["params"]})
+        print(label, name, f"{quality['lab_log_2d']:.2f}", f"{result['seconds']:.1f}s",
+              flush=True)
+        # Written after every material: a run stopped early keeps what it measured.
+        write_text(RESULTS / "export_measured.json", json.dumps(
+            {"command": command, "complete": k + 1 == len(order), "rows": rows}, indent=1))
+    return {"command": command, "complete": True, "rows": rows}
+
+
+def _interleave(lists):
+    """[[a0, b0], [a1, b1], ...] from [[a0, a1, ...], [b0, b1, ...]] (shorter lists end early),
+    with the shorter list spread evenly."""
+    longest = max(len(x) for x in lists)
+    slots = [[] for _ in range(longest)]
+    for items in lists:
+        for i, item in enumerate(items):
+            slots[int(i * longest / len(items))].append(item)
+    return slots
 
 
 def _stats(values):
@@ -178,6 +229,16 @@ def markdown():
                          f"{100 * r['noise_rel_ours']:.2f}% |")
         lines += ["", "Noise: per-pixel RMS of (seed 0 - seed 1) / sqrt 2 over the sphere, relative "
                   "to the mean pixel, at the same spp.", ""]
+    noise = RESULTS / "export_noise.json"
+    if noise.exists():
+        res = json.loads(noise.read_text())
+        lines += ["## Plugin sampling against Mitsuba's own BSDFs (same integrator and sampler)",
+                  "", f"`{res['command']}`", "",
+                  "| material | BSDF | size | spp | per-pixel noise | s per render |",
+                  "|---|---|---|---|---|---|"]
+        lines += [f"| {r['material']} | {r['bsdf']} | {r['size']} | {r['spp']} | "
+                  f"{100 * r['noise_rel']:.2f}% | {r['seconds']:.1f} |" for r in res["rows"]]
+        lines.append("")
     recovery = RESULTS / "export_recovery.json"
     if recovery.exists():
         res = json.loads(recovery.read_text())
@@ -197,7 +258,11 @@ def markdown():
     if measured.exists():
         res = json.loads(measured.read_text())
         rows = res["rows"]
-        lines += ["## Fit on measured materials", "", f"`{res['command']}`", "",
+        lines += ["## Fit on measured materials", "", f"`{res['command']}`", ""]
+        if not res.get("complete", True):
+            lines += [f"The run was stopped after {len(rows)} materials (the two sets interleaved); "
+                      "these are the ones measured.", ""]
+        lines += [
                   "2D LAB-log error of the fitted Principled against the table (mean / median / "
                   "90th percentile / max); fit seconds; sphere Delta E log under pisa where "
                   "rendered (tabulated fit against the table, same sampler and seed).", "",
@@ -225,7 +290,7 @@ def markdown():
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--part", choices=["plugin", "recovery", "measured", "markdown"],
+    p.add_argument("--part", choices=["plugin", "noise", "recovery", "measured", "markdown"],
                    required=True)
     p.add_argument("--merl-dir", default="/work/data/merl")
     p.add_argument("--rgl-dir", default="/work/data/rgl")
@@ -236,7 +301,7 @@ def main():
     args = p.parse_args()
     RESULTS.mkdir(parents=True, exist_ok=True)
     if args.part != "markdown":
-        result = {"plugin": part_plugin, "recovery": part_recovery,
+        result = {"plugin": part_plugin, "noise": part_noise, "recovery": part_recovery,
                   "measured": part_measured}[args.part](args)
         write_text(RESULTS / f"export_{args.part}.json", json.dumps(result, indent=1) + "\n")
     markdown()

@@ -22,7 +22,7 @@ from brdf.errors import InputError
 from brdf.metrics import brdf_error
 from brdf.principled import MITSUBA_LUMINANCE, PARAMETER_NAMES, eta_from_specular, \
     tabulate_principled
-from brdf.principled_fit import fit_principled
+from brdf.principled_fit import FIT_OFFSET, fit_principled
 from brdf.views import table_2d
 
 FORMATS = ("mitsuba", "principled", "gltf")
@@ -176,8 +176,8 @@ def export_table(table, table_path, out_dir, formats=FORMATS, envmap=None):
     """Write the files of `formats` for a MERL table (90, 90, 180, 3) into the folder out_dir.
 
     table_path: the table's file (mitsuba_tabulated.xml points to it). envmap: for the render
-    check (None skips it). Returns {"files": [...], "params": dict or None, "fit": dict or None,
-    "images": {"tabulated", "fitted"} or None}.
+    check (None skips it). Returns {"files": [...], "params": dict, "fit": dict,
+    "images": {"tabulated", "fitted"} sphere renders, or None without envmap}.
     """
     check_table(table, table_path)
     files, images = [], None
@@ -192,11 +192,12 @@ def export_table(table, table_path, out_dir, formats=FORMATS, envmap=None):
     if render is not None:
         images = render.pop("images")
     fit = {"lab_log_2d": quality["lab_log_2d"],
-               "render_delta_e_log": None if render is None else render["delta_e_log_mean"],
+           "render_delta_e_log": None if render is None else render["delta_e_log_mean"],
            "render": render, "optimiser": result["optimiser"],
            "seconds": result["seconds"], "bins": result["bins"], "starts": result["starts"],
-           "evaluations": result["evaluations"], "loss": "sqrt(cos_i cos_o) "
-           "(ln(rho_fit + 0.01) - ln(rho_table + 0.01)), least squares"}
+           "evaluations": result["evaluations"],
+           "loss": f"sum of cos_i cos_o (ln(rho_fit + {FIT_OFFSET}) "
+                   f"- ln(rho_table + {FIT_OFFSET}))^2"}
     if "mitsuba" in formats:
         write_text(os.path.join(out_dir, FILES["mitsuba"][1]), mitsuba_principled_xml(params))
         files.append(FILES["mitsuba"][1])

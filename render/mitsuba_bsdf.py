@@ -9,8 +9,9 @@
 - sample / pdf: TabulatedBRDF's own strategy, with split_diffuse. A cosine-weighted direction
   with probability `cosine_fraction` (the diffuse floor's share of the albedo), else the viewer
   direction reflected about a half vector drawn from the table's theta_h marginal less that floor
-  (piecewise constant over the 90 theta_h bins, uniform in solid angle within a bin). It is a tabulated microfacet distribution: it follows the table's highlight at every
-  roughness, like roughplastic's GGX lobe follows its alpha, without fitting an alpha.
+  (piecewise constant over the 90 theta_h bins, uniform in solid angle within a bin). It is a
+  tabulated microfacet distribution: it follows the table's highlight at every roughness, as
+  roughplastic's GGX lobe follows its alpha, without fitting an alpha.
 - In scalar_rgb Mitsuba calls the plugin once per sample, from Python: fine for a few
   directions, far too slow for an image. llvm_ad_rgb is the real target.
 
