@@ -158,6 +158,7 @@ def part_recovery(args):
         result = fit_principled(table)
         fit = result["params"]
         rows.append({"material": name, "truth": truth, "fit": fit, "seconds": result["seconds"],
+                     "cpu_seconds": result["cpu_seconds"],
                      "lab_log_2d": brdf_error(table_2d(tabulate_principled(fit)),
                                               table_2d(table))})
         print(name, rows[-1]["lab_log_2d"], result["seconds"], flush=True)
@@ -244,7 +245,7 @@ def markdown():
         res = json.loads(recovery.read_text())
         lines += ["## Fit recovers known parameters", "", f"`{res['command']}`", "",
                   "| material | roughness true / fit | metallic true / fit | base_color true | "
-                  "base_color fit | LAB-log 2D | s |", "|---|---|---|---|---|---|---|"]
+                  "base_color fit | LAB-log 2D | s (CPU s) |", "|---|---|---|---|---|---|---|"]
         for r in res["rows"]:
             t, f = r["truth"], r["fit"]
             lines.append(
@@ -252,7 +253,7 @@ def markdown():
                 f"{t.get('metallic', 0.0):.2f} / {f['metallic']:.3f} | "
                 f"{', '.join(f'{c:.2f}' for c in t['base_color'])} | "
                 f"{', '.join(f'{c:.3f}' for c in f['base_color'])} | {r['lab_log_2d']:.4f} | "
-                f"{r['seconds']:.1f} |")
+                f"{r['seconds']:.1f} ({r.get('cpu_seconds', float('nan')):.1f}) |")
         lines.append("")
     measured = RESULTS / "export_measured.json"
     if measured.exists():

@@ -53,7 +53,8 @@ def export(args):
     result = export_brdf(args.brdf, args.out, formats)
     fit = result["fit"]
     render = fit["render"]
-    print(f"fit: {fit['optimiser']}, {fit['seconds']:.1f} s; LAB-log 2D {fit['lab_log_2d']:.3f}"
+    print(f"fit: {fit['optimiser']}, {fit['seconds']:.1f} s ({fit['cpu_seconds']:.1f} s CPU); "
+          f"LAB-log 2D {fit['lab_log_2d']:.3f}"
           + (f"; sphere under {render['envmap']} Delta E log {render['delta_e_log_mean']:.3f}"
              if render else "; no pisa map found, render check skipped"), file=sys.stderr)
     for name in result["files"]:

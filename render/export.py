@@ -194,7 +194,8 @@ def export_table(table, table_path, out_dir, formats=FORMATS, envmap=None):
     fit = {"lab_log_2d": quality["lab_log_2d"],
            "render_delta_e_log": None if render is None else render["delta_e_log_mean"],
            "render": render, "optimiser": result["optimiser"],
-           "seconds": result["seconds"], "bins": result["bins"], "starts": result["starts"],
+           "seconds": result["seconds"], "cpu_seconds": result["cpu_seconds"],
+           "bins": result["bins"], "starts": result["starts"],
            "evaluations": result["evaluations"],
            "loss": f"sum of cos_i cos_o (ln(rho_fit + {FIT_OFFSET}) "
                    f"- ln(rho_table + {FIT_OFFSET}))^2"}

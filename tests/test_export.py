@@ -63,7 +63,10 @@ def test_fit_recovers_known_parameters(name):
     # The true parameters' 2D LAB-log error is 0 by construction (same function, same bins), so
     # 1.5x it is 0: we allow 0.05 LAB-log units, 20x below a just-noticeable Delta E of 1.
     assert brdf_error(table_2d(tabulate_principled(fit)), table_2d(table)) <= 0.05
-    assert result["seconds"] < 30   # 10 s on 2 idle cores; slack for a loaded CI machine
+    # Under 10 s on an idle core (the fit is single-threaded); CPU time, because wall time on a
+    # shared CI machine says more about the neighbours. 3-6 s measured; 15 leaves room for a
+    # slower CPU.
+    assert result["cpu_seconds"] < 15
 
 
 def _gltf_is_valid(doc):
