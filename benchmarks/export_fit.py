@@ -214,6 +214,38 @@ def _stats(values):
             f"(n={v.size})")
 
 
+def plugin_figure():
+    """export_plugin.png from the saved renders: Mitsuba (plugin), ours, and their difference."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from brdf.atomic import atomic_path
+    from render.images import tonemap
+    saved = sorted(RESULTS.glob("export_plugin_*.npy"))
+    if not saved:
+        return None
+    fig, axes = plt.subplots(len(saved), 3, figsize=(7.5, 2.6 * len(saved)), squeeze=False)
+    for row, path in zip(axes, saved):
+        mitsuba, ours = np.load(path).astype(np.float32)
+        exposure = 1.0 / max(float(np.percentile(ours[ours > 0], 99)), 1e-6)
+        row[0].imshow(tonemap(mitsuba, exposure))
+        row[1].imshow(tonemap(ours, exposure))
+        diff = np.abs(mitsuba - ours).mean(axis=-1) * exposure
+        im = row[2].imshow(diff, cmap="inferno", vmin=0, vmax=0.2)
+        name = path.stem.replace("export_plugin_", "")
+        row[0].set_title(f"{name}: Mitsuba 3 + plugin", fontsize=8)
+        row[1].set_title("flashbrdf renderer", fontsize=8)
+        row[2].set_title("|difference| (exposed)", fontsize=8)
+        for ax in row:
+            ax.set_axis_off()
+        fig.colorbar(im, ax=row[2], fraction=0.046)
+    with atomic_path(RESULTS / "export_plugin.png") as tmp:
+        fig.savefig(tmp, format="png", dpi=100)
+    plt.close(fig)
+    return "export_plugin.png"
+
+
 def markdown():
     lines = ["# Export: the Mitsuba plugin and the Principled fit", ""]
     plugin = RESULTS / "export_plugin.json"
@@ -230,6 +262,9 @@ def markdown():
                          f"{100 * r['noise_rel_ours']:.2f}% |")
         lines += ["", "Noise: per-pixel RMS of (seed 0 - seed 1) / sqrt 2 over the sphere, relative "
                   "to the mean pixel, at the same spp.", ""]
+        figure = plugin_figure()
+        if figure:
+            lines += [f"![plugin against our renderer]({figure})", ""]
     noise = RESULTS / "export_noise.json"
     if noise.exists():
         res = json.loads(noise.read_text())
@@ -265,8 +300,10 @@ def markdown():
                       "these are the ones measured.", ""]
         lines += [
                   "2D LAB-log error of the fitted Principled against the table (mean / median / "
-                  "90th percentile / max); fit seconds; sphere Delta E log under pisa where "
-                  "rendered (tabulated fit against the table, same sampler and seed).", "",
+                  "90th percentile / max); fit seconds (wall, on 2 cores shared with four other "
+                  "jobs at nice 10, load average about 10: the recovery table's CPU seconds are "
+                  "the fit's own cost); sphere Delta E log under pisa where rendered (tabulated "
+                  "fit against the table, same sampler and seed).", "",
                   "| group | LAB-log 2D | fit s | sphere Delta E log |", "|---|---|---|---|"]
         groups = [("all", rows)] + [(s, [r for r in rows if r["set"] == s])
                                     for s in dict.fromkeys(r["set"] for r in rows)]
