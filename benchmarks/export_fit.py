@@ -48,7 +48,10 @@ KNOWN = {
                      "sheen_tint": 0.5, "specular": 0.3},
 }
 # Material kinds by name, for "what Principled cannot represent".
-KINDS = (("metal", ("alum", "brass", "chrome", "nickel", "steel", "silver", "gold", "copper",
+KINDS = (("colour-changing / iridescent", ("cc_", "irid", "chm_", "cm_", "vch_",
+                                            "color-changing")),
+         ("paper / diffuse", ("paper", "cardboard", "spectralon", "matte")),
+         ("metal", ("alum", "brass", "chrome", "nickel", "steel", "silver", "gold", "copper",
                     "tungsten", "metal", "aluminium", "bronze", "ss440", "hematite")),
          ("paint", ("paint",)),
          ("fabric", ("fabric", "felt", "velvet", "satin", "silk", "cloth", "denim", "leather")),
@@ -206,6 +209,24 @@ def _interleave(lists):
     return slots
 
 
+BANDS = ((0, 30), (30, 60), (60, 75), (75, 90))
+
+
+def part_bands(args):
+    """Where the measured fits err: log-CIELAB Delta E of the 2D views per theta_d band (degrees),
+    for every material in export_measured.json, from its stored parameters."""
+    from brdf.metrics import delta_e_log
+    measured = json.loads((RESULTS / "export_measured.json").read_text())
+    folders = {"MERL (NBRDF proxy)": args.merl_dir, "RGL (NBRDF proxy)": args.rgl_dir}
+    rows = []
+    for r in measured["rows"]:
+        table = read_merl(Path(folders[r["set"]]) / f"{r['material']}.binary")
+        de = delta_e_log(table_2d(tabulate_principled(r["params"])), table_2d(table))
+        rows.append({"set": r["set"], "material": r["material"],
+                     "bands": {f"{lo}-{hi}": float(np.nanmean(de[:, lo:hi])) for lo, hi in BANDS}})
+    return {"command": "nice -n 10 python benchmarks/export_fit.py --part bands", "rows": rows}
+
+
 def _stats(values):
     v = np.asarray([x for x in values if x is not None], dtype=float)
     if not v.size:
@@ -294,6 +315,8 @@ def markdown():
     if measured.exists():
         res = json.loads(measured.read_text())
         rows = res["rows"]
+        for r in rows:   # kinds from the current KINDS, not those stored when measured
+            r["kind"] = kind_of(r["material"])
         lines += ["## Fit on measured materials", "", f"`{res['command']}`", ""]
         if not res.get("complete", True):
             lines += [f"The run was stopped after {len(rows)} materials (the two sets interleaved); "
@@ -313,6 +336,19 @@ def markdown():
             lines.append(f"| {label} | {_stats(r['lab_log_2d'] for r in group)} | "
                          f"{_stats(r['seconds'] for r in group)} | "
                          f"{_stats(r['render_delta_e_log'] for r in group)} |")
+        bands = RESULTS / "export_bands.json"
+        if bands.exists():
+            res_b = json.loads(bands.read_text())
+            lines += ["", "Where the error is: mean log-CIELAB Delta E of the 2D views per theta_d "
+                      f"band, over the {len(res_b['rows'])} fitted materials "
+                      f"(`{res_b['command']}`):", "",
+                      "| set | " + " | ".join(f"theta_d {lo}-{hi} deg" for lo, hi in BANDS) + " |",
+                      "|---|" + "---|" * len(BANDS)]
+            for label in ["all"] + list(dict.fromkeys(r["set"] for r in res_b["rows"])):
+                group = [r for r in res_b["rows"] if label in ("all", r["set"])]
+                lines.append(f"| {label} | " + " | ".join(
+                    f"{np.mean([r['bands'][f'{lo}-{hi}'] for r in group]):.2f}"
+                    for lo, hi in BANDS) + " |")
         worst = sorted(rows, key=lambda r: -r["lab_log_2d"])[:12]
         lines += ["", "Worst fits:", "", "| set | material | kind | LAB-log 2D | metallic | "
                   "roughness | clearcoat |", "|---|---|---|---|---|---|---|"]
@@ -328,7 +364,8 @@ def markdown():
 
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--part", choices=["plugin", "noise", "recovery", "measured", "markdown"],
+    p.add_argument("--part", choices=["plugin", "noise", "recovery", "measured", "bands",
+                                      "markdown"],
                    required=True)
     p.add_argument("--merl-dir", default="/work/data/merl")
     p.add_argument("--rgl-dir", default="/work/data/rgl")
@@ -340,7 +377,7 @@ def main():
     RESULTS.mkdir(parents=True, exist_ok=True)
     if args.part != "markdown":
         result = {"plugin": part_plugin, "noise": part_noise, "recovery": part_recovery,
-                  "measured": part_measured}[args.part](args)
+                  "measured": part_measured, "bands": part_bands}[args.part](args)
         write_text(RESULTS / f"export_{args.part}.json", json.dumps(result, indent=1) + "\n")
     markdown()
 
