@@ -84,6 +84,9 @@ def _parser():
     s.add_argument("--no-anchor", action="store_true",
                    help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
                         "theta_h to pass through the observed slice, carried over theta_d")
+    s.add_argument("--export", action="store_true",
+                   help="also export the default method's BRDF (flashbrdf export) into OUT_DIR/export "
+                        "and render its Principled fit beside the tabulated BRDF")
 
     s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
     s.add_argument("--merl-dir", required=True, metavar="DIR")
@@ -94,6 +97,12 @@ def _parser():
     s.add_argument("--experiments", type=int, help="number of experiments (default 25)")
     s.add_argument("--time-budget", type=float, metavar="SECONDS",
                    help="stop starting experiments when this wall time would be exceeded")
+
+    s = sub.add_parser("export", help="a MERL table for Mitsuba 3, Blender and glTF")
+    s.add_argument("brdf", metavar="BRDF.binary")
+    s.add_argument("--out", required=True, metavar="DIR")
+    s.add_argument("--formats", default="mitsuba,principled,gltf",
+                   help="comma-separated, some of mitsuba,principled,gltf (default: all three)")
 
     s = sub.add_parser("import-diligent", help="turn a DiLiGenT object folder into a scene folder")
     s.add_argument("obj_dir", metavar="OBJ_DIR")

@@ -191,7 +191,8 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
     from render.scene_render import SceneGeometry
     from slice_extract import ExtractOptions, extract_slice
 
-    stages, notes = _Stages(total=4 + 2 * len(methods)), []
+    export = getattr(args, "export", False)
+    stages, notes = _Stages(total=4 + 2 * len(methods) + 2 * export), []
     fitted = stages.run("load model", _load_methods, methods, model_path, not args.no_anchor)
     options = ExtractOptions()
     result = stages.run("extract", extract_slice, scene, options)
@@ -210,6 +211,11 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
         if view == "2d":
             two_d.append(name)
 
+    exported = None
+    if export:
+        from pipeline.run_export import export_for_report, export_method
+        exported = stages.run("export", export_for_report, out, export_method(methods))
+        notes.append(exported[2])
     if two_d:
         notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "
                      "3D data); no 3D table was loaded, and renders look the 2D tables up directly.")
@@ -225,6 +231,10 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
         for name in methods:
             rows += stages.run(f"render+compare {name}", _render_and_compare, scene, geometry, name,
                                predictions[name]["table"], spp, out / name, references, loaded)
+        if exported is not None:
+            label, table = exported[:2]
+            rows += stages.run(f"render+compare {label}", _render_and_compare, scene, geometry,
+                               label, table, spp, out / label, references, loaded)
     observed = {"rho": rho, "n": result.n, "spread": result.spread}
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                         observed=observed, predictions=predictions, notes=notes,

@@ -205,10 +205,12 @@ class TabulatedBRDF(HalfVectorMixture):
     `cosine_fraction`) with half vectors drawn from the table's theta_h marginal: a piecewise-
     constant density over the 90 theta_h bins (uniform in solid angle within a bin, uniform in
     phi_h), proportional to the bin's mean luminance over valid (theta_d, phi_d); wi is wo
-    reflected about h, pdf(wi) = p(h) / (4 wo.h).
+    reflected about h, pdf(wi) = p(h) / (4 wo.h). With `split_diffuse` (the Mitsuba plugin's
+    choice) the marginal's floor over theta_h is taken as a diffuse body: the half vectors follow
+    the rest, and cosine_fraction is the body's share of the albedo.
     """
 
-    def __init__(self, table, interpolate=False, cosine_fraction=0.25):
+    def __init__(self, table, interpolate=False, cosine_fraction=0.25, split_diffuse=False):
         table = np.asarray(table, dtype=np.float64)
         if table.shape not in ((90, 90, 180, 3), (90, 90, 3)):
             raise ValueError(f"table must be (90,90,180,3) or (90,90,3), got {table.shape}")
@@ -231,7 +233,14 @@ class TabulatedBRDF(HalfVectorMixture):
         edges = _theta_h_edges()
         self._cos_edges = np.cos(edges)
         bin_solid_angle = 2.0 * np.pi * (self._cos_edges[:-1] - self._cos_edges[1:])
-        weight = np.maximum(marginal, 0.0) * bin_solid_angle
+        marginal = np.maximum(marginal, 0.0)
+        if split_diffuse:
+            with np.errstate(invalid="ignore"):
+                row = lum[:, 0].reshape(90, -1)
+                flash = np.where(np.isfinite(row), row, 0.0).sum(axis=1) \
+                    / np.maximum(np.isfinite(row).sum(axis=1), 1)
+            marginal = self._split_diffuse(marginal, count > 0, flash, bin_solid_angle)
+        weight = marginal * bin_solid_angle
         if not weight.sum() > 0:
             self.cosine_fraction = 1.0
             weight = bin_solid_angle.copy()
@@ -239,6 +248,31 @@ class TabulatedBRDF(HalfVectorMixture):
         self._h_cdf = np.concatenate([[0.0], np.cumsum(prob)])
         self._h_cdf /= self._h_cdf[-1]
         self._h_density = prob / bin_solid_angle             # solid-angle density of h per bin
+
+    def _split_diffuse(self, marginal, has_data, flash, bin_solid_angle):
+        """The marginal less its floor over theta_h (a diffuse body), with cosine_fraction set to
+        the body's share of the albedo at normal incidence, from the theta_d = 0 row `flash`
+        (90,): pi floor against the lobe's sum over bins of (flash - floor) * solid angle *
+        4 cos theta_h * cos 2 theta_h (dw_o = 4 (w.h) dw_h). The marginal over theta_d would
+        overstate the lobe (grazing Fresnel and 1/cos). Kept within [0.1, 0.9]."""
+        floor = float(np.min(marginal[has_data])) if has_data.any() else 0.0
+        lobe = np.maximum(marginal - floor, 0.0)
+        flash_floor = float(np.min(flash[has_data])) if has_data.any() else 0.0
+        centres = 0.5 * (np.arccos(self._cos_edges[:-1]) + np.arccos(self._cos_edges[1:]))
+        lobe_albedo = float(np.sum(np.maximum(flash - flash_floor, 0.0) * bin_solid_angle * 4
+                                   * np.cos(centres) * np.maximum(np.cos(2 * centres), 0.0)))
+        floor = flash_floor
+        total = np.pi * floor + lobe_albedo
+        if total > 0:
+            self.cosine_fraction = float(np.clip(np.pi * floor / total, 0.1, 0.9))
+        return lobe
+
+    def half_vector_distribution(self):
+        """The sampler's parameters, for other renderers that sample this table the same way:
+        (bin probabilities (90,), cos theta_h bin edges (91,), solid-angle density of h per bin
+        (90,), cosine_fraction)."""
+        return np.diff(self._h_cdf), self._cos_edges.copy(), self._h_density.copy(), \
+            self.cosine_fraction
 
     def evaluate_local(self, wi, wo):
         wi, wo = np.broadcast_arrays(wi, wo)

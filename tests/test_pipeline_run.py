@@ -103,3 +103,22 @@ def test_a_scene_without_references_renders_nothing(sphere_scene, tmp_path):
     assert report["references"] == [] and "render+compare chandraker" not in report["stages"]
     assert any("no reference photo" in note for note in report["notes"])
     assert not list((out / "chandraker").glob("*.exr"))
+
+
+def test_run_export_puts_the_export_and_the_principled_render_beside_the_report(sphere_scene,
+                                                                                 tmp_path):
+    out = tmp_path / "out"
+    assert main(["run", str(sphere_scene), "--out", str(out), "--methods", "chandraker",
+                 "--spp", "16", "--export"]) == 0
+    assert sorted(p.name for p in (out / "export").iterdir()) == sorted(
+        ["mitsuba_tabulated.xml", "mitsuba_principled.xml", "principled.json", "material.gltf"])
+    fit = json.loads((out / "export" / "principled.json").read_text())["fit"]
+    report = json.loads((out / "report.json").read_text())
+    rows = {(r["photo"], r["method"]): r for r in report["references"]}
+    assert set(rows) == {("ref_pisa", "chandraker"), ("ref_pisa", "chandraker-principled")}
+    assert (out / "chandraker-principled" / "ref_pisa.exr").is_file()
+    # The fit's render against the photo: no worse than the tabulated BRDF's by more than the
+    # fit's own sphere error under the same map (Delta E adds at most that, plus noise at 16 spp).
+    tab, prin = rows["ref_pisa", "chandraker"], rows["ref_pisa", "chandraker-principled"]
+    assert prin["delta_e_log_mean"] < tab["delta_e_log_mean"] + fit["render_delta_e_log"] + 1.0
+    assert "chandraker-principled" in (out / "report.md").read_text()

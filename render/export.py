@@ -1,0 +1,214 @@
+"""Export a MERL table for other renderers: Mitsuba 3 (tabulated plugin, `principled`), Blender, glTF.
+
+export_table(table, table_path, out_dir, formats) writes into an existing folder:
+- "mitsuba":    mitsuba_tabulated.xml (the flashbrdf_tabulated plugin reading the table itself) and
+                mitsuba_principled.xml (Mitsuba's `principled` with the fitted parameters);
+- "principled": principled.json (fitted parameters in Mitsuba names, the Blender 4 mapping, "fit");
+- "gltf":       material.gltf (glTF 2.0, one pbrMetallicRoughness material + KHR extensions).
+Any format but "mitsuba" alone needs the fit (brdf.principled_fit); its quality is measured
+twice: the 2D LAB-log error of the fitted model against the table, and the log-CIELAB Delta E
+between spheres under pisa rendered with the fitted model and with the table.
+"""
+
+import json
+import os
+import time
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from brdf.atomic import write_text
+from brdf.errors import InputError
+from brdf.metrics import brdf_error
+from brdf.principled import MITSUBA_LUMINANCE, PARAMETER_NAMES, eta_from_specular, \
+    tabulate_principled
+from brdf.principled_fit import FIT_OFFSET, fit_principled
+from brdf.views import table_2d
+
+FORMATS = ("mitsuba", "principled", "gltf")
+FILES = {"mitsuba": ("mitsuba_tabulated.xml", "mitsuba_principled.xml"),
+         "principled": ("principled.json",), "gltf": ("material.gltf",)}
+RENDER_SIZE, RENDER_SPP = 96, 64
+USED = 0.01  # a lobe weight below this is treated as unused (no glTF extension for it)
+MITSUBA_USAGE = ("Mitsuba 3: `pip install -e \".[mitsuba]\"`, then in Python "
+                 "`import mitsuba as mi; mi.set_variant(\"llvm_ad_rgb\"); "
+                 "import render.mitsuba_bsdf as m; m.register(); "
+                 "bsdf = mi.load_file(\"mitsuba_tabulated.xml\")` (llvm_ad_rgb needs "
+                 "DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 on Debian 12); "
+                 "mitsuba_principled.xml needs no plugin.")
+
+
+def parse_formats(text):
+    """The tuple of format names in a comma-separated `--formats` value; InputError if unknown."""
+    names = [f.strip() for f in str(text).split(",") if f.strip()]
+    unknown = [f for f in names if f not in FORMATS]
+    if not names or unknown:
+        raise InputError("--formats", f"unknown format(s) {', '.join(unknown) or '(none)'}; "
+                                      f"expected some of {','.join(FORMATS)}")
+    return tuple(dict.fromkeys(names))
+
+
+def output_files(formats):
+    """The file names export writes for `formats`, in order."""
+    return [name for f in formats for name in FILES[f]]
+
+
+def tint_colour(base_color):
+    """base_color / luminance (Mitsuba's tint colour), white for black; (3,)."""
+    base = np.asarray(base_color, dtype=np.float64)
+    lum = float(base @ MITSUBA_LUMINANCE)
+    return base / lum if lum > 0 else np.ones(3)
+
+
+def coat_roughness(clearcoat_gloss):
+    """The GGX-style roughness (sqrt alpha) of Mitsuba's clearcoat GTR1 alpha =
+    lerp(0.1, 0.001, gloss), for renderers whose coat takes a roughness."""
+    return float(np.sqrt(0.1 + (0.001 - 0.1) * clearcoat_gloss))
+
+
+def blender_parameters(params):
+    """Blender 4 Principled BSDF input values (by Blender's input names) for Mitsuba parameters.
+
+    Blender 4 replaced `Specular` by an IOR (`IOR`, with `Specular IOR Level` 0.5 = as the IOR
+    says) and made the tints colours; the tint colours here are lerp(white, base/lum, tint), the
+    colour Mitsuba's tint fraction blends towards. Mitsuba's clearcoat is Blender's coat at
+    IOR 1.5 (Schlick R0 = 0.04) with the GTR1 alpha's square root as roughness. Mitsuba's sheen
+    is Burley's Schlick sheen; Blender 4's is a microfibre lobe, so `Sheen Weight` is approximate.
+    """
+    base = [float(c) for c in params["base_color"]]
+    tint = tint_colour(base)
+    spec_tint = [float(v) for v in 1.0 + params["spec_tint"] * (tint - 1.0)]
+    sheen_tint = [float(v) for v in 1.0 + params["sheen_tint"] * (tint - 1.0)]
+    return {"Base Color": base + [1.0], "Metallic": params["metallic"],
+            "Roughness": params["roughness"], "IOR": float(eta_from_specular(params["specular"])),
+            "Specular IOR Level": 0.5, "Specular Tint": spec_tint + [1.0],
+            "Sheen Weight": params["sheen"], "Sheen Tint": sheen_tint + [1.0],
+            "Coat Weight": params["clearcoat"],
+            "Coat Roughness": coat_roughness(params["clearcoat_gloss"]), "Coat IOR": 1.5}
+
+
+def gltf_material(params, name="flashbrdf"):
+    """A glTF 2.0 document (dict) with one material for Mitsuba principled parameters.
+
+    pbrMetallicRoughness carries base colour, metallic and roughness (glTF's roughness is also
+    squared to GGX alpha); KHR_materials_ior carries eta, KHR_materials_specular the specular
+    tint colour, KHR_materials_clearcoat and KHR_materials_sheen their lobes, each only when used.
+    The document has no mesh.
+    """
+    base = [float(np.clip(c, 0.0, 1.0)) for c in params["base_color"]]
+    tint = tint_colour(base)
+    extensions = {}
+    eta = float(eta_from_specular(params["specular"]))
+    if abs(eta - 1.5) > 1e-3:
+        extensions["KHR_materials_ior"] = {"ior": eta}
+    if params["spec_tint"] > USED:
+        colour = np.clip(1.0 + params["spec_tint"] * (tint - 1.0), 0.0, None)
+        extensions["KHR_materials_specular"] = {"specularFactor": 1.0,
+                                                "specularColorFactor": [float(c) for c in colour]}
+    if params["clearcoat"] > USED:
+        extensions["KHR_materials_clearcoat"] = {
+            "clearcoatFactor": float(params["clearcoat"]),
+            "clearcoatRoughnessFactor": coat_roughness(params["clearcoat_gloss"])}
+    if params["sheen"] > USED:
+        colour = np.clip(params["sheen"] * (1.0 + params["sheen_tint"] * (tint - 1.0)), 0.0, 1.0)
+        extensions["KHR_materials_sheen"] = {"sheenColorFactor": [float(c) for c in colour],
+                                             "sheenRoughnessFactor": 0.5}
+    material = {"name": name, "pbrMetallicRoughness": {
+        "baseColorFactor": base + [1.0], "metallicFactor": float(params["metallic"]),
+        "roughnessFactor": float(params["roughness"])}}
+    if extensions:
+        material["extensions"] = extensions
+    doc = {"asset": {"version": "2.0", "generator": "flashbrdf export"}, "materials": [material]}
+    if extensions:
+        doc["extensionsUsed"] = sorted(extensions)
+    return doc
+
+
+def mitsuba_principled_xml(params):
+    """Mitsuba 3 scene fragment: a `principled` BSDF with these parameters."""
+    r, g, b = (float(c) for c in params["base_color"])
+    lines = ['<bsdf type="principled" id="flashbrdf_principled" version="3.0.0">',
+             f'    <rgb name="base_color" value="{r:.6g}, {g:.6g}, {b:.6g}"/>']
+    lines += [f'    <float name="{n}" value="{float(params[n]):.6g}"/>' for n in PARAMETER_NAMES[1:]]
+    return "\n".join(lines + ["</bsdf>"]) + "\n"
+
+
+def mitsuba_tabulated_xml(table_path):
+    """Mitsuba 3 scene fragment: the flashbrdf_tabulated plugin reading `table_path`."""
+    path = quoteattr(os.path.abspath(os.fspath(table_path)))
+    return ("<!-- Needs the flashbrdf plugin: import render.mitsuba_bsdf as m; m.register() -->\n"
+            '<bsdf type="flashbrdf_tabulated" id="flashbrdf_tabulated" version="3.0.0">\n'
+            f'    <string name="filename" value={path}/>\n</bsdf>\n')
+
+
+def fit_quality(table, params, envmap=None, size=RENDER_SIZE, spp=RENDER_SPP, seed=0):
+    """{"lab_log_2d", "render": {...} or None}: the fitted model against the table.
+
+    lab_log_2d: brdf.metrics' LAB-log error between the 2D views (mean over phi_d) of the
+    tabulated fit and of the table. render: delta_e_log_mean between spheres under `envmap` (a
+    lat-long map's path; None skips it) rendered with the tabulated fit and with the table by the
+    same sampler and seed (common random numbers), so it measures the fit, not the noise.
+    """
+    from render.compare import compare_images
+    from render.scene_render import render_sphere, sphere_view
+    fitted_table = tabulate_principled(params)
+    out = {"lab_log_2d": brdf_error(table_2d(fitted_table), table_2d(table), "log", "lab"),
+           "render": None}
+    if envmap is not None:
+        start = time.perf_counter()
+        reference = render_sphere(table, envmap, size=size, spp=spp, seed=seed)
+        fitted = render_sphere(fitted_table, envmap, size=size, spp=spp, seed=seed)
+        metrics, _ = compare_images(fitted, reference, sphere_view(size)[0])
+        out["render"] = {"envmap": os.path.basename(os.fspath(envmap)),
+                         "delta_e_log_mean": metrics["delta_e_log_mean"], "size": size,
+                         "spp": spp, "seconds": time.perf_counter() - start,
+                         "images": {"tabulated": reference, "fitted": fitted}}
+    return out
+
+
+def check_table(table, table_path):
+    """InputError naming the file when the table has no valid bin."""
+    if not np.any(np.all(np.isfinite(table), axis=-1)):
+        raise InputError(table_path, "the table has no valid bin (every value is no-data)")
+
+
+def export_table(table, table_path, out_dir, formats=FORMATS, envmap=None):
+    """Write the files of `formats` for a MERL table (90, 90, 180, 3) into the folder out_dir.
+
+    table_path: the table's file (mitsuba_tabulated.xml points to it). envmap: for the render
+    check (None skips it). Returns {"files": [...], "params": dict, "fit": dict,
+    "images": {"tabulated", "fitted"} sphere renders, or None without envmap}.
+    """
+    check_table(table, table_path)
+    files, images = [], None
+    if "mitsuba" in formats:
+        write_text(os.path.join(out_dir, FILES["mitsuba"][0]), mitsuba_tabulated_xml(table_path))
+        files.append(FILES["mitsuba"][0])
+    # Every format holds the fit (mitsuba: mitsuba_principled.xml).
+    result = fit_principled(table)
+    params = result["params"]
+    quality = fit_quality(table, params, envmap)
+    render = quality["render"]
+    if render is not None:
+        images = render.pop("images")
+    fit = {"lab_log_2d": quality["lab_log_2d"],
+           "render_delta_e_log": None if render is None else render["delta_e_log_mean"],
+           "render": render, "optimiser": result["optimiser"],
+           "seconds": result["seconds"], "cpu_seconds": result["cpu_seconds"],
+           "bins": result["bins"], "starts": result["starts"],
+           "evaluations": result["evaluations"],
+           "loss": f"sum of cos_i cos_o (ln(rho_fit + {FIT_OFFSET}) "
+                   f"- ln(rho_table + {FIT_OFFSET}))^2"}
+    if "mitsuba" in formats:
+        write_text(os.path.join(out_dir, FILES["mitsuba"][1]), mitsuba_principled_xml(params))
+        files.append(FILES["mitsuba"][1])
+    if "principled" in formats:
+        doc = {**params, "blender": blender_parameters(params), "fit": fit,
+               "table": os.path.abspath(os.fspath(table_path))}
+        write_text(os.path.join(out_dir, "principled.json"), json.dumps(doc, indent=2) + "\n")
+        files.append("principled.json")
+    if "gltf" in formats:
+        doc = gltf_material(params, name=os.path.splitext(os.path.basename(table_path))[0])
+        write_text(os.path.join(out_dir, "material.gltf"), json.dumps(doc, indent=2) + "\n")
+        files.append("material.gltf")
+    return {"files": files, "params": params, "fit": fit, "images": images}
