@@ -89,11 +89,17 @@ def _photo_paths(folder):
 
 
 def read_png16_rgb(path):
-    """Read a 16-bit PNG as (H, W, 3) uint16 RGB (OpenCV, BGR flipped); InputError if not 16-bit."""
+    """Read a 16-bit PNG as (H, W, 3) uint16 RGB (OpenCV, BGR flipped); InputError otherwise.
+
+    An 8-bit PNG is read as 8-bit linear (cropped DiLiGenT copies are the 16-bit originals
+    divided by about 257) and scaled by 257, so 255 stays the clipping code 65535.
+    """
     import cv2
     image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
     if image is None:
         raise InputError(path, "cannot be read as an image")
+    if image.dtype == np.uint8:
+        image = image.astype(np.uint16) * 257
     if image.dtype != np.uint16:
         raise InputError(path, f"expected a 16-bit linear PNG, got {image.dtype} "
                                "(DiLiGenT photos are 16-bit)")

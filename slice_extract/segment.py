@@ -19,8 +19,10 @@ What separates materials is what the photo says about the material, not about sh
 - refinement ("k slices"): each pixel goes to the material whose slice (per-bin median of
   ln rho per channel, filled across empty bins) explains its sample best; that fixes highlight
   pixels, whose colour alone is ambiguous.
-- the stated criterion for K > 1: K slices must explain the photo clearly better than one,
-  mean |ln rho - ln slice| (capped at 1 per pixel) at most `explained` times that of one slice.
+- the stated criterion for K > 1: every material but the largest must be explained clearly
+  better by its own slice than by the one-slice model of the whole object: the mean
+  |ln rho - ln slice| of its pixels (capped at 1 per pixel) at most `explained` times as large.
+  (A material only slightly better explained is a shading or noise split of one material.)
 - spatial clean-up (OpenCV connected components, scipy.ndimage distance transform): patches
   smaller than `min_area_fraction` of the object merge into the nearest larger patch, and object
   pixels without a sample (silhouette ring, grazing, clipped, shadowed) take the nearest label.
@@ -131,8 +133,11 @@ def material_features(rho, theta_h):
     elsewhere, so it is ~0 for the typical pixel everywhere.
     """
     _, log_total, floor = _log_rho(rho)
-    total = rho.sum(axis=1) + floor
-    chroma = np.maximum(rho[:, :2], 0) / total[:, None]
+    # dichromatic: a dielectric's highlight adds the light's colour (grey in rho, which has the
+    # light's RGB divided out) to its body colour, so channel differences keep the body colour
+    # where r/(r+g+b) fades to grey (pot2's orange clay read as its grey leaf in the highlight)
+    scale = max(float(np.median(rho.sum(axis=1))), 1e-12)
+    chroma = np.column_stack([rho[:, 0] - rho[:, 1], rho[:, 1] - rho[:, 2]]) / scale
     bins = _bins(theta_h)
     lobe, median = specular_lobe_bins(log_total, bins)
     centres = np.degrees(theta_h_centres())
@@ -285,14 +290,32 @@ def cluster_samples(rho, theta_h, options=None):
             break
         k = merged
     criterion["alike_merged_k"] = int(k)
-    many = (_residuals(log_rho, bins, _slices(log_rho, bins, labels, k)).min(axis=1).mean()
-            if k > 1 else one)
-    criterion.update(residual_one=float(one), residual_k=float(many), refined_k=int(k),
-                     ratio=float(many / max(one, 1e-12)), explained=options.explained)
-    if k == 1 or many > options.explained * one:
-        criterion["reason"] = (f"K={k} slices explain the photo only {many / max(one, 1e-12):.2f}"
-                               f" x the residual of one (needs <= {options.explained}): one "
-                               "material")
+    # each material but the largest must be explained clearly better by its own slice than by
+    # the one-slice model; one that is not is given back to the others
+    single = _residuals(log_rho, bins, _slices(log_rho, bins, np.zeros(n, int), 1))[:, 0]
+    ratios = {}
+    while k > 1:
+        residual = _residuals(log_rho, bins, _slices(log_rho, bins, labels, k))
+        own = residual[np.arange(n), labels]
+        counts = np.bincount(labels, minlength=k)
+        ratio = np.array([own[labels == j].mean() / max(single[labels == j].mean(), 1e-12)
+                          for j in range(k)])
+        ratio[np.argmax(counts)] = 0.0  # the largest material is the reference
+        ratios = {int(j): float(r) for j, r in enumerate(ratio)}
+        worst = int(np.argmax(ratio))
+        if ratio[worst] <= options.explained:
+            break
+        residual[:, worst] = np.inf
+        labels = np.unique(residual.argmin(axis=1), return_inverse=True)[1]
+        k -= 1
+    criterion.update(residual_one=float(one), explained=options.explained,
+                     own_vs_one_slice=ratios, final_k=int(k))
+    if k == 1 and not ratios:
+        criterion["reason"] = "the clusters' slices agree: one material"
+        return np.zeros(n, int), 1, criterion
+    if k == 1:
+        criterion["reason"] = ("no material other than the largest is explained by its own "
+                               f"slice better than {options.explained} x by one slice: one material")
         return np.zeros(n, int), 1, criterion
     return labels, k, criterion
 
