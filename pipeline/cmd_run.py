@@ -115,9 +115,10 @@ def _infer(method, method_name, model_path, rho, out_dir):
 
 def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, references):
     import capture
-    from render import TabulatedBRDF, render_scene, write_comparison, write_exr, write_preview
+    from render import (MaterialMap, TabulatedBRDF, render_scene, write_comparison, write_exr,
+                        write_preview)
     rows = []
-    brdf = TabulatedBRDF(table)
+    brdf = table if isinstance(table, MaterialMap) else TabulatedBRDF(table)
     for photo, image, mask in render_scene(scene, brdf, spp=spp, photos=references,
                                            geometry=geometry):
         write_exr(out_dir / f"{photo.stem}.exr", image)
@@ -138,23 +139,42 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
 
 def run(args):
     import capture
+    from types import SimpleNamespace
+
     from pipeline.cmd_extract import write_extraction
     from pipeline.cmd_render import samples_per_pixel
+    from pipeline.cmd_segment import materials_option, segment_scene, write_labels
     from pipeline.report import write_report
+    from pipeline.run_materials import label_section, material_entries, run_materials
     from render.scene_render import SceneGeometry
-    from slice_extract import ExtractOptions, extract_slice
+    from slice_extract import ExtractOptions
+    from slice_extract.extract import bin_samples, collect_samples
 
     methods = _methods(args.methods)
     model_path = _model_path(args, methods)
     spp = samples_per_pixel(args)
+    materials = materials_option(getattr(args, "materials", None))
     out = Path(args.out)
-    stages, notes = _Stages(total=5 + 2 * len(methods)), []
+    stages, notes = _Stages(total=7 + 2 * len(methods)), []
 
     scene = stages.run("load scene", capture.load_scene, args.scene_dir)
     options = ExtractOptions()
-    result = stages.run("extract", extract_slice, scene, options)
+    samples = stages.run("extract", collect_samples, scene, options)
+    segmentation, faces = stages.run("segment", segment_scene, samples, materials)
+    title = f"flashbrdf run {Path(args.scene_dir).name}"
+    if segmentation.k > 1:
+        out.mkdir(parents=True, exist_ok=True)
+        ctx = SimpleNamespace(
+            scene=scene, scene_dir=args.scene_dir, out=out, stages=stages, options=options,
+            methods=methods, model_path=model_path, spp=spp, notes=notes, title=title,
+            load_methods=lambda: _load_methods(methods, model_path, not args.no_anchor),
+            geometry=lambda: SceneGeometry(scene))
+        report = run_materials(ctx, samples, segmentation, faces)
+        return _finish(stages, report, out)
+    result = stages.run("extract", bin_samples, samples)
     out.mkdir(parents=True, exist_ok=True)
     rho = write_extraction(out / "slice.csv", args.scene_dir, result, options)
+    write_labels(out / "labels.png", segmentation, faces)
 
     fitted = stages.run("load model", _load_methods, methods, model_path, not args.no_anchor)
     predictions, two_d = {}, []
@@ -183,9 +203,18 @@ def run(args):
             rows += stages.run(f"render+compare {name}", _render_and_compare, scene, geometry, name,
                                predictions[name]["table"], spp, out / name, references)
     observed = {"rho": rho, "n": result.n, "spread": result.spread}
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    sections = label_section(segmentation.labels, out / "figures", segmentation.criterion)
+    extra = {"materials": material_entries(segmentation.labels, {1: "slice.csv"},
+                                           {m: {1: p["file"]} for m, p in predictions.items()}),
+             "segmentation": segmentation.criterion}
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
-                        observed=observed, predictions=predictions, notes=notes,
-                        title=f"flashbrdf run {Path(args.scene_dir).name}")
+                        observed=observed, predictions=predictions, notes=notes, title=title,
+                        extra=extra, sections=sections)
+    return _finish(stages, report, out)
+
+
+def _finish(stages, report, out):
     stages.bar.close()
     print(stages.table(), file=sys.stderr)
     for method, summary in report.get("summary", {}).items():

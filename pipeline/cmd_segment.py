@@ -85,6 +85,36 @@ def read_labels(path, shape):
     return labels
 
 
+def material_map_inputs(scene, labels_png, count):
+    """(labels (H, W), face labels (F,) or None, flash camera) for rendering `count` tables
+    with LABELS.png (+ LABELS.faces.npy when present); InputError for a wrong size, an unused
+    label, a label count that is not `count`, or a faces file that does not fit the mesh."""
+    from slice_extract.segment import check_labels
+    flash = scene.photos_with_role("flash")
+    if not flash:
+        raise InputError(f"{scene.json_path}: photos", "--labels needs the flash photo's camera: "
+                                                       "no photo has role 'flash'")
+    camera = flash[0].camera
+    labels = read_labels(labels_png, camera.shape)
+    check_labels(labels, camera.shape, labels_png, count)
+    faces = None
+    npy = faces_path(labels_png)
+    if npy.is_file():
+        try:
+            faces = np.load(npy, allow_pickle=False)
+        except (OSError, ValueError) as err:
+            raise InputError(npy, f"cannot be read as a .npy array ({err})") from None
+        if faces.ndim != 1 or faces.dtype.kind not in "iu" or (
+                len(faces) and (faces.min() < 1 or faces.max() > count)):
+            raise InputError(npy, f"must be one label 1..{count} per face (int)")
+        if scene.geometry.mesh is not None:
+            from capture import load_mesh
+            n_faces = len(load_mesh(scene.geometry.mesh)[0].faces)
+            if len(faces) != n_faces:
+                raise InputError(npy, f"has {len(faces)} labels but the mesh has {n_faces} faces")
+    return labels, faces, camera
+
+
 def _refuse_overwriting_inputs(scene, out):
     targets = {Path(out).resolve(), faces_path(out).resolve(),
                Path(out).with_suffix(".json").resolve()}
