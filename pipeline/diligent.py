@@ -88,16 +88,23 @@ def _photo_paths(folder):
     return paths
 
 
-def read_png16_rgb(path):
+def read_png16_rgb(path, depth=None):
     """Read a 16-bit PNG as (H, W, 3) uint16 RGB (OpenCV, BGR flipped); InputError otherwise.
 
     An 8-bit PNG is read as 8-bit linear (cropped DiLiGenT copies are the 16-bit originals
     divided by about 257) and scaled by 257, so 255 stays the clipping code 65535.
+    depth: a dict remembering the first photo's bit depth; a photo of another depth is an error
+    (one folder of mixed 8- and 16-bit photos would mix two brightness scales).
     """
     import cv2
     image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
     if image is None:
         raise InputError(path, "cannot be read as an image")
+    if depth is not None:
+        first = depth.setdefault("dtype", (image.dtype, path))
+        if first[0] != image.dtype:
+            raise InputError(path, f"is {image.dtype} but {first[1]} is {first[0]}: the photos "
+                                   "of one object must share a bit depth")
     if image.dtype == np.uint8:
         image = image.astype(np.uint16) * 257
     if image.dtype != np.uint16:
@@ -224,10 +231,10 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None):
     height, width = obj.mask.shape
     loop = progress(range(k_photos)) if progress else range(k_photos)
     with atomic_folder(out_dir) as tmp:
-        photos = []
+        photos, depth = [], {}
         for k in loop:
             src = obj.photo_paths[k]
-            raw = read_png16_rgb(src)
+            raw = read_png16_rgb(src, depth)
             if raw.shape[:2] != (height, width):
                 raise InputError(src, f"size {raw.shape[1]}x{raw.shape[0]} differs from mask.png's "
                                       f"{width}x{height}")

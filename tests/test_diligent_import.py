@@ -198,3 +198,29 @@ def test_real_ball_light_sign_convention(tmp_path, capsys):
     # Division by light_intensities.txt makes the ball's albedo the same under every light.
     assert len(rho_medians) == 9
     assert np.std(rho_medians) / np.mean(rho_medians) < 0.05
+
+
+def test_eight_bit_linear_crops_read_as_linear_and_255_is_clipped(tmp_path):
+    """Cropped DiLiGenT copies are the 16-bit shots divided by ~257 in 8 bits (pot2 ships so).
+
+    The same folder converted to 8 bits imports to the same linear values within 8-bit
+    quantisation (one code of 255 on counts of at least 0.3*0.7*0.2*0.5*255 ~ 5.4: 10% where
+    cos > 0.2, so the median over the lit pixels is within 3%), and 255 marks a clipped pixel.
+    """
+    make_diligent(tmp_path / "obj")
+    assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "1",
+                 "--out", str(tmp_path / "s16")]) == 0
+    for png in sorted((tmp_path / "obj").glob("0*.png")):
+        codes = cv2.imread(str(png), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(png), np.round(codes / 257.0).astype(np.uint8))
+    eight = cv2.imread(str(tmp_path / "obj" / "002.png"), cv2.IMREAD_UNCHANGED)
+    eight[10, 30, 0] = 255
+    cv2.imwrite(str(tmp_path / "obj" / "002.png"), eight)
+    assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "1",
+                 "--out", str(tmp_path / "s8")]) == 0
+    for name in ("001.exr", "002.exr"):
+        a, b = _read_exr(tmp_path / "s16" / name), _read_exr(tmp_path / "s8" / name)
+        bright = np.isfinite(b).all(-1) & (a.min(-1) > 0.3 * 0.7 * 0.2 * 0.5 * 0.9)
+        assert bright.sum() > 100
+        assert np.median(np.abs(b[bright] / a[bright] - 1)) < 0.03
+    assert np.isnan(_read_exr(tmp_path / "s8" / "002.exr")[10, 30]).all()

@@ -1,0 +1,97 @@
+"""Several materials on a real object: DiLiGenT pot2, one BRDF against one per material.
+
+    nice -n 10 python benchmarks/multi_material.py [--methods dsgplvm] [--work DIR]
+
+pot2 (../shared/data/real/diligent-pot2, 8-bit linear crops) is imported with shot 052 as the
+flash and the other 95 shots as references (`import-diligent --flash 52`). `run` is called
+twice through the public command line: `--materials 1` (today's single-material pipeline) and
+`--materials auto` (segment, then a slice, a BRDF and a render per material). The numbers are
+the mean over the 95 references of each render's ΔE log mean (the contract's compare metric).
+The DiLiGenT ball is segmented too, as the single-material check (auto must choose 1).
+Writes benchmarks/results/multi_material.{json,md} and multi_material_<object>_labels.png.
+"""
+
+import json
+import shutil
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from benchmarks._real_common import RESULTS, SHARED, argument_parser, run_cli  # noqa: E402
+
+
+def _run(scene, out, materials, methods, log):
+    rc, err, seconds = run_cli(["run", scene, "--out", out, "--methods", methods,
+                                "--materials", materials])
+    if rc != 0:
+        raise SystemExit(f"run --materials {materials} failed (exit {rc}): {err}")
+    report = json.loads((Path(out) / "report.json").read_text())
+    summary = {m: s["delta_e_log_mean"]["mean"] for m, s in report["summary"].items()}
+    log(f"--materials {materials}: {len(report['materials'])} material(s), mean ΔE log "
+        f"{summary} ({seconds:.0f} s)")
+    return {"materials": len(report["materials"]), "delta_e_log_mean": summary,
+            "references": {m: s["references"] for m, s in report["summary"].items()},
+            "pixels": [m["pixels"] for m in report["materials"]], "seconds": seconds,
+            "segmentation": report.get("segmentation")}
+
+
+def main(argv=None):
+    ap = argument_parser(__doc__.splitlines()[0], "diligent-pot2", "flashbrdf_bench_multi")
+    ap.set_defaults(methods="dsgplvm")
+    args = ap.parse_args(argv)
+    log = lambda msg: print(msg, flush=True)  # noqa: E731
+    work = args.work
+    work.mkdir(parents=True, exist_ok=True)
+    result = {"command": "python benchmarks/multi_material.py " + " ".join(argv or sys.argv[1:]),
+              "objects": {}}
+    for name, folder in (("pot2", args.data),
+                         ("ball", SHARED / "data" / "real" / "diligent-ball")):
+        scene = work / f"{name}_scene"
+        if not (scene / "scene.json").is_file():
+            rc, err, _ = run_cli(["import-diligent", folder, "--flash", 52, "--out", scene])
+            if rc != 0:
+                raise SystemExit(f"import-diligent {folder} failed (exit {rc}): {err}")
+        entry = {}
+        if name == "pot2":
+            entry["single"] = _run(scene, work / f"{name}_single", "1", args.methods, log)
+        auto = _run(scene, work / f"{name}_auto", "auto", args.methods, log)
+        entry["auto"] = auto
+        labels = work / f"{name}_auto" / "figures" / "labels.png"
+        shutil.copyfile(labels, RESULTS / f"multi_material_{name}_labels.png")
+        entry["labels_png"] = f"multi_material_{name}_labels.png"
+        if "single" in entry:
+            entry["reduction"] = {m: 1 - auto["delta_e_log_mean"][m] / v
+                                  for m, v in entry["single"]["delta_e_log_mean"].items()}
+        result["objects"][name] = entry
+    (RESULTS / "multi_material.json").write_text(json.dumps(result, indent=1) + "\n")
+    (RESULTS / "multi_material.md").write_text(_markdown(result))
+    log(f"wrote {RESULTS / 'multi_material.md'}")
+    return 0
+
+
+def _markdown(result):
+    lines = ["# Several materials: one BRDF against one per material (DiLiGenT, flash = shot 052)",
+             "", f"Command: `{result['command']}`. Mean over the reference shots of ΔE log mean "
+             "(95 references per object; photos are the DiLiGenT shots, 'MERL (NBRDF proxy)' "
+             "model).", "",
+             "| object | run | materials | pixels per material | method | ΔE log mean | change |",
+             "|---|---|---|---|---|---|---|"]
+    for name, entry in result["objects"].items():
+        for run in ("single", "auto"):
+            if run not in entry:
+                continue
+            r = entry[run]
+            for method, value in r["delta_e_log_mean"].items():
+                change = (f"{-100 * entry['reduction'][method]:+.0f}%"
+                          if run == "auto" and "reduction" in entry else "")
+                lines.append(f"| {name} | --materials {'1' if run == 'single' else 'auto'} | "
+                             f"{r['materials']} | {', '.join(map(str, r['pixels']))} | {method} | "
+                             f"{value:.2f} | {change} |")
+    lines += [""]
+    for name, entry in result["objects"].items():
+        lines += [f"{name} label map (auto): ![{name}]({entry['labels_png']})", ""]
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
