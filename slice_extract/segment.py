@@ -45,7 +45,8 @@ LOG_FLOOR_REL = 1e-3  # rho below this fraction of the median brightness counts 
 @dataclass(frozen=True)
 class SegmentOptions:
     max_materials: int = 6
-    fit_samples: int = 10000       # pixels the mixture is fitted on; all pixels are predicted
+    fit_samples: int = 5000        # pixels the mixture is fitted on
+    work_samples: int = 50000      # pixels materials and slices are found on; all are assigned
     separation: float = 3.0        # pooled sigmas between two materials' feature means
     min_fraction: float = 0.02     # share of the sampled pixels a material must hold
     explained: float = 0.6         # residual ratio K slices / one slice needed for K > 1
@@ -96,10 +97,12 @@ def _fill_bins(curve):
     return curve
 
 
-def _log_rho(rho):
-    """ln(rho + floor) (N, 3) and ln of its channel sum (N,); floor from the median brightness."""
+def _log_rho(rho, floor=None):
+    """ln(rho + floor/3) (N, 3), ln of its channel sum + floor (N,), and floor (by default
+    LOG_FLOOR_REL times the median brightness)."""
     total = rho.sum(axis=1)
-    floor = LOG_FLOOR_REL * max(float(np.median(total)), 1e-12)
+    if floor is None:
+        floor = LOG_FLOOR_REL * max(float(np.median(total)), 1e-12)
     return np.log(np.maximum(rho, 0) + floor / 3), np.log(np.maximum(total, 0) + floor), floor
 
 
@@ -248,9 +251,37 @@ def cluster_samples(rho, theta_h, options=None):
     """Material of each sample: (labels (N,) int 0..K-1, K, criterion dict).
 
     rho (N, 3) 1/sr, finite; theta_h (N,) radians. See the module docstring for the method.
+    Materials and their slices are found on a random subsample of options.work_samples
+    samples; then every sample goes to the material whose slice explains it best.
     """
-    from sklearn.mixture import GaussianMixture
     options = options or SegmentOptions()
+    n = len(rho)
+    if n <= options.work_samples:
+        return _cluster(rho, theta_h, options)
+    pick = np.random.default_rng(options.seed).choice(n, options.work_samples, replace=False)
+    labels, k, criterion = _cluster(rho[pick], theta_h[pick], options)
+    criterion.update(samples=int(n), work_samples=int(len(pick)))
+    if k == 1:
+        return np.zeros(n, int), 1, criterion
+    return _assign_all(rho, theta_h, pick, labels, k), k, criterion
+
+
+def _assign_all(rho, theta_h, pick, labels, k):
+    """Labels (N,) of every sample: the material (of the k found on samples `pick`, labelled
+    `labels`) whose slice explains it best."""
+    log_rho, _, floor = _log_rho(rho[pick])
+    slices = _slices(log_rho, _bins(theta_h[pick]), labels, k).astype(np.float32)
+    out = np.empty(len(rho), np.int64)
+    for start in range(0, len(rho), 1 << 20):  # in chunks: bounded memory at 12 megapixels
+        part = slice(start, start + (1 << 20))
+        log_part, _, _ = _log_rho(rho[part].astype(np.float32), floor)
+        out[part] = _residuals(log_part, _bins(theta_h[part]), slices).argmin(axis=1)
+    return out
+
+
+def _cluster(rho, theta_h, options):
+    """cluster_samples on the samples given, all of them."""
+    from sklearn.mixture import GaussianMixture
     n = len(rho)
     criterion = {"samples": int(n)}
     if n < 50:
@@ -383,17 +414,17 @@ def _fixed_k(rho, theta_h, k, options):
     n = len(rho)
     if k == 1 or n < 2 * k:
         return np.zeros(n, int), {"samples": int(n), "reason": f"--materials {k}"}
-    features, _ = material_features(rho, theta_h)
     rng = np.random.default_rng(options.seed)
-    fit = rng.choice(n, size=min(options.fit_samples, n), replace=False)
+    pick = rng.choice(n, size=min(options.work_samples, n), replace=False)
+    features, _ = material_features(rho[pick], theta_h[pick])
+    fit = rng.choice(len(pick), size=min(options.fit_samples, len(pick)), replace=False)
     x = features / (features[fit].std(axis=0) + 1e-6)
     gm = GaussianMixture(k, covariance_type="full", reg_covar=1e-4, init_params="k-means++",
                          random_state=options.seed).fit(x[fit])
-    labels = gm.predict(x)
-    log_rho, _, _ = _log_rho(rho)
-    bins = _bins(theta_h)
-    labels, _ = _refine(log_rho, bins, labels, k, options)
-    return labels, {"samples": int(n), "reason": f"--materials {k}"}
+    log_rho, _, _ = _log_rho(rho[pick])
+    labels, k = _refine(log_rho, _bins(theta_h[pick]), gm.predict(x), k, options)
+    return _assign_all(rho, theta_h, pick, labels, k), {"samples": int(n),
+                                                        "reason": f"--materials {k}"}
 
 
 def check_labels(labels, shape, where, count=None):
