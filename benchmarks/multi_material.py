@@ -40,14 +40,20 @@ def _run(scene, out, materials, methods, log):
 def main(argv=None):
     ap = argument_parser(__doc__.splitlines()[0], "diligent-pot2", "flashbrdf_bench_multi")
     ap.set_defaults(methods="dsgplvm")
+    ap.add_argument("--objects", default="pot2,ball,cards",
+                    help="which to (re)measure; the others keep their entries in the JSON")
     args = ap.parse_args(argv)
+    wanted = set(args.objects.split(","))
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     work = args.work
     work.mkdir(parents=True, exist_ok=True)
-    result = {"command": "python benchmarks/multi_material.py " + " ".join(argv or sys.argv[1:]),
-              "objects": {}}
+    previous = RESULTS / "multi_material.json"
+    result = json.loads(previous.read_text()) if previous.is_file() else {"objects": {}}
+    result["command"] = "python benchmarks/multi_material.py " + " ".join(argv or sys.argv[1:])
     for name, folder in (("pot2", args.data),
                          ("ball", SHARED / "data" / "real" / "diligent-ball")):
+        if name not in wanted:
+            continue
         scene = work / f"{name}_scene"
         if not (scene / "scene.json").is_file():
             rc, err, _ = run_cli(["import-diligent", folder, "--flash", 52, "--out", scene])
@@ -65,7 +71,8 @@ def main(argv=None):
             entry["reduction"] = {m: 1 - auto["delta_e_log_mean"][m] / v
                                   for m, v in entry["single"]["delta_e_log_mean"].items()}
         result["objects"][name] = entry
-    result["planar_cards"] = _planar_cards(work, args.methods.split(","), log)
+    if "cards" in wanted:
+        result["planar_cards"] = _planar_cards(work, args.methods.split(","), log)
     (RESULTS / "multi_material.json").write_text(json.dumps(result, indent=1) + "\n")
     (RESULTS / "multi_material.md").write_text(_markdown(result))
     log(f"wrote {RESULTS / 'multi_material.md'}")

@@ -3,7 +3,8 @@
 Per material k: its slice (OUT_DIR/materials/material_<k>.csv, coverage.json), one prediction
 per method (OUT_DIR/<method>/material_<k>/brdf.binary), and one render per method and
 reference photo with every material's table on its own pixels (render.MaterialMap; other
-cameras through LABELS.faces.npy). OUT_DIR/labels.png is the label map.
+cameras through LABELS.faces.npy). OUT_DIR/labels.png is the label map; OUT_DIR/slice.csv
+the whole object's slice, as a single-material run writes it.
 A material with no usable sample at all (every pixel rejected) borrows the whole object's
 slice, and the report says so; a sparse one is inferred with its missing bins imputed.
 """
@@ -40,7 +41,7 @@ def run_materials(ctx, samples, segmentation, faces):
     segmentation: slice_extract.segment.Segmentation; faces: (F,) int32 or None.
     """
     from brdf.merl import theta_h_centres
-    from pipeline.cmd_extract import material_coverage, write_material_slices
+    from pipeline.cmd_extract import material_coverage, write_extraction, write_material_slices
     from pipeline.cmd_run import _infer, _render_and_compare
     from pipeline.cmd_segment import write_labels
     from render import MaterialMap, TabulatedBRDF
@@ -52,10 +53,11 @@ def run_materials(ctx, samples, segmentation, faces):
     rhos = write_material_slices(out / "materials", ctx.scene_dir, slices, ctx.options, labels)
     cover = material_coverage(slices, labels)
     warnings = list(cover["warnings"])
-    whole = None
+    # the whole object's slice too, as a single-material run writes it (for comparison)
+    whole = stages.run("extract", bin_samples, samples)
+    write_extraction(out / "slice.csv", ctx.scene_dir, whole, ctx.options)
     for k, result in slices.items():
         if result is None:
-            whole = whole or bin_samples(samples)
             rhos[k] = whole.rho
             warnings.append(f"material {k}: inferred from the whole object's slice")
     fitted = stages.run("load model", ctx.load_methods)

@@ -104,6 +104,7 @@ def test_relit_with_inferred_brdfs_is_within_1_3_of_the_known_ones(two_materials
     report = json.loads((out / "report.json").read_text())
     assert [m["label"] for m in report["materials"]] == [1, 2]
     assert all(set(m["brdf"]) == {"dsgplvm"} for m in report["materials"])
+    assert (out / "slice.csv").is_file() and (out / "labels.faces.npy").is_file()
     inferred = report["references"][0]["delta_e_log_mean"]
     # measured 2026-12-01: known 0.44 (the reference's photon noise), inferred 0.51
     assert inferred <= 1.3 * known_de, (inferred, known_de)
