@@ -49,7 +49,8 @@ def main(argv=None):
     work.mkdir(parents=True, exist_ok=True)
     previous = RESULTS / "multi_material.json"
     result = json.loads(previous.read_text()) if previous.is_file() else {"objects": {}}
-    result["command"] = "python benchmarks/multi_material.py " + " ".join(argv or sys.argv[1:])
+    command = "nice -n 10 python benchmarks/multi_material.py " + " ".join(argv or sys.argv[1:])
+    result["command"] = command
     for name, folder in (("pot2", args.data),
                          ("ball", SHARED / "data" / "real" / "diligent-ball")):
         if name not in wanted:
@@ -59,7 +60,7 @@ def main(argv=None):
             rc, err, _ = run_cli(["import-diligent", folder, "--flash", 52, "--out", scene])
             if rc != 0:
                 raise SystemExit(f"import-diligent {folder} failed (exit {rc}): {err}")
-        entry = {}
+        entry = {"command": command}
         if name == "pot2":
             entry["single"] = _run(scene, work / f"{name}_single", "1", args.methods, log)
         auto = _run(scene, work / f"{name}_auto", "auto", args.methods, log)
@@ -72,7 +73,8 @@ def main(argv=None):
                                   for m, v in entry["single"]["delta_e_log_mean"].items()}
         result["objects"][name] = entry
     if "cards" in wanted:
-        result["planar_cards"] = _planar_cards(work, args.methods.split(","), log)
+        result["planar_cards"] = dict(_planar_cards(work, args.methods.split(","), log),
+                                      command=command)
     (RESULTS / "multi_material.json").write_text(json.dumps(result, indent=1) + "\n")
     (RESULTS / "multi_material.md").write_text(_markdown(result))
     log(f"wrote {RESULTS / 'multi_material.md'}")
@@ -133,9 +135,14 @@ def _save_label_png(labels_png, target):
 
 def _markdown(result):
     lines = ["# Several materials: one BRDF against one per material (DiLiGenT, flash = shot 052)",
-             "", f"Command: `{result['command']}`. Mean over the reference shots of ΔE log mean "
-             "(95 references per object; photos are the DiLiGenT shots, 'MERL (NBRDF proxy)' "
-             "model).", "",
+             "", "Mean over the reference shots of ΔE log mean (95 references per object; photos "
+             "are the DiLiGenT shots, 'MERL (NBRDF proxy)' model). Commands (each object keeps "
+             "the command that measured it):", ""]
+    lines += [f"- {name}: `{entry.get('command', result['command'])}`"
+              for name, entry in result["objects"].items()]
+    if result.get("planar_cards"):
+        lines += [f"- planar cards: `{result['planar_cards'].get('command', result['command'])}`"]
+    lines += ["",
              "| object | run | materials | pixels per material | method | ΔE log mean | change |",
              "|---|---|---|---|---|---|---|"]
     for name, entry in result["objects"].items():
