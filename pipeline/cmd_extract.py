@@ -48,12 +48,12 @@ def extract_materials(args, options):
     """extract --labels LABELS.png --out DIR: DIR/material_<k>.csv and DIR/coverage.json."""
     from pipeline.cmd_segment import read_labels
     from slice_extract.extract import collect_samples, extract_material_slices
+    out = Path(args.out)
+    if out.suffix.lower() == ".csv" or (out.exists() and not out.is_dir()):
+        raise InputError("--out", "with --labels, --out is a folder (material_<k>.csv go in it)")
     samples = collect_samples(args.scene_dir, options)
     labels = read_labels(args.labels, samples.shape)
     slices = extract_material_slices(samples, labels, args.labels)
-    out = Path(args.out)
-    if out.suffix.lower() == ".csv":
-        raise InputError("--out", "with --labels, --out is a folder (material_<k>.csv go in it)")
     write_material_slices(out, args.scene_dir, slices, options, labels)
     return 0
 

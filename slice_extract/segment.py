@@ -347,6 +347,10 @@ def _cluster(rho, theta_h, options):
         criterion["reason"] = ("no material other than the largest is explained by its own "
                                f"slice better than {options.explained} x by one slice: one material")
         return np.zeros(n, int), 1, criterion
+    worst = max(ratios.values()) if ratios else 0.0
+    criterion["reason"] = (f"each material but the largest fits its own slice at most "
+                           f"{worst:.2f} x as badly as one slice for the object (needs <= "
+                           f"{options.explained})")
     return labels, k, criterion
 
 
