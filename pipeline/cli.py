@@ -50,16 +50,25 @@ def _parser():
 
     s = sub.add_parser("extract", help="extract the flash slice from a capture folder")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
-    s.add_argument("--out", required=True, metavar="SLICE.csv")
+    s.add_argument("--out", required=True, metavar="SLICE.csv|DIR")
+    s.add_argument("--labels", metavar="LABELS.png",
+                   help="one slice per material: DIR/material_<k>.csv and DIR/coverage.json")
     s.add_argument("--max-theta-d", type=float, metavar="DEG",
                    help="reject pixels with theta_d above this (default 5 degrees)")
     s.add_argument("--min-cos", type=float, help="reject cos(theta_i|o) below this (default 0.1)")
     s.add_argument("--silhouette-px", type=int, metavar="PX",
                    help="reject pixels this close to the object's outline (default 1)")
 
+    s = sub.add_parser("segment", help="label the flash photo's pixels by material")
+    s.add_argument("scene_dir", metavar="SCENE_DIR")
+    s.add_argument("--out", required=True, metavar="LABELS.png")
+    s.add_argument("--materials", default="auto", metavar="auto|K")
+
     s = sub.add_parser("render", help="render every reference photo's lighting")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
-    s.add_argument("--brdf", required=True, metavar="BRDF.binary")
+    s.add_argument("--brdf", required=True, metavar="BRDF.binary[,BRDF2.binary,...]")
+    s.add_argument("--labels", metavar="LABELS.png",
+                   help="material k of the label image is rendered with the k-th table")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     s.add_argument("--force", action="store_true", help=FORCE_HELP)
     s.add_argument("--spp", type=int, default=64)
@@ -81,6 +90,8 @@ def _parser():
     s.add_argument("--model", metavar="MODEL.npz")
     s.add_argument("--methods", default="dsgplvm")
     s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
+    s.add_argument("--materials", default="auto", metavar="auto|K",
+                   help="segment into materials first (default auto: K chosen, 1 for one material)")
     s.add_argument("--no-anchor", action="store_true",
                    help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
                         "theta_h to pass through the observed slice, carried over theta_d")
@@ -103,6 +114,8 @@ def _parser():
     s.add_argument("--out", required=True, metavar="DIR")
     s.add_argument("--formats", default="mitsuba,principled,gltf",
                    help="comma-separated, some of mitsuba,principled,gltf (default: all three)")
+    s.add_argument("--force", action="store_true",
+                   help="replace OUT_DIR if an earlier flashbrdf command made it")
 
     s = sub.add_parser("import-diligent", help="turn a DiLiGenT object folder into a scene folder")
     s.add_argument("obj_dir", metavar="OBJ_DIR")

@@ -1,18 +1,17 @@
 """`flashbrdf export BRDF.binary --out DIR [--formats mitsuba,principled,gltf]`.
 
-The folder is built in a temporary sibling and renamed into place (pipeline.diligent's
-atomic_folder), so a failure leaves no partial output. Bad input (an unreadable table, one with no
+The folder is built in a temporary sibling and renamed into place (pipeline.safety's
+staged_output_dir), so a failure leaves no partial output. Bad input (an unreadable table, one with no
 valid bin, an unknown format, an output folder that is, holds or lies inside the input) exits 2.
 """
 
-import os
 import sys
 from pathlib import Path
 
 from brdf.errors import InputError
 from brdf.merl import read_merl
-from pipeline.diligent import atomic_folder
-from render.export import FORMATS, MITSUBA_USAGE, export_table, output_files, parse_formats
+from pipeline.safety import check_outputs, staged_output_dir
+from render.export import FORMATS, MITSUBA_USAGE, export_table, parse_formats
 
 
 def pisa_envmap():
@@ -24,33 +23,21 @@ def pisa_envmap():
         return None
 
 
-def check_paths(brdf_path, out_dir):
-    """InputError when the output folder is the input, lies inside it or holds it."""
-    table, out = Path(brdf_path).resolve(), Path(out_dir).resolve()
-    if out == table or table in out.parents:
-        raise InputError(out_dir, f"the output would be inside the input {brdf_path}")
-    if out in table.parents:
-        raise InputError(out_dir, f"holds the input {brdf_path}; the export replaces this folder")
-
-
-def export_brdf(brdf_path, out_dir, formats=FORMATS, envmap="pisa"):
-    """Export a MERL table into out_dir (replacing a previous export there); the result dict of
-    render.export.export_table. envmap="pisa" uses ../shared's pisa when present."""
-    check_paths(brdf_path, out_dir)
+def export_brdf(brdf_path, out_dir, formats=FORMATS, envmap="pisa", force=False):
+    """Export a MERL table into out_dir (an earlier export there is replaced only with force); the
+    result dict of render.export.export_table. envmap="pisa" uses ../shared's pisa when present."""
+    check_outputs(inputs=[brdf_path], outputs=[out_dir], folders=[out_dir])
     table = read_merl(brdf_path)
     if envmap == "pisa":
         envmap = pisa_envmap()
-    with atomic_folder(out_dir, marker=output_files(formats)[0]) as tmp:
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o777 & ~umask)   # mkdtemp's folder is private; an export is not
+    with staged_output_dir(out_dir, force=force, command="export") as tmp:
         result = export_table(table, brdf_path, tmp, formats, envmap=envmap)
     return result
 
 
 def export(args):
     formats = parse_formats(args.formats)
-    result = export_brdf(args.brdf, args.out, formats)
+    result = export_brdf(args.brdf, args.out, formats, force=getattr(args, "force", False))
     fit = result["fit"]
     render = fit["render"]
     print(f"fit: {fit['optimiser']}, {fit['seconds']:.1f} s ({fit['cpu_seconds']:.1f} s CPU); "

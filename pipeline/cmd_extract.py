@@ -36,12 +36,95 @@ def extract(args):
     import capture
     from slice_extract import extract_slice
     options = _options(args)
+    if getattr(args, "labels", None):
+        return extract_materials(args, options)
     scene = capture.load_scene(args.scene_dir)
     check_outputs(inputs=[args.scene_dir, *scene.input_files()],
                   outputs=[args.out, sidecar_json(args.out)])
     result = extract_slice(scene, options)
     write_extraction(args.out, args.scene_dir, result, options)
     return 0
+
+
+SPARSE_BINS = 10  # a material slice with fewer filled theta_h bins than this is flagged sparse
+
+
+def extract_materials(args, options):
+    """extract --labels LABELS.png --out DIR: DIR/material_<k>.csv and DIR/coverage.json."""
+    import capture
+    from pipeline.cmd_segment import read_labels
+    from slice_extract.extract import collect_samples, extract_material_slices
+    out = Path(args.out)
+    if out.suffix.lower() == ".csv" or (out.exists() and not out.is_dir()):
+        raise InputError("--out", "with --labels, --out is a folder (material_<k>.csv go in it)")
+    scene = capture.load_scene(args.scene_dir)
+    check_outputs(inputs=[args.scene_dir, args.labels, *scene.input_files()], outputs=[out],
+                  folders=[out])
+    samples = collect_samples(scene, options)
+    labels = read_labels(args.labels, samples.shape)
+    slices = extract_material_slices(samples, labels, args.labels)
+    write_material_slices(out, args.scene_dir, slices, options, labels)
+    return 0
+
+
+def material_coverage(slices, labels):
+    """{"materials": [{label, pixels, bins_filled, pixels_used, theta_h_deg_filled, sparse}],
+    "warnings": [...]} for {k: SliceResult or None} and the label image."""
+    entries, warnings = [], []
+    for k, result in slices.items():
+        entry = {"label": k, "slice": f"material_{k}.csv",
+                 "pixels": int(np.count_nonzero(labels == k))}
+        if result is None:
+            entry.update(bins_filled=0, pixels_used=0, sparse=True)
+            warnings.append(f"material {k}: no usable pixel (all rejected or clipped); its slice "
+                            "is empty")
+        else:
+            cov = result.coverage
+            entry.update(bins_filled=cov["bins_filled"], pixels_used=cov["pixels_used"],
+                         theta_h_deg_filled=cov["theta_h_deg_filled"],
+                         sparse=cov["bins_filled"] < SPARSE_BINS)
+            if entry["sparse"]:
+                lo, hi = cov["theta_h_deg_filled"]
+                warnings.append(f"material {k}: sparse slice, {cov['bins_filled']} of 90 theta_h "
+                                f"bins filled ({lo:.1f}-{hi:.1f} deg); inference treats the "
+                                "rest as missing")
+        entries.append(entry)
+    return {"materials": entries, "warnings": warnings}
+
+
+def write_material_slices(out, scene_dir, slices, options, labels):
+    """DIR/material_<k>.csv per material and DIR/coverage.json; returns {k: rho (90, 3)}."""
+    from brdf.merl import N_THETA_H
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    written, rhos = [], {}
+    try:
+        for k, result in slices.items():
+            path = out / f"material_{k}.csv"
+            if result is None:
+                rho, n = np.full((N_THETA_H, 3), np.nan), np.zeros(N_THETA_H, int)
+                write_slice_csv(path, rho, n, comments=[f"flashbrdf extract --labels: material "
+                                                        f"{k} has no usable pixel"])
+            else:
+                rho, n = result.rho, result.n
+                cov = result.coverage
+                write_slice_csv(path, rho, n, comments=[
+                    f"flashbrdf extract {Path(scene_dir).resolve()} --labels: material {k}",
+                    f"pixels used {cov['pixels_used']}; bins filled {cov['bins_filled']}/90",
+                    f"estimator {options.estimator}; max theta_d {options.max_theta_d_deg} deg; "
+                    f"min cos {options.min_cos}; silhouette {options.silhouette_px} px"])
+            written.append(path)
+            rhos[k] = rho
+        report = material_coverage(slices, labels)
+        report["per_material"] = {str(k): None if r is None else r.report
+                                  for k, r in slices.items()}
+        path = out / "coverage.json"
+        write_text(path, json.dumps(report, indent=1) + "\n")
+    except BaseException:
+        for path in written:
+            path.unlink(missing_ok=True)
+        raise
+    return rhos
 
 
 def write_extraction(out, scene_dir, result, options, final_path=None):

@@ -41,7 +41,7 @@ def render(args):
     from render.brdf_models import TabulatedBRDF
     from render.compare import write_comparison
     from render.images import write_exr, write_preview
-    from render.scene_render import render_scene
+    from render.scene_render import MaterialMap, render_scene
 
     spp = samples_per_pixel(args)
     scene = capture.load_scene(args.scene_dir)
@@ -50,9 +50,22 @@ def render(args):
     references = scene.photos_with_role("reference")
     if not references:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'reference'")
-    brdf = TabulatedBRDF(read_merl(args.brdf), interpolate=bool(getattr(args, "interpolate", False)))
+    paths = [p.strip() for p in str(args.brdf).split(",") if p.strip()]
+    labels_png = getattr(args, "labels", None)
+    if len(paths) > 1 and not labels_png:
+        raise InputError("--brdf", f"{len(paths)} tables need --labels LABELS.png to say which "
+                                   "pixels each one covers")
+    interpolate = bool(getattr(args, "interpolate", False))
+    if labels_png:  # check the labels before reading any table
+        from pipeline.cmd_segment import material_map_inputs
+        labels, faces, camera = material_map_inputs(scene, labels_png, len(paths))
+    models = [TabulatedBRDF(read_merl(p), interpolate=interpolate) for p in paths]
+    brdf = MaterialMap(models, labels, camera, faces) if labels_png else models[0]
     seed = int(getattr(args, "seed", None) or 0)
-    report = {"brdf": str(Path(args.brdf).resolve()), "spp": spp, "seed": seed, "renders": []}
+    report = {"brdf": str(Path(paths[0]).resolve()) if len(paths) == 1 else
+              [str(Path(p).resolve()) for p in paths], "spp": spp, "seed": seed, "renders": []}
+    if labels_png:
+        report["labels"] = str(Path(labels_png).resolve())
     # Render and load every reference first, write afterwards: bad input found part-way (an
     # unreadable envmap or photo) then leaves no output file behind.
     results = []

@@ -135,9 +135,10 @@ def _check_references(references):
 
 
 def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, references, loaded):
-    from render import TabulatedBRDF, render_scene, write_comparison, write_exr, write_preview
+    from render import (MaterialMap, TabulatedBRDF, render_scene, write_comparison, write_exr,
+                        write_preview)
     rows = []
-    brdf = TabulatedBRDF(table)
+    brdf = table if isinstance(table, MaterialMap) else TabulatedBRDF(table)
     for photo, image, mask in render_scene(scene, brdf, spp=spp, photos=references,
                                            geometry=geometry):
         write_exr(out_dir / f"{photo.stem}.exr", image)
@@ -174,30 +175,40 @@ def run(args):
     with staged_output_dir(args.out, force=getattr(args, "force", False), command="run") as staged:
         stages, report = _run_stages(args, scene, methods, model_path, spp, references, loaded,
                                      Path(staged))
-    print(stages.table(), file=sys.stderr)
-    for method, summary in report.get("summary", {}).items():
-        mean = summary.get("delta_e_log_mean", {}).get("mean")
-        if mean is not None:
-            print(f"{method}: mean delta_e_log_mean {mean:.3f} over {summary['references']} "
-                  "reference(s)", file=sys.stderr)
-    print(f"report: {(Path(args.out) / 'report.md').resolve()}")
-    return 0
+    return _finish(stages, report, Path(args.out))
 
 
 def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
     """The slow part of `run`, into the staged folder `out`: returns (stages, report dict)."""
-    from pipeline.cmd_extract import write_extraction
-    from pipeline.report import write_report
-    from render.scene_render import SceneGeometry
-    from slice_extract import ExtractOptions, extract_slice
+    from types import SimpleNamespace
 
+    from pipeline.cmd_extract import write_extraction
+    from pipeline.cmd_segment import materials_option, segment_scene, write_labels
+    from pipeline.report import write_report
+    from pipeline.run_materials import label_section, material_entries, run_materials
+    from render.scene_render import SceneGeometry
+    from slice_extract import ExtractOptions
+    from slice_extract.extract import bin_samples, collect_samples
+
+    materials = materials_option(getattr(args, "materials", None))
     export = getattr(args, "export", False)
-    stages, notes = _Stages(total=4 + 2 * len(methods) + 2 * export), []
+    stages, notes = _Stages(total=6 + 2 * len(methods) + 2 * export), []
     fitted = stages.run("load model", _load_methods, methods, model_path, not args.no_anchor)
     options = ExtractOptions()
-    result = stages.run("extract", extract_slice, scene, options)
+    samples = stages.run("extract", collect_samples, scene, options)
+    segmentation, faces = stages.run("segment", segment_scene, samples, materials)
+    title = f"flashbrdf run {Path(args.scene_dir).name}"
+    if segmentation.k > 1:
+        ctx = SimpleNamespace(
+            scene=scene, scene_dir=args.scene_dir, out=out, stages=stages, options=options,
+            methods=methods, model_path=model_path, spp=spp, notes=notes, title=title,
+            load_methods=lambda: fitted, geometry=lambda: SceneGeometry(scene), loaded=loaded,
+            final_out=Path(args.out))
+        return stages, run_materials(ctx, samples, segmentation, faces)
+    result = stages.run("extract", bin_samples, samples)
     rho = write_extraction(out / "slice.csv", args.scene_dir, result, options,
                            final_path=Path(args.out) / "slice.csv")
+    write_labels(out / "labels.png", segmentation, faces)
 
     predictions, two_d, ood_warnings = {}, [], []
     for name in methods:
@@ -236,9 +247,25 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
             rows += stages.run(f"render+compare {label}", _render_and_compare, scene, geometry,
                                label, table, spp, out / label, references, loaded)
     observed = {"rho": rho, "n": result.n, "spread": result.spread}
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    sections = label_section(segmentation.labels, out / "figures", segmentation.criterion)
+    extra = {"materials": material_entries(segmentation.labels, {1: "slice.csv"},
+                                           {m: {1: p["file"]} for m, p in predictions.items()}),
+             "segmentation": segmentation.criterion}
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
-                        observed=observed, predictions=predictions, notes=notes,
-                        warnings=ood_warnings,
-                        title=f"flashbrdf run {Path(args.scene_dir).name}")
-    stages.bar.close()
+                        observed=observed, predictions=predictions, notes=notes, title=title,
+                        warnings=ood_warnings, extra=extra, sections=sections)
     return stages, report
+
+
+def _finish(stages, report, out):
+    """Close the progress bar and print the stage table, the summary and the report's path."""
+    stages.bar.close()
+    print(stages.table(), file=sys.stderr)
+    for method, summary in report.get("summary", {}).items():
+        mean = summary.get("delta_e_log_mean", {}).get("mean")
+        if mean is not None:
+            print(f"{method}: mean delta_e_log_mean {mean:.3f} over {summary['references']} "
+                  "reference(s)", file=sys.stderr)
+    print(f"report: {(out / 'report.md').resolve()}")
+    return 0

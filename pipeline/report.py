@@ -208,8 +208,11 @@ def _summary(rows):
 
 def write_report(out_dir, *, stages, references=(), observed=None, predictions=None, warnings=(),
                  title="flashbrdf report", notes=(), max_reference_figures=24, x_key=None,
-                 x_label=None):
-    """Write OUT_DIR/report.md, OUT_DIR/report.json and OUT_DIR/figures/*.png; return the JSON dict."""
+                 x_label=None, extra=None, sections=()):
+    """Write OUT_DIR/report.md, OUT_DIR/report.json and OUT_DIR/figures/*.png; return the JSON dict.
+
+    extra: more JSON fields for report.json (e.g. "materials"); sections: markdown lines put
+    after the notes and warnings (figures they name must already be in OUT_DIR)."""
     from brdf.merl import theta_h_centres
     out_dir = Path(out_dir)
     fig_dir = out_dir / "figures"
@@ -253,14 +256,15 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
         "coverage": cover, "warnings": warnings, "notes": list(notes),
         "figures": {**figures, "references": ref_figures},
         "total_seconds": float(sum(stages.values())),
+        **(extra or {}),
     })
     import json
     write_text(out_dir / "report.json", json.dumps(report, indent=1) + "\n")
-    write_text(out_dir / "report.md", _markdown(report, n_photos))
+    write_text(out_dir / "report.md", _markdown(report, n_photos, sections))
     return report
 
 
-def _markdown(report, n_photos):
+def _markdown(report, n_photos, sections=()):
     lines = [f"# {report['title']}", ""]
     summary = report["summary"]
     if summary:
@@ -276,6 +280,7 @@ def _markdown(report, n_photos):
         lines += [note, ""]
     if report["warnings"]:
         lines += ["## Coverage warnings", ""] + [f"- {w}" for w in report["warnings"]] + [""]
+    lines += list(sections)
     figures = report["figures"]
     if "slice" in figures:
         cover = report["coverage"]

@@ -203,3 +203,18 @@ def error_plot(path, rows, x_key=None, x_label="reference photo"):
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=8)
     _save(fig, path)
+
+
+def label_map(path, labels):
+    """A material label image (H, W) int (0 = not the object) in distinct colours, with a key."""
+    plt = _pyplot()
+    from matplotlib.colors import ListedColormap
+    k = int(labels.max())
+    colours = ["#000000"] + [plt.get_cmap("tab10")(j % 10) for j in range(k)]
+    fig, ax = plt.subplots(figsize=(5, 5 * labels.shape[0] / max(labels.shape[1], 1) + 0.4))
+    ax.imshow(labels, cmap=ListedColormap(colours), vmin=-0.5, vmax=k + 0.5,
+              interpolation="nearest")
+    ax.set_axis_off()
+    handles = [plt.Rectangle((0, 0), 1, 1, color=colours[j]) for j in range(1, k + 1)]
+    ax.legend(handles, [f"material {j}" for j in range(1, k + 1)], fontsize=7, loc="upper right")
+    _save(fig, path)

@@ -29,12 +29,13 @@ from render.compare import compare_images, write_comparison, write_delta_e_png
 from render.envmap import EnvMap, read_envmap_pixels
 from render.images import read_image, read_mask, tonemap, write_exr, write_preview
 from render.integrator import render_directional_light, render_envmap, render_point_light
-from render.scene_render import SceneGeometry, render_scene, render_sphere, sphere_view
+from render.scene_render import (MaterialMap, SceneGeometry, render_scene, render_sphere,
+                                 sphere_view)
 from render.table2 import table2
 
 __all__ = [
     "BRDFModel", "EnvMap", "GGX", "Lambert", "SceneGeometry", "TabulatedBRDF", "compare_images",
     "read_envmap_pixels", "read_image", "read_mask", "render_directional_light", "render_envmap",
-    "render_point_light", "render_scene", "render_sphere", "sphere_view", "table2", "tonemap",
+    "MaterialMap", "render_point_light", "render_scene", "render_sphere", "sphere_view", "table2", "tonemap",
     "write_comparison", "write_delta_e_png", "write_exr", "write_preview",
 ]

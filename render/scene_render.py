@@ -51,9 +51,56 @@ class SceneGeometry:
         return lambda points, dirs, max_dist: capture.occluded(mi, points, dirs, max_dist)
 
 
+class MaterialMap:
+    """Several BRDFs on one object: material k (1..K) is brdfs[k - 1].
+
+    labels (H, W) int in `camera`'s pixel grid (the flash photo's; 0 = not the object);
+    faces (F,) int or None: a label per mesh face, for views from other cameras.
+    """
+
+    def __init__(self, brdfs, labels, camera, faces=None):
+        self.brdfs, self.labels, self.camera, self.faces = list(brdfs), labels, camera, faces
+
+    def point_labels(self, surface, camera, where="--labels"):
+        """(N,) int 1..K of a capture.Surface seen from `camera`: through the label image for
+        the labels' own camera, else through the face labels."""
+        if _camera_key(camera) == _camera_key(self.camera):
+            labels = self.labels[surface.rows, surface.cols].astype(np.int64)
+            unlabelled = labels == 0
+            if unlabelled.any():   # a seen pixel the label image leaves at 0
+                labels[unlabelled] = (self.faces[surface.face[unlabelled]]
+                                      if self.faces is not None and surface.face is not None
+                                      else 1)
+            return labels
+        if self.faces is None or surface.face is None:
+            raise InputError(where, "a reference photo from another camera needs face labels "
+                                    "(LABELS.faces.npy, written for mesh geometry)")
+        return np.asarray(self.faces)[surface.face].astype(np.int64)
+
+
+def _part(surface, keep):
+    """The capture.Surface restricted to keep (N,) bool."""
+    from capture import Surface
+    pick = [None if v is None else v[keep] for v in (surface.rows, surface.cols, surface.points,
+                                                     surface.normals, surface.view_dirs,
+                                                     surface.face)]
+    return Surface(*pick)
+
+
 def render_surface(surface, camera, light, brdf, spp=64, seed=0, occluded=None, envmaps=None,
                    progress=None, where="light"):
-    """Pixel-model values (N, 3) of a capture.Surface under one capture.Light (unscaled)."""
+    """Pixel-model values (N, 3) of a capture.Surface under one capture.Light (unscaled).
+
+    brdf: a render.brdf_models model, or a MaterialMap (each material rendered with its own)."""
+    if isinstance(brdf, MaterialMap):
+        labels = brdf.point_labels(surface, camera)
+        values = np.zeros((len(labels), 3))
+        for k, model in enumerate(brdf.brdfs, start=1):
+            mine = labels == k
+            if mine.any():
+                values[mine] = render_surface(_part(surface, mine), camera, light, model, spp,
+                                              seed, occluded, envmaps, progress, where)
+        return values
     points = surface.points
     if light.type == "point":
         if points is None:

@@ -11,13 +11,21 @@ Public API:
                  shadow_rays=True, silhouette_px=1, chunk_pixels=2**20)
   robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e-3,
               estimator="trimmed_mean") -> estimate (90, 3), n (90,), spread (90, 3), inlier (N,)
+  collect_samples(scene, options=None) -> FlashSamples (every flash pixel's sample, pooled)
+  bin_samples(samples) -> SliceResult   # extract_slice = bin_samples(collect_samples(...))
+  extract_material_slices(samples, labels (H, W)) -> {k: SliceResult or None}
+  slice_extract.segment.segment_samples(samples, materials="auto"|K) -> Segmentation(labels
+      (H, W) uint16, k, criterion, sample_labels); face_labels(labels, face_image, centroids)
   half_diff_thetas(wi, wo, normal) -> theta_h, theta_d
   silhouette_mask(object_mask, width_px) -> (H, W) bool
 """
 
 from slice_extract.binning import robust_bins
-from slice_extract.extract import ExtractOptions, SliceResult, extract_slice, silhouette_mask
+from slice_extract.extract import (ExtractOptions, FlashSamples, SliceResult, bin_samples,
+                                   collect_samples, extract_material_slices, extract_slice,
+                                   silhouette_mask)
 from slice_extract.samples import half_diff_thetas
 
-__all__ = ["ExtractOptions", "SliceResult", "extract_slice", "half_diff_thetas", "robust_bins",
+__all__ = ["ExtractOptions", "FlashSamples", "SliceResult", "bin_samples", "collect_samples",
+           "extract_material_slices", "extract_slice", "half_diff_thetas", "robust_bins",
            "silhouette_mask"]

@@ -129,11 +129,45 @@ def _no_sample_error(scene, per_photo):
                       f"{', '.join(f'{k} {totals[k]}' for k in REASONS)}; mostly '{worst}')")
 
 
-def extract_slice(scene, options=None):
-    """The flash slice of a capture folder.
+@dataclass(eq=False)
+class FlashSamples:
+    """Every flash photo's samples, pooled, before binning (what extraction and segmentation share).
 
-    scene: scene folder path or capture.Scene; options: ExtractOptions (defaults above).
-    Returns SliceResult. InputError (exit 2) for bad input or when no pixel gives a sample.
+    theta_h, theta_d (N,) radians; rho (N, 3) 1/sr (+inf where censored); censored (N,) bool;
+    pixels (N,) int flat index row * width + col in its photo; photo (N,) int index into
+    scene.photos_with_role("flash"); shape (H, W) of the first flash photo's camera;
+    object_mask (H, W) bool: pixels of that camera whose ray meets the object; face_image (H, W)
+    int64 face hit per pixel (-1 none), or None for normal-map geometry; radiance (H, W, 3) of the
+    first flash photo; per_photo, timings: for the extraction report.
+    """
+    scene: object
+    options: object
+    theta_h: np.ndarray
+    theta_d: np.ndarray
+    rho: np.ndarray
+    censored: np.ndarray
+    pixels: np.ndarray
+    photo: np.ndarray
+    shape: tuple
+    object_mask: np.ndarray
+    face_image: np.ndarray
+    radiance: np.ndarray
+    per_photo: list
+    timings: dict
+    started: float
+
+    def subset(self, keep):
+        """The same samples restricted to keep (N,) bool (e.g. one material)."""
+        pick = {k: getattr(self, k)[keep] for k in ("theta_h", "theta_d", "rho", "censored",
+                                                     "pixels", "photo")}
+        return FlashSamples(**{**self.__dict__, **pick})
+
+
+def collect_samples(scene, options=None):
+    """Trace the flash photos and compute every usable pixel's sample; returns FlashSamples.
+
+    scene: scene folder path or capture.Scene; options: ExtractOptions. InputError (exit 2) for
+    bad input.
     """
     import capture
     options = options or ExtractOptions()
@@ -155,7 +189,8 @@ def extract_slice(scene, options=None):
     convex = needs_shadows and capture.is_convex(intersector)
     t = clock.add("load_mesh", t)
 
-    parts, per_photo = [], []
+    parts, per_photo, photo_of_part = [], [], []
+    first_mask, face_image = None, None
     groups = {}
     for k, img in enumerate(images):
         groups.setdefault(id(img.photo.camera), []).append(k)
@@ -166,6 +201,12 @@ def extract_slice(scene, options=None):
                          clipped=int(images[k].clipped.sum()), on_surface=0,
                          **dict.fromkeys(REASONS, 0)) for k in members}
         surfaces, object_mask = _trace(scene, camera, intersector, options.chunk_pixels)
+        if first_mask is None:
+            first_mask = object_mask
+            if not normal_map:
+                face_image = np.full(camera.shape, -1, dtype=np.int64)
+                for surface in surfaces:
+                    face_image[surface.rows, surface.cols] = surface.face
         edge = silhouette_mask(object_mask, options.silhouette_px)
         t = clock.add("trace", t)
         for surface in surfaces:
@@ -178,15 +219,35 @@ def extract_slice(scene, options=None):
                 for reason, count in got.rejected.items():
                     stats[k][reason] += count
                 parts.append(got)
+                photo_of_part.append(k)
             t = clock.add("samples", t)
         per_photo.extend(stats[k] for k in members)
 
-    theta_h = np.concatenate([p.theta_h for p in parts]) if parts else np.zeros(0)
-    theta_d = np.concatenate([p.theta_d for p in parts]) if parts else np.zeros(0)
-    rho = np.concatenate([p.rho for p in parts]) if parts else np.zeros((0, 3))
-    censored = np.concatenate([p.censored for p in parts]) if parts else np.zeros(0, bool)
+    def pooled(name, empty):
+        return np.concatenate([getattr(p, name) for p in parts]) if parts else empty
+
+    photo = (np.concatenate([np.full(len(p.theta_h), k) for p, k in zip(parts, photo_of_part)])
+             if parts else np.zeros(0, int))
+    return FlashSamples(scene, options, pooled("theta_h", np.zeros(0)),
+                        pooled("theta_d", np.zeros(0)), pooled("rho", np.zeros((0, 3))),
+                        pooled("censored", np.zeros(0, bool)), pooled("pixels", np.zeros(0, int)),
+                        photo, images[0].photo.camera.shape, first_mask, face_image,
+                        images[0].radiance, per_photo, clock.t, start)
+
+
+def bin_samples(samples):
+    """The slice (SliceResult) of FlashSamples: robust binning over the 90 theta_h bins.
+
+    InputError (exit 2) when no sample is usable or every bin is mostly clipped.
+    """
+    scene, options = samples.scene, samples.options
+    clock = _Clock()
+    clock.t = dict(samples.timings)
+    t = time.perf_counter()
+    theta_h, theta_d, rho, censored = (samples.theta_h, samples.theta_d, samples.rho,
+                                       samples.censored)
     if not np.any(~censored):
-        raise _no_sample_error(scene, per_photo)
+        raise _no_sample_error(scene, samples.per_photo)
     bins = merl_bin_index(theta_h, 0.0, 0.0)[0]
     estimate, n, spread, inlier = robust_bins(bins, rho, censored, theta_h, k=options.outlier_k,
                                               estimator=options.estimator)
@@ -198,11 +259,47 @@ def extract_slice(scene, options=None):
     negative = np.isfinite(estimate) & (estimate < 0)
     estimate = np.where(negative, 0.0, estimate)
     clock.add("binning", t)
-    clock.t["total"] = time.perf_counter() - start
-    report = _report(scene, options, per_photo, theta_h, theta_d, inlier, n, clock.t,
+    clock.t["total"] = time.perf_counter() - samples.started
+    report = _report(scene, options, samples.per_photo, theta_h, theta_d, inlier, n, clock.t,
                      np.bincount(bins[censored], minlength=N_THETA_H), censored)
     report["clamped_negative_bins"] = int(negative.any(axis=1).sum())
     return SliceResult(estimate, n, spread, report)
+
+
+def extract_slice(scene, options=None):
+    """The flash slice of a capture folder.
+
+    scene: scene folder path or capture.Scene; options: ExtractOptions (defaults above).
+    Returns SliceResult. InputError (exit 2) for bad input or when no pixel gives a sample.
+    """
+    return bin_samples(collect_samples(scene, options))
+
+
+def extract_material_slices(samples, labels, where="--labels"):
+    """One SliceResult per material: {k: SliceResult} for k = 1..labels.max().
+
+    samples: FlashSamples; labels (H, W) int in the first flash photo's pixel grid (0 = not the
+    object). Every flash photo must share that grid. A material whose pixels give no usable
+    sample gets None (the caller reports it). InputError for a wrong-sized label image or a
+    label in 1..K with no pixel.
+    """
+    from slice_extract.segment import check_labels
+    labels = np.asarray(labels)
+    check_labels(labels, samples.shape, where)
+    flash = samples.scene.photos_with_role("flash")
+    if any(p.camera.shape != tuple(samples.shape) for p in flash):
+        raise InputError(where, "the flash photos have different pixel grids: one label image "
+                                "cannot cover them")
+    count = int(labels.max())
+    of_sample = np.take(labels.ravel(), samples.pixels)
+    slices = {}
+    for k in range(1, count + 1):
+        mine = samples.subset(of_sample == k)
+        try:
+            slices[k] = bin_samples(mine)
+        except InputError:
+            slices[k] = None
+    return slices
 
 
 def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin_clipped,

@@ -88,6 +88,7 @@ class PhotoSamples:
 
     theta_h, theta_d (M,) radians; rho (M, 3) 1/sr, +inf where censored; censored (M,) bool:
     clipped pixels that passed the geometric tests (their true rho is above the stored one);
+    pixels (M,) int flat index row * width + col of each sample in the photo;
     rejected: counts per REASONS among usable pixels; n_usable: usable pixels on the patch.
     """
     theta_h: np.ndarray
@@ -96,6 +97,7 @@ class PhotoSamples:
     censored: np.ndarray
     rejected: dict
     n_usable: int
+    pixels: np.ndarray = None  # (M,) flat pixel index (row * width + col) of each sample
 
 
 def photo_samples(radiance, usable, surface, light, options, intersector=None, clipped=None,
@@ -168,9 +170,10 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
         drop(blocked, "shadowed")
         idx, theta_h, theta_d = idx[~blocked], theta_h[~blocked], theta_d[~blocked]
         cens_now = cens_now[~blocked]
-    pixel = np.take(radiance.reshape(-1, 3), np.take(flat, idx), axis=0).astype(np.float64)
+    pixels = np.take(flat, idx)
+    pixel = np.take(radiance.reshape(-1, 3), pixels, axis=0).astype(np.float64)
     cos_i = np.take(cos_i, idx)
     factor = 1.0 / cos_i if r2 is None else np.take(r2, idx) / cos_i
     rho = pixel * (factor[:, None] / light.power)
     rho[cens_now] = np.inf
-    return PhotoSamples(theta_h, theta_d, rho, cens_now, rejected, n_usable)
+    return PhotoSamples(theta_h, theta_d, rho, cens_now, rejected, n_usable, pixels)

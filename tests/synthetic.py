@@ -65,6 +65,35 @@ def table_brdf(merl_table, interpolate=False):
     return brdf
 
 
+def by_region(brdfs, region):
+    """A spatially varying BRDF function: brdfs[k] where region(points (N, 3)) -> (N,) int is k.
+
+    Evaluated by `render` with the hit points (the attribute `spatial` tells it to pass them).
+    """
+    def brdf(wi, wo, normal, points):
+        which = np.asarray(region(points))
+        out = np.zeros((len(wi), 3))
+        for k, fn in enumerate(brdfs):
+            mine = which == k
+            if mine.any():
+                out[mine] = fn(wi[mine], wo[mine], normal[mine])
+        return out
+    brdf.spatial = True
+    return brdf
+
+
+def region_image(mesh, cam, region):
+    """(H, W) int: 1 + region(hit point) per pixel that sees the mesh, 0 elsewhere (the true
+    label image of a by_region scene)."""
+    from trimesh.ray.ray_pyembree import RayMeshIntersector
+    origins, dirs = _rays(cam)
+    loc, index_ray, _ = RayMeshIntersector(mesh).intersects_location(origins, dirs,
+                                                                    multiple_hits=False)
+    out = np.zeros(cam["height"] * cam["width"], int)
+    out[index_ray] = 1 + np.asarray(region(loc))
+    return out.reshape(cam["height"], cam["width"])
+
+
 def true_slice(brdf_fn):
     """rho (90, 3) of an analytic BRDF at the MERL theta_h bin centres, theta_d = 0 exactly."""
     from brdf.merl import theta_h_centres
@@ -196,7 +225,9 @@ def render(mesh, brdf_fn, cam, light, shadows=True):
         r = None
         power = np.tile(np.asarray(light["irradiance_rgb"], float), (len(loc), 1))
     cos_i = np.sum(normal * wi, -1)
-    value = brdf_fn(wi, wo, normal) * power * np.clip(cos_i, 0, None)[:, None]
+    rho = brdf_fn(wi, wo, normal, loc) if getattr(brdf_fn, "spatial", False) else \
+        brdf_fn(wi, wo, normal)
+    value = rho * power * np.clip(cos_i, 0, None)[:, None]
     if shadows:
         eps = 1e-5 * mesh.scale
         lit = np.flatnonzero(cos_i > 0)

@@ -1,0 +1,137 @@
+"""`flashbrdf segment SCENE_DIR --out LABELS.png [--materials auto|K]` and the label files.
+
+LABELS.png: 16-bit, the first flash photo's pixel grid, 0 = background or unused, 1..K the
+material (slice_extract.segment). With a mesh, LABELS.faces.npy beside it: int32 per face
+(unseen faces take the nearest seen face's label). LABELS.json: K and why it was chosen.
+Written together through temporary files and renamed, so a failure leaves none of them.
+"""
+
+import contextlib
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from brdf.atomic import atomic_path
+from brdf.errors import InputError
+from pipeline.safety import check_outputs
+
+
+def materials_option(text):
+    """--materials: "auto" or an int K >= 1; InputError otherwise."""
+    text = "auto" if text is None else str(text).strip()
+    if text == "auto":
+        return "auto"
+    try:
+        k = int(text)
+    except ValueError:
+        k = 0
+    if k < 1 or k > 64:
+        raise InputError("--materials", f"expected auto or a number of materials 1..64, got "
+                                        f"{text!r}")
+    return k
+
+
+def faces_path(labels_png):
+    """LABELS.faces.npy beside LABELS.png."""
+    labels_png = Path(labels_png)
+    return labels_png.with_name(labels_png.stem + ".faces.npy")
+
+
+def segment_scene(samples, materials="auto", options=None):
+    """(Segmentation, face labels (F,) int32 or None) of FlashSamples."""
+    from capture import load_mesh
+    from slice_extract.segment import face_labels, segment_samples
+    segmentation = segment_samples(samples, materials, options)
+    faces = None
+    if samples.face_image is not None:
+        mesh, _ = load_mesh(samples.scene.geometry.mesh)
+        faces = face_labels(segmentation.labels, samples.face_image, mesh.triangles_center)
+    return segmentation, faces
+
+
+def write_labels(out, segmentation, faces, extra=None):
+    """Write LABELS.png (+ LABELS.faces.npy, LABELS.json), all or none."""
+    import cv2
+    out = Path(out)
+    report = {"materials": segmentation.k, "criterion": segmentation.criterion,
+              "pixels": {str(k): int(np.count_nonzero(segmentation.labels == k))
+                         for k in range(1, segmentation.k + 1)}, **(extra or {})}
+    with contextlib.ExitStack() as stack:
+        png = stack.enter_context(atomic_path(out, suffix=".png"))
+        if not cv2.imwrite(png, segmentation.labels.astype(np.uint16)):
+            raise InputError(out, "cannot write a PNG there")
+        if faces is not None:
+            npy = stack.enter_context(atomic_path(faces_path(out), suffix=".npy"))
+            with open(npy, "wb") as f:
+                np.save(f, faces.astype(np.int32))
+        js = stack.enter_context(atomic_path(out.with_suffix(".json"), suffix=".json"))
+        Path(js).write_text(json.dumps(report, indent=1) + "\n")
+
+
+def read_labels(path, shape):
+    """A label image (H, W) int from LABELS.png; InputError if unreadable, not `shape`, or a
+    label in 1..K has no pixel."""
+    import cv2
+    from slice_extract.segment import check_labels
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(path, "label image not found")
+    labels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if labels is None or labels.ndim != 2:
+        raise InputError(path, "is not a single-channel (16-bit) label PNG")
+    labels = labels.astype(np.int64)
+    check_labels(labels, shape, path)
+    return labels
+
+
+def material_map_inputs(scene, labels_png, count):
+    """(labels (H, W), face labels (F,) or None, flash camera) for rendering `count` tables
+    with LABELS.png (+ LABELS.faces.npy when present); InputError for a wrong size, an unused
+    label, a label count that is not `count`, or a faces file that does not fit the mesh."""
+    from slice_extract.segment import check_labels
+    flash = scene.photos_with_role("flash")
+    if not flash:
+        raise InputError(f"{scene.json_path}: photos", "--labels needs the flash photo's camera: "
+                                                       "no photo has role 'flash'")
+    camera = flash[0].camera
+    labels = read_labels(labels_png, camera.shape)
+    check_labels(labels, camera.shape, labels_png, count)
+    faces = None
+    npy = faces_path(labels_png)
+    if npy.is_file():
+        try:
+            faces = np.load(npy, allow_pickle=False)
+        except (OSError, ValueError) as err:
+            raise InputError(npy, f"cannot be read as a .npy array ({err})") from None
+        if faces.ndim != 1 or faces.dtype.kind not in "iu" or (
+                len(faces) and (faces.min() < 1 or faces.max() > count)):
+            raise InputError(npy, f"must be one label 1..{count} per face (int)")
+        if scene.geometry.mesh is not None:
+            from capture import load_mesh
+            n_faces = len(load_mesh(scene.geometry.mesh)[0].faces)
+            if len(faces) != n_faces:
+                raise InputError(npy, f"has {len(faces)} labels but the mesh has {n_faces} faces")
+    return labels, faces, camera
+
+
+def segment(args):
+    import capture
+    from slice_extract.extract import ExtractOptions, collect_samples
+    materials = materials_option(getattr(args, "materials", None))
+    if Path(args.out).suffix.lower() != ".png":
+        raise InputError("--out", f"the label image must be a .png, got {args.out}")
+    scene = capture.load_scene(args.scene_dir)
+    check_outputs(inputs=[args.scene_dir, *scene.input_files()],
+                  outputs=[args.out, faces_path(args.out), Path(args.out).with_suffix(".json")])
+    started = time.perf_counter()
+    samples = collect_samples(scene, ExtractOptions())
+    traced = time.perf_counter()
+    segmentation, faces = segment_scene(samples, materials)
+    done = time.perf_counter()
+    write_labels(args.out, segmentation, faces,
+                 {"seconds": {"samples": round(traced - started, 3),
+                              "segment": round(done - traced, 3)}})
+    print(f"{segmentation.k} material(s): {Path(args.out).resolve()}")
+    return 0

@@ -1,0 +1,191 @@
+"""Objects of several materials: segment, extract --labels, render --labels, run --materials.
+
+The scene is a sphere (r = 0.1 m, 1 m away, 256² pinhole, flash 3 cm off the lens) whose
+part with x + y/2 > 2 cm is MERL (NBRDF proxy) blue-acrylic and the rest red-specular-plastic,
+rendered through the contract's pixel model (tests/synthetic.py, trimesh rays, not ours) with
+Poisson noise of 2000 photons at the mean pixel, as a real photo has. A reference photo is the
+same object under a directional light 18° off the view axis, with the same noise.
+"""
+
+import itertools
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from brdf.merl import read_merl
+from brdf.views import flash_slice, read_slice_csv
+from pipeline.cli import main
+from synthetic import (add_photon_noise, by_region, directional_light, pinhole_camera,
+                       point_light, region_image, render, sphere_mesh, table_brdf, write_exr,
+                       write_synthetic_scene)
+
+MATERIALS = ("red-specular-plastic", "blue-acrylic")
+PHOTONS = 2000
+
+
+def _region(points):
+    return (points[:, 0] + 0.5 * points[:, 1] > 0.02).astype(int)
+
+
+@pytest.fixture(scope="module")
+def two_materials(merl_proxy, tmp_path_factory):
+    paths = merl_proxy(*MATERIALS)
+    tables = [read_merl(p) for p in paths]
+    brdf = by_region([table_brdf(t) for t in tables], _region)
+    mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
+    folder = write_synthetic_scene(tmp_path_factory.mktemp("two") / "scene", mesh, brdf, cam,
+                                   [point_light([0.03, 0, 0])], photons=PHOTONS)
+    light = directional_light(np.array([0.25, -0.2, -1.0]) / np.linalg.norm([0.25, -0.2, -1.0]))
+    reference = add_photon_noise(render(mesh, brdf, cam, light), PHOTONS,
+                                 np.random.default_rng(1))
+    write_exr(folder / "ref.exr", reference)
+    doc = json.loads((folder / "scene.json").read_text())
+    doc["photos"].append({"file": "ref.exr", "role": "reference", "light": light})
+    (folder / "scene.json").write_text(json.dumps(doc))
+    truth = region_image(mesh, cam, _region)
+    cv2.imwrite(str(folder.parent / "true_labels.png"), truth.astype(np.uint16))
+    return {"scene": folder, "tables": tables, "paths": paths, "truth": truth,
+            "true_png": folder.parent / "true_labels.png", "faces": len(mesh.faces)}
+
+
+@pytest.fixture(scope="module")
+def segmented(two_materials):
+    out = two_materials["scene"].parent / "seg" / "labels.png"
+    assert main(["segment", str(two_materials["scene"]), "--out", str(out)]) == 0
+    labels = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
+    truth = two_materials["truth"]
+    # labels are numbered by area; find which true material each one is
+    best = max(itertools.permutations([1, 2]),
+               key=lambda p: np.mean(np.choose(truth[truth > 0] - 1, p) == labels[truth > 0]))
+    return out, labels, best
+
+
+def test_auto_finds_two_materials_and_labels_98_percent(two_materials, segmented):
+    out, labels, perm = segmented
+    truth = two_materials["truth"]
+    assert labels.dtype == np.uint16 and labels.max() == 2
+    on = truth > 0
+    right = np.mean(np.choose(truth[on] - 1, perm) == labels[on])
+    # the boundary is a ~250-pixel curve through a 31,000-pixel disc: 98% leaves room for it
+    assert right >= 0.98
+    assert np.all(labels[~on] == 0)
+    faces = np.load(out.with_name("labels.faces.npy"))
+    assert faces.dtype == np.int32 and len(faces) == two_materials["faces"]
+    assert set(np.unique(faces)) == {1, 2}
+
+
+def test_material_slices_match_each_true_slice(two_materials, segmented, tmp_path):
+    out, _, perm = segmented
+    folder = tmp_path / "slices"
+    assert main(["extract", str(two_materials["scene"]), "--labels", str(out), "--out",
+                 str(folder)]) == 0
+    coverage = json.loads((folder / "coverage.json").read_text())
+    assert [m["label"] for m in coverage["materials"]] == [1, 2]
+    for true_index, label in enumerate(perm):
+        rho, n = read_slice_csv(folder / f"material_{label}.csv")
+        truth = flash_slice(two_materials["tables"][true_index])[0]
+        ok = (n >= 20) & np.all(np.isfinite(rho), 1) & np.all(truth > 0, 1)
+        # noise: 2000 photons is 2.2% per pixel, averaged over >= 20 pixels: < 0.5%; the rest
+        # is the flash's theta_d (up to 1.7 deg here) and the bin width
+        error = np.median(np.abs(rho[ok] / truth[ok] - 1))
+        assert ok.sum() >= 40 and error < 0.03, (label, ok.sum(), error)
+
+
+def test_relit_with_inferred_brdfs_is_within_1_3_of_the_known_ones(two_materials, tmp_path):
+    known = tmp_path / "known"
+    paths = ",".join(str(two_materials["paths"][k]) for k in (0, 1))
+    assert main(["render", str(two_materials["scene"]), "--brdf", paths, "--labels",
+                 str(two_materials["true_png"]), "--out", str(known), "--spp", "1"]) == 0
+    known_de = json.loads((known / "ref_compare.json").read_text())["delta_e_log_mean"]
+    out = tmp_path / "run"
+    assert main(["run", str(two_materials["scene"]), "--out", str(out), "--spp", "1"]) == 0
+    report = json.loads((out / "report.json").read_text())
+    assert [m["label"] for m in report["materials"]] == [1, 2]
+    assert all(set(m["brdf"]) == {"dsgplvm"} for m in report["materials"])
+    assert (out / "slice.csv").is_file() and (out / "labels.faces.npy").is_file()
+    inferred = report["references"][0]["delta_e_log_mean"]
+    # measured 2026-12-01: known 0.44 (the reference's photon noise), inferred 0.51
+    assert inferred <= 1.3 * known_de, (inferred, known_de)
+    assert "![labels](figures/labels.png)" in (out / "report.md").read_text()
+    # the test can fail: the two tables swapped are far off
+    swapped = tmp_path / "swapped"
+    paths = ",".join(str(two_materials["paths"][k]) for k in (1, 0))
+    assert main(["render", str(two_materials["scene"]), "--brdf", paths, "--labels",
+                 str(two_materials["true_png"]), "--out", str(swapped), "--spp", "1"]) == 0
+    swapped_de = json.loads((swapped / "ref_compare.json").read_text())["delta_e_log_mean"]
+    assert swapped_de > 3 * 1.3 * known_de
+
+
+def test_auto_picks_one_material_on_the_sample_capture(tmp_path):
+    from pathlib import Path
+    sample = Path(__file__).resolve().parents[1] / "sample_data" / "capture"
+    out = tmp_path / "labels.png"
+    assert main(["segment", str(sample), "--out", str(out)]) == 0
+    labels = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
+    assert labels.max() == 1 and np.count_nonzero(labels) > 10000
+    assert json.loads(out.with_suffix(".json").read_text())["materials"] == 1
+
+
+@pytest.mark.parametrize("how", ["wrong_size", "empty_label", "count"])
+def test_bad_labels_exit_2_with_one_line_and_no_output(two_materials, tmp_path, capsys, how):
+    truth = two_materials["truth"].astype(np.uint16)
+    bad = tmp_path / "bad.png"
+    paths = [str(p) for p in two_materials["paths"]]
+    if how == "wrong_size":
+        cv2.imwrite(str(bad), truth[:-1])
+    elif how == "empty_label":
+        cv2.imwrite(str(bad), np.where(truth == 2, 3, truth).astype(np.uint16))
+        paths.append(paths[0])
+    else:
+        cv2.imwrite(str(bad), truth)
+        paths = paths[:1]
+    out = tmp_path / "out"
+    assert main(["render", str(two_materials["scene"]), "--brdf", ",".join(paths), "--labels",
+                 str(bad), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.png" in err[0] and not out.exists()
+    if how != "count":
+        assert main(["extract", str(two_materials["scene"]), "--labels", str(bad), "--out",
+                     str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "bad.png" in err[0] and not out.exists()
+
+
+def test_face_labels_carry_the_materials_to_another_camera(two_materials, segmented):
+    """A camera 40° around the sphere sees the flash camera's labels through LABELS.faces.npy.
+
+    The icosphere's faces are ~1.5 px across in the flash view, so a face on the boundary can
+    go either way, and a strip of this view was never seen by the flash camera: it takes the
+    nearest seen face's label, which continues the straight material boundary. Measured
+    2026-12-01: 99.7%; 95% leaves room for those, while labels read through the wrong camera's
+    pixel grid would be right on about half the pixels.
+    """
+    import capture
+    from render import MaterialMap
+    out, labels, perm = segmented
+    angle = np.radians(40)
+    rotation = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0],
+                         [-np.sin(angle), 0, np.cos(angle)]])
+    pose = np.eye(4)
+    pose[:3, :3] = rotation
+    pose[:3, 3] = np.array([0, 0, 1.0]) - rotation @ np.array([0, 0, 1.0])
+    other = pinhole_camera(256, 256, 1000.0, world_from_camera=pose)
+    scene = capture.load_scene(two_materials["scene"])
+    flash_camera = scene.photos_with_role("flash")[0].camera
+    view_folder = two_materials["scene"].parent / "other_view"
+    view_folder.mkdir(exist_ok=True)
+    (view_folder / "object.ply").write_bytes((two_materials["scene"] / "object.ply").read_bytes())
+    (view_folder / "ref.exr").write_bytes((two_materials["scene"] / "ref.exr").read_bytes())
+    (view_folder / "scene.json").write_text(json.dumps({
+        "camera": other, "geometry": {"mesh": "object.ply"},
+        "photos": [{"file": "ref.exr", "role": "reference", "light": directional_light()}]}))
+    other_camera = capture.load_scene(view_folder).camera
+    surface = capture.surface_from_mesh(capture.scene_intersector(scene), other_camera)
+    faces = np.load(out.with_name("labels.faces.npy"))
+    seen = MaterialMap([None, None], labels, flash_camera, faces).point_labels(surface,
+                                                                                other_camera)
+    truth = region_image(sphere_mesh(), other, _region)[surface.rows, surface.cols]
+    right = np.mean(np.choose(truth - 1, perm) == seen)
+    assert len(seen) > 20000 and right >= 0.95, right
