@@ -109,8 +109,10 @@ def paint_table(tmp_path_factory):
 def test_export_writes_the_contract_files(paint_table, tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["export", str(paint_table), "--out", str(out)]) == 0
+    # beside the contract's four files, only the hidden marker of a folder flashbrdf made
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["mitsuba_tabulated.xml", "mitsuba_principled.xml", "principled.json", "material.gltf"])
+        [".flashbrdf-output", "mitsuba_tabulated.xml", "mitsuba_principled.xml", "principled.json",
+         "material.gltf"])
     tab = ET.parse(out / "mitsuba_tabulated.xml").getroot()
     assert tab.tag == "bsdf" and tab.get("type") == "flashbrdf_tabulated"
     (filename,) = tab.findall("string")
@@ -129,10 +131,14 @@ def test_export_writes_the_contract_files(paint_table, tmp_path, capsys):
     if doc["fit"]["render"] is not None:   # pisa from ../shared; same sampler and seed: tiny
         assert doc["fit"]["render_delta_e_log"] < 0.05
     _gltf_is_valid(json.loads((out / "material.gltf").read_text()))
-    # A second export into its own previous output replaces it.
-    assert main(["export", str(paint_table), "--out", str(out), "--formats", "gltf,mitsuba"]) == 0
+    # A second export into its own previous output is refused without --force, replaces it with
+    capsys.readouterr()
+    assert main(["export", str(paint_table), "--out", str(out), "--formats", "gltf,mitsuba"]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    assert main(["export", str(paint_table), "--out", str(out), "--formats", "gltf,mitsuba",
+                 "--force"]) == 0
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["mitsuba_tabulated.xml", "mitsuba_principled.xml", "material.gltf"])
+        [".flashbrdf-output", "mitsuba_tabulated.xml", "mitsuba_principled.xml", "material.gltf"])
 
 
 @pytest.mark.parametrize("case", ["format", "no_bins", "inside_input", "holds_input"])
