@@ -12,24 +12,25 @@ from brdf.errors import InputError
 
 
 def train(args):
-    """Train the DS-GPLVM on every MERL table in --merl-dir; store what the baselines need too."""
-    from infer import DSGPLVMMethod, TrainingSet
-    from infer.evaluate import tune_baselines
-    wanted = args.views.split(",")
-    start = time.perf_counter()
-    training = TrainingSet.from_merl_dir(args.merl_dir, keep_3d="3d" in wanted)
+    """Train the DS-GPLVM on every MERL table of every --merl-dir folder (infer.training); store
+    what the baselines need too."""
+    from infer import TrainingSet
+    from infer.training import train_model
+    folders = _merl_dirs(args.merl_dir)
+    training = TrainingSet.from_merl_dirs(folders, keep_3d="3d" in args.views.split(","))
     if len(training) < 3:
-        raise InputError(args.merl_dir, f"needs at least 3 MERL tables, found {len(training)}")
-    params = tune_baselines(training, seed=args.seed,
-                            feature_space=getattr(args, "feature_space", "auto"))
-    space = params["dsgplvm"]["feature_space"]
-    model = DSGPLVMMethod(views=wanted, seed=args.seed, feature_space=space).fit(training)
-    params["dsgplvm"] = {"feature_space": space, "views": wanted, "seed": args.seed}
-    params["train_seconds"] = time.perf_counter() - start
-    from infer import save_model
-    save_model(args.out, training, params, dsgplvm=model.model, merl_dir=args.merl_dir)
-    print(f"trained on {len(training)} materials in {params['train_seconds']:.1f} s -> {args.out}")
+        raise InputError(folders[0] if len(folders) == 1 else "--merl-dir",
+                         f"needs at least 3 MERL tables, found {len(training)}")
+    params = train_model(training, args.out, views=args.views.split(","), seed=args.seed,
+                         feature_space=getattr(args, "feature_space", "auto"), merl_dirs=folders)
+    print(f"trained on {len(training)} materials from {len(folders)} folder(s) in "
+          f"{params['train_seconds']:.1f} s -> {args.out}")
     return 0
+
+
+def _merl_dirs(value):
+    """--merl-dir as a list of folders (the option may be repeated; a str is one folder)."""
+    return [value] if isinstance(value, str) else list(value or [])
 
 
 def _uncertainty_summary(variance, feature_label):
@@ -89,13 +90,40 @@ def infer(args):
 
 def evaluate(args):
     """The paper's Table 1 protocol on --merl-dir (see infer.evaluate); with --render also its
-    Table 2 (render.table2) on the mean-performing experiment's test materials, 2D predictions."""
+    Table 2 (render.table2) on the mean-performing experiment's test materials, 2D predictions.
+    With --test-dir: trained on every --merl-dir table, scored on the --test-dir tables
+    (experiments.test_set), written all or nothing."""
+    folders = _merl_dirs(args.merl_dir)
+    if getattr(args, "test_dir", None):
+        from experiments.test_set import run_test_set
+        from pipeline.diligent import atomic_folder
+        if getattr(args, "render", False):
+            raise InputError("--render", "renders the cross-validation protocol's materials; "
+                                         "not with --test-dir")
+        _check_out_folder(args.out, folders + [args.test_dir])
+        with atomic_folder(args.out, marker="test_set.json") as out:
+            run_test_set(folders, args.test_dir, out, seed=getattr(args, "seed", 0))
+        print(f"test set scores -> {Path(args.out) / 'test_set.md'}")
+        return 0
+    if len(folders) != 1:
+        raise InputError("--merl-dir", "the cross-validation protocol takes one folder; give "
+                                       "--test-dir to train on several")
     from infer.evaluate import experiment_predictor, run_evaluation
-    result = run_evaluation(args.merl_dir, args.out, quick=args.quick,
+    merl_dir = folders[0]
+    result = run_evaluation(merl_dir, args.out, quick=args.quick,
                             experiments=getattr(args, "experiments", None),
                             time_budget=getattr(args, "time_budget", None))
     if getattr(args, "render", False):
         from render import table2
-        names, predict = experiment_predictor(args.merl_dir, result)
-        table2(args.merl_dir, args.out, predict, names=names)
+        names, predict = experiment_predictor(merl_dir, result)
+        table2(merl_dir, args.out, predict, names=names)
     return 0
+
+
+def _check_out_folder(out, inputs):
+    """InputError when the output folder is, or holds, one of the input folders."""
+    target = Path(out).resolve()
+    for folder in inputs:
+        source = Path(folder).resolve()
+        if source == target or target in source.parents:
+            raise InputError(out, f"output folder is or holds the input folder {folder}")
