@@ -1,15 +1,10 @@
-"""benchmarks/error_vs_runtime.py: the label column never overlaps, on crowded synthetic points."""
-
-import importlib.util
-from pathlib import Path
+"""infer/runtime_plot.py (evaluate's and benchmarks/error_vs_runtime.py's figure): the label column
+never overlaps, on crowded synthetic points."""
 
 import numpy as np
 from matplotlib.text import Text
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "error_vs_runtime.py"
-spec = importlib.util.spec_from_file_location("error_vs_runtime", SCRIPT)
-evr = importlib.util.module_from_spec(spec)
-spec.loader.exec_module(evr)
+import infer.runtime_plot as evr
 
 
 def test_spread_keeps_order_pitch_and_range():
