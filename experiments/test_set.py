@@ -10,7 +10,8 @@ loads it (through the file, dsgplvm anchored), so a number here is what a user g
 
 Scores per test table (2D, ρ(θh, θd) against the table's own 2D view):
 - all six Table 1 errors of brdf.metrics;
-- LAB-log per θd band: the bins j whose centre j + 0.5° lies in [lo, hi) (THETA_D_BANDS_DEG);
+- the same six per θd band: the bins j whose centre j + 0.5° lies in [lo, hi) (THETA_D_BANDS_DEG);
+  the report's band columns are LAB-log;
 - the prediction's wall time (one slice, 2D).
 Then mean and median across test tables.
 """
@@ -27,7 +28,7 @@ from brdf import merl, metrics
 from brdf.atomic import write_text
 from brdf.errors import InputError
 from infer import METHODS, TrainingSet, make_method
-from infer.evaluate import PAPER, build_method
+from infer.evaluate import PAPER, _warm_up, build_method
 from infer.model_file import load_methods
 from infer.report import summarise_errors
 from infer.training import train_model
@@ -44,17 +45,17 @@ def band_label(band):
 
 
 def band_errors(pred_2d, true_2d, bands=THETA_D_BANDS_DEG):
-    """LAB-log error of a 2D prediction per θd band: {"0-30": float, ...}.
+    """The six Table 1 errors of a 2D prediction per θd band: {"0-30": {"lab_log": …, …}, …}.
 
     pred_2d, true_2d: (90, 90, 3) over (θh, θd) in 1/sr, NaN where no data. A band holds the θd
-    bins j with j + 0.5 degrees in [lo, hi); the error is brdf.metrics' LAB-log over its valid bins.
+    bins j with j + 0.5 degrees in [lo, hi); errors are brdf.metrics' over its valid bins.
     """
     centres = np.arange(merl.N_THETA_D) + 0.5
     out = {}
     for lo, hi in bands:
         sel = (centres >= lo) & (centres < hi)
-        out[band_label((lo, hi))] = metrics.brdf_error(np.asarray(pred_2d)[:, sel],
-                                                       np.asarray(true_2d)[:, sel], "log", "lab")
+        out[band_label((lo, hi))] = metrics.brdf_errors(np.asarray(pred_2d)[:, sel],
+                                                        np.asarray(true_2d)[:, sel])
     return out
 
 
@@ -89,7 +90,7 @@ def _summary(per_material):
     """Mean/median over materials of the six errors, the bands and the prediction time."""
     rows = list(per_material.values())
     six = summarise_errors([{k: r[k] for k in METRICS} for r in rows])
-    bands = {b: metrics.summarise([r["bands"][b] for r in rows]) for b in rows[0]["bands"]}
+    bands = {b: summarise_errors([r["bands"][b] for r in rows]) for b in rows[0]["bands"]}
     ms = metrics.summarise([r["predict_ms"] for r in rows])
     return {"lab_log_mean": six["lab_log"]["mean"], "lab_log_median": six["lab_log"]["median"],
             "predict_ms": ms["mean"], "predict_ms_median": ms["median"],
@@ -98,12 +99,15 @@ def _summary(per_material):
 
 def score_methods(train, test, methods=None, seed=0, feature_space="auto"):
     """Train on `train`, score on `test` (both TrainingSet): the held-out protocol, for any split
-    (e.g. MERL plus every RGL fold but one; call it once per fold).
+    (e.g. MERL plus every RGL fold but one; call it once per fold):
+
+        data = TrainingSet.from_merl_dirs([merl_dir, rgl_dir])
+        score_methods(data.subset(train_index), data.subset(fold_index))
 
     methods: names from default_methods() (None: all). Returns {"train": {"materials", "train_s",
     "tuning_s"}, "test": {"materials"}, "bands_deg", "methods": {name: {"lab_log_mean",
     "lab_log_median", "predict_ms" (mean over test tables), "predict_ms_median", "fit_s",
-    "params", "summary" (six errors: mean, median, n), "bands" ({band: mean, median}),
+    "params", "summary" (six errors: mean, median, n), "bands" ({band: the same}),
     "per_material" ({name: six errors, "bands", "predict_ms"})}}}.
     fit_s: dsgplvm's final DS-GPLVM fit (its validation fits are in train.tuning_s); the other
     model-file methods' fit when loaded (what `infer` does); dsgplvm-paper and oracle their fit.
@@ -112,6 +116,7 @@ def score_methods(train, test, methods=None, seed=0, feature_space="auto"):
     unknown = [n for n in names if n not in default_methods()]
     if unknown:
         raise ValueError(f"unknown method {unknown[0]!r}; expected some of {default_methods()}")
+    _warm_up()   # geometry caches, so that the first prediction's time is a prediction's
     from_file = [n for n in names if n not in BESIDE_MODEL]
     fitted, fit_s, record = {}, {}, {"materials": list(train.names)}
     if from_file:
@@ -187,8 +192,8 @@ def test_set_markdown(result):
     for m, r in methods.items():
         mark = "**" if m == best else ""
         lines.append(f"| {m} | {mark}{_f(r['lab_log_mean'])} / {_f(r['lab_log_median'])}{mark} | "
-                     + " | ".join(f"{_f(r['bands'][b]['mean'])} / {_f(r['bands'][b]['median'])}"
-                                  for b in bands)
+                     + " | ".join(f"{_f(r['bands'][b]['lab_log']['mean'])} / "
+                                  f"{_f(r['bands'][b]['lab_log']['median'])}" for b in bands)
                      + f" | {_f(r['predict_ms'], 1)} | {_f(r['fit_s'], 1)} |")
     lines += ["", "## All six errors (mean / median over test tables)", "",
               "| method | " + " | ".join(METRICS) + " |", "|---|" + "---|" * len(METRICS)]
@@ -209,7 +214,7 @@ def test_set_markdown(result):
         for name in test_names:
             row = r["per_material"][name]
             lines.append(f"| {name} | " + " | ".join(_f(row[k], 3) for k in METRICS) + " | "
-                         + " | ".join(_f(row["bands"][b]) for b in bands)
+                         + " | ".join(_f(row["bands"][b]["lab_log"]) for b in bands)
                          + f" | {_f(row['predict_ms'], 1)} |")
     train = result["train"]
     if "train_s" in train:

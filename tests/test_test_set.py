@@ -80,7 +80,7 @@ def test_band_errors_partition_theta_d():
                      rng.uniform(0.01, 2.0, (90, 90, 3)), np.nan)
     pred = truth.copy()
     pred[:, 60:75] *= 3.0          # bins j = 60..74 have centres 60.5..74.5: the 60-75 band only
-    errs = band_errors(pred, truth)
+    errs = {b: e["lab_log"] for b, e in band_errors(pred, truth).items()}
     assert list(errs) == ["0-30", "30-60", "60-75", "75-90"]
     assert errs["0-30"] == errs["30-60"] == errs["75-90"] == 0.0 and errs["60-75"] > 1.0
     # The bands partition theta_d, and LAB-log is a mean over valid bins: the whole-table error is
@@ -104,6 +104,7 @@ def test_evaluate_test_dir_scores_every_method_on_every_table_as_infer_does(fold
         for row in r["per_material"].values():
             assert np.isfinite([row[k] for k in ("lab_log", "rgb_lin", "lab_root")]).all()
             assert list(row["bands"]) == ["0-30", "30-60", "60-75", "75-90"]
+            assert all(np.isfinite(e["lab_log"]) and len(e) == 6 for e in row["bands"].values())
         mean = np.mean([row["lab_log"] for row in r["per_material"].values()])
         assert r["lab_log_mean"] == pytest.approx(mean, rel=1e-12)
         assert r["predict_ms"] > 0 and r["fit_s"] >= 0
