@@ -71,9 +71,10 @@ def panel(ax, points, title, xlabel, medians=None):
     xs = np.array([p["x"] for p in points])
     ys = np.array([p["y"] for p in points] + list((medians or {}).values()))
     ax.set_xscale("log")
-    ax.set_xlim(xs.min() / 1.6, xs.max() * 1.6)
-    ticks = [v for v in (0.1, 0.2, 0.5, 1, 2, 3, 5, 10, 20, 30, 50, 100, 200, 500, 1000)
-             if xs.min() / 1.6 <= v <= xs.max() * 1.6]
+    lo, hi = xs.min() / 1.6, xs.max() * 1.6
+    steps = (1, 2, 3, 5) if hi / lo < 100 else (1, 3) if hi / lo < 1e3 else (1,)  # no crowding
+    ticks = [m * 10.0 ** k for k in range(-3, 7) for m in steps if lo <= m * 10.0 ** k <= hi]
+    ax.set_xlim(lo, hi)
     ax.xaxis.set_major_locator(matplotlib.ticker.FixedLocator(ticks))
     ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
     ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
