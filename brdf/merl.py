@@ -137,3 +137,23 @@ def list_merl(folder):
     if not names:
         raise InputError(folder, "no MERL .binary files in this folder")
     return [(n[: -len(".binary")], os.path.join(folder, n)) for n in names]
+
+
+def list_merl_dirs(folders):
+    """{name: path} of the `*.binary` files of every folder in `folders` (a path or a list of
+    paths), in folder order then name order; reads no table.
+
+    Material names must be unique across folders, since models and `infer --merl-dir` match tables
+    by name: InputError naming both files otherwise. An empty or missing folder is an InputError
+    naming it (list_merl).
+    """
+    if isinstance(folders, (str, os.PathLike)):
+        folders = [folders]
+    found = {}
+    for folder in folders:
+        for name, path in list_merl(folder):
+            if name in found:
+                raise InputError(path, f"material name {name!r} is also {found[name]}; names must "
+                                       "be unique across --merl-dir folders")
+            found[name] = path
+    return found

@@ -146,6 +146,19 @@ class TrainingSet:
         return cls(names, np.array(slices), np.array(tables), [found[n] for n in names],
                    np.array(rows) if keep_3d else None)
 
+    @classmethod
+    def from_merl_dirs(cls, folders, keep_3d=False):
+        """Every MERL table of every folder in `folders` (a list of paths), folder by folder, in
+        one set. Names must be unique across folders and no folder may be empty (InputError,
+        checked before any table is read: brdf.merl.list_merl_dirs)."""
+        merl.list_merl_dirs(folders)
+        parts = [cls.from_merl_dir(f, keep_3d=keep_3d) for f in folders]
+        return cls(names=[n for p in parts for n in p.names],
+                   slices=np.concatenate([p.slices for p in parts]),
+                   tables_2d=np.concatenate([p.tables_2d for p in parts]),
+                   paths=[q for p in parts for q in p.paths],
+                   valid_3d=np.concatenate([p.valid_3d for p in parts]) if keep_3d else None)
+
     def subset(self, index):
         index = list(index)
         return TrainingSet([self.names[i] for i in index], self.slices[index], self.tables_2d[index],

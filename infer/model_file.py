@@ -8,6 +8,7 @@ per-method hyperparameters), dsgplvm (uint8: the DSGPLVM's own .npz bytes), opti
 import json
 import os
 import tempfile
+import time
 import zipfile
 
 import numpy as np
@@ -29,11 +30,16 @@ def _model_bytes(model):
 
 
 def save_model(path, training, params, dsgplvm=None, merl_dir=""):
-    """Write MODEL.npz atomically. params: {method: {hyperparameter: value}}."""
+    """Write MODEL.npz atomically. params: {method: {hyperparameter: value}}. merl_dir: the
+    training folder, or a list of them (all recorded in `merl_dirs`; `merl_dir` keeps the first)."""
+    merl_dirs = [str(merl_dir)] if isinstance(merl_dir, (str, os.PathLike)) else \
+        [str(d) for d in merl_dir]
     # float32 keeps 7 digits, far below the feature map's resolution, and halves the file.
     arrays = {"format": np.array(FORMAT), "names": np.array(training.names),
               "slices": training.slices, "tables_2d": np.asarray(training.tables_2d, np.float32),
-              "params": np.array(json.dumps(params)), "merl_dir": np.array(str(merl_dir))}
+              "params": np.array(json.dumps(params)),
+              "merl_dir": np.array(merl_dirs[0] if merl_dirs else ""),
+              "merl_dirs": np.array(merl_dirs, dtype=str)}
     if dsgplvm is not None:
         arrays["dsgplvm"] = _model_bytes(dsgplvm)
     if training.valid_3d is not None:
@@ -69,7 +75,8 @@ def check_model_file(path):
 
 def read_model(path, merl_dir=None):
     """-> (TrainingSet, params dict, dsgplvm npz bytes or None). 3D tables come from the stored rows,
-    else lazily from merl_dir (matched by material name). InputError on a bad file."""
+    else lazily from merl_dir, a folder or a list of folders (matched by material name, so a model
+    trained on several folders reads its tables from all of them). InputError on a bad file."""
     try:
         z = np.load(path, allow_pickle=False)
         if str(z["format"]) != FORMAT:
@@ -98,10 +105,12 @@ def read_model(path, merl_dir=None):
         raise _unreadable(path, err) from None
     if training.valid_3d is None and merl_dir is not None:
         from brdf import merl
-        found = dict(merl.list_merl(merl_dir))
+        found = merl.list_merl_dirs(merl_dir)
         missing = [n for n in names if n not in found]
         if missing:
-            raise InputError(merl_dir, f"lacks training tables of the model: {', '.join(missing[:5])}")
+            where = merl_dir if isinstance(merl_dir, (str, os.PathLike)) else ", ".join(
+                map(str, merl_dir))
+            raise InputError(where, f"lacks training tables of the model: {', '.join(missing[:5])}")
         training.paths = [found[n] for n in names]
     return training, params, blob
 
@@ -142,13 +151,15 @@ def load_method(path, name, merl_dir=None, **overrides):
     return load_methods(path, [name], merl_dir, {name: overrides})[name]
 
 
-def load_methods(path, names, merl_dir=None, overrides=None):
+def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
     """{name: fitted method} for several methods from one read of MODEL.npz (a model with a 3D
-    view holds GBs of rows: read once, shared). overrides: {name: {hyperparameter: value}}."""
+    view holds GBs of rows: read once, shared). overrides: {name: {hyperparameter: value}}.
+    fit_seconds: a dict that receives each method's load-and-fit wall time, if given."""
     from infer import make_method
     training, params, blob = read_model(path, merl_dir)
     methods = {}
     for name in names:
+        start = time.perf_counter()
         kw = {**params.get(name, {}), **(overrides or {}).get(name, {})}
         if name == "dsgplvm":
             if blob is None:
@@ -163,4 +174,6 @@ def load_methods(path, names, merl_dir=None, overrides=None):
                 raise InputError(path, f"cannot read the DS-GPLVM stored in the model "
                                        f"({type(err).__name__}: {err})") from None
         methods[name] = make_method(name, **kw).fit(training)
+        if fit_seconds is not None:
+            fit_seconds[name] = time.perf_counter() - start
     return methods

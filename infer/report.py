@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from brdf.atomic import atomic_path, write_text
+from brdf.atomic import write_text
 
 METHODS = ("dsgplvm", "dsgplvm-paper", "pca", "noll", "chandraker", "ashikhmin", "oracle")
 TRANSFORMS = ("lin", "root", "log")
@@ -136,24 +136,8 @@ def write_markdown(path, result):
 
 
 def write_runtime_plot(path, points):
-    """LAB-log 2D error against inference time; points [{label, method, seconds, error}]."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    colours = dict(zip(METHODS, plt.rcParams["axes.prop_cycle"].by_key()["color"]))
-    for p in points:
-        ax.scatter(p["seconds"], p["error"], color=colours.get(p["method"], "k"), s=28)
-        ax.annotate(p["label"], (p["seconds"], p["error"]), fontsize=6, xytext=(3, 2),
-                    textcoords="offset points")
-    for m in METHODS:
-        ax.scatter([], [], color=colours[m], label=m)
-    ax.set_xscale("log")
-    ax.set_xlabel("2D inference time per material (s)")
-    ax.set_ylabel("LAB-log error, mean over test materials")
-    ax.set_title(f"Error against run time, {DATASET}")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120)
-    plt.close(fig)
+    """LAB-log 2D error against inference time; points [{label, method, seconds, error}], one per
+    method and setting (infer.runtime_plot: labels in a column that never overlaps)."""
+    from infer.runtime_plot import grid_points, make_figure, write_figure
+    write_figure(path, make_figure(grid_points(points), DATASET,
+                                   note="flashbrdf evaluate (infer/runtime_plot.py)."))

@@ -26,7 +26,8 @@ def _parser():
     s.add_argument("--out", required=True, metavar="SLICE.csv")
 
     s = sub.add_parser("train", help="train a DS-GPLVM model on MERL tables")
-    s.add_argument("--merl-dir", required=True, metavar="DIR")
+    s.add_argument("--merl-dir", required=True, action="append", metavar="DIR",
+                   help="a folder of MERL tables; repeat it to train on the tables of several")
     s.add_argument("--out", required=True, metavar="MODEL.npz")
     s.add_argument("--views", default="1d,2d", choices=["1d,2d", "1d,2d,3d"])
     s.add_argument("--feature-space", default="auto", choices=["auto", "lab", "rgb"],
@@ -40,7 +41,9 @@ def _parser():
     s.add_argument("--out", required=True, metavar="BRDF.binary")
     s.add_argument("--method", default="dsgplvm",
                    choices=["dsgplvm", "pca", "noll", "chandraker", "ashikhmin"])
-    s.add_argument("--merl-dir", metavar="DIR")
+    s.add_argument("--merl-dir", action="append", metavar="DIR",
+                   help="the model's training tables, for 3D (repeat it for a model trained on "
+                        "several folders)")
     s.add_argument("--no-anchor", action="store_true",
                    help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
                         "theta_h to pass through the observed slice, carried over theta_d")
@@ -100,9 +103,12 @@ def _parser():
                         "and render its Principled fit beside the tabulated BRDF")
 
     s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
-    s.add_argument("--merl-dir", required=True, metavar="DIR")
+    s.add_argument("--merl-dir", required=True, action="append", metavar="DIR",
+                   help="training tables (repeatable with --test-dir)")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     s.add_argument("--force", action="store_true", help=FORCE_HELP)
+    s.add_argument("--test-dir", metavar="DIR",
+                   help="train on every --merl-dir table, score every method on these tables")
     s.add_argument("--render", action="store_true")
     s.add_argument("--quick", action="store_true")
     s.add_argument("--experiments", type=int, help="number of experiments (default 25)")

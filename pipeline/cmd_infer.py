@@ -13,34 +13,34 @@ from brdf.errors import InputError
 from pipeline.safety import check_outputs, sidecar_json, staged_output_dir
 
 
-def _merl_inputs(merl_dir):
-    """A MERL folder and its tables (InputError when it is not a folder of tables)."""
-    if merl_dir is None:
-        return []
-    return [merl_dir, *(path for _, path in merl.list_merl(merl_dir))]
+def _merl_inputs(merl_dirs):
+    """MERL folders (one, a list, or None) and their tables (InputError when one is not a folder
+    of tables)."""
+    return [item for folder in _merl_dirs(merl_dirs)
+            for item in (folder, *(path for _, path in merl.list_merl(folder)))]
 
 
 def train(args):
-    """Train the DS-GPLVM on every MERL table in --merl-dir; store what the baselines need too."""
-    from infer import DSGPLVMMethod, TrainingSet
-    from infer.evaluate import tune_baselines
-    wanted = args.views.split(",")
-    check_outputs(inputs=_merl_inputs(args.merl_dir), outputs=[args.out])
-    start = time.perf_counter()
-    training = TrainingSet.from_merl_dir(args.merl_dir, keep_3d="3d" in wanted)
+    """Train the DS-GPLVM on every MERL table of every --merl-dir folder (infer.training); store
+    what the baselines need too."""
+    from infer import TrainingSet
+    from infer.training import train_model
+    folders = _merl_dirs(args.merl_dir)
+    check_outputs(inputs=_merl_inputs(folders), outputs=[args.out])
+    training = TrainingSet.from_merl_dirs(folders, keep_3d="3d" in args.views.split(","))
     if len(training) < 3:
-        raise InputError(args.merl_dir, f"needs at least 3 MERL tables, found {len(training)}")
-    params = tune_baselines(training, seed=args.seed,
-                            feature_space=getattr(args, "feature_space", "auto"))
-    space = params["dsgplvm"]["feature_space"]
-    model = DSGPLVMMethod(views=wanted, seed=args.seed, feature_space=space).fit(training)
-    params["dsgplvm"] = {"feature_space": space, "views": wanted, "seed": args.seed,
-                         "calibration": params["dsgplvm"]["calibration"]}
-    params["train_seconds"] = time.perf_counter() - start
-    from infer import save_model
-    save_model(args.out, training, params, dsgplvm=model.model_, merl_dir=args.merl_dir)
-    print(f"trained on {len(training)} materials in {params['train_seconds']:.1f} s -> {args.out}")
+        raise InputError(folders[0] if len(folders) == 1 else "--merl-dir",
+                         f"needs at least 3 MERL tables, found {len(training)}")
+    params = train_model(training, args.out, views=args.views.split(","), seed=args.seed,
+                         feature_space=getattr(args, "feature_space", "auto"), merl_dirs=folders)
+    print(f"trained on {len(training)} materials from {len(folders)} folder(s) in "
+          f"{params['train_seconds']:.1f} s -> {args.out}")
     return 0
+
+
+def _merl_dirs(value):
+    """--merl-dir as a list of folders (the option may be repeated; a str is one folder)."""
+    return [value] if isinstance(value, str) else list(value or [])
 
 
 def _uncertainty_summary(variance, feature_label):
@@ -112,16 +112,37 @@ def infer(args):
 
 def evaluate(args):
     """The paper's Table 1 protocol on --merl-dir (see infer.evaluate); with --render also its
-    Table 2 (render.table2) on the mean-performing experiment's test materials, 2D predictions."""
+    Table 2 (render.table2) on the mean-performing experiment's test materials, 2D predictions.
+    With --test-dir: trained on every --merl-dir table, scored on the --test-dir tables
+    (experiments.test_set), written all or nothing."""
+    folders = _merl_dirs(args.merl_dir)
+    if getattr(args, "test_dir", None):
+        from experiments.test_set import run_test_set
+        if getattr(args, "render", False):
+            raise InputError("--render", "renders the cross-validation protocol's materials; "
+                                         "not with --test-dir")
+        check_outputs(inputs=_merl_inputs(folders + [args.test_dir]), outputs=[args.out],
+                      folders=[args.out])
+        with staged_output_dir(args.out, force=getattr(args, "force", False),
+                               command="evaluate") as out:
+            run_test_set(folders, args.test_dir, out, seed=getattr(args, "seed", 0))
+        print(f"test set scores -> {Path(args.out) / 'test_set.md'}")
+        return 0
+    if len(folders) != 1:
+        raise InputError("--merl-dir", "the cross-validation protocol takes one folder; give "
+                                       "--test-dir to train on several")
     from infer.evaluate import experiment_predictor, run_evaluation
-    check_outputs(inputs=_merl_inputs(args.merl_dir), outputs=[args.out], folders=[args.out])
+    merl_dir = folders[0]
+    check_outputs(inputs=_merl_inputs(folders), outputs=[args.out], folders=[args.out])
     with staged_output_dir(args.out, force=getattr(args, "force", False),
                            command="evaluate") as out:
-        result = run_evaluation(args.merl_dir, out, quick=args.quick,
+        result = run_evaluation(merl_dir, out, quick=args.quick,
                                 experiments=getattr(args, "experiments", None),
                                 time_budget=getattr(args, "time_budget", None))
         if getattr(args, "render", False):
             from render import table2
-            names, predict = experiment_predictor(args.merl_dir, result)
-            table2(args.merl_dir, out, predict, names=names)
+            names, predict = experiment_predictor(merl_dir, result)
+            table2(merl_dir, out, predict, names=names)
     return 0
+
+

@@ -1,0 +1,1 @@
+"""Experiment protocols that span stages (the external test set of `flashbrdf evaluate --test-dir`)."""

@@ -1,0 +1,34 @@
+"""What `flashbrdf train` does to a training set, in one place: tune, fit, write MODEL.npz.
+
+`pipeline.cmd_infer.train` (the command) and `experiments.test_set` (the external test-set
+protocol of `flashbrdf evaluate --test-dir`) both call train_model, so an evaluated model is
+exactly the one `train` would have written.
+"""
+
+import time
+
+from infer.evaluate import tune_baselines
+from infer.model_file import save_model
+
+
+def train_model(training, path, views=("1d", "2d"), seed=0, feature_space="auto", merl_dirs=()):
+    """Tune every method's hyperparameters on `training` (infer.evaluate.tune_baselines), fit the
+    DS-GPLVM and write MODEL.npz to `path` (atomically). training: TrainingSet; views: the
+    DS-GPLVM's views; merl_dirs: the training folders, recorded in the file. Returns the params
+    dict stored in the file, with `train_seconds` (all of it) and `fit_seconds` {"tuning",
+    "dsgplvm"} (the validation fits that pick hyperparameters, and the final DS-GPLVM fit).
+    """
+    from infer import DSGPLVMMethod
+    wanted = list(views)
+    start = time.perf_counter()
+    params = tune_baselines(training, seed=seed, feature_space=feature_space)
+    tuned = time.perf_counter()
+    space = params["dsgplvm"]["feature_space"]
+    model = DSGPLVMMethod(views=wanted, seed=seed, feature_space=space).fit(training)
+    params["dsgplvm"] = {"feature_space": space, "views": wanted, "seed": seed,
+                         "calibration": params["dsgplvm"]["calibration"]}
+    done = time.perf_counter()
+    params["train_seconds"] = done - start
+    params["fit_seconds"] = {"tuning": tuned - start, "dsgplvm": done - tuned}
+    save_model(path, training, params, dsgplvm=model.model_, merl_dir=list(merl_dirs))
+    return params
