@@ -235,8 +235,10 @@ def _fd_is_file(fd):
 
 @contextlib.contextmanager
 def handle_signals():
-    """While the body runs, SIGTERM raises Terminated in the main thread (so staged outputs are
-    cleaned up like on Ctrl-C). Outside the main thread (e.g. a Dask worker) nothing changes."""
+    """While the body runs, SIGTERM raises Terminated and SIGINT KeyboardInterrupt in the main
+    thread (so staged outputs are cleaned up). SIGINT is set too because a library imported
+    earlier (drjit, via mitsuba) may have replaced Python's default handler. Outside the main
+    thread (e.g. a Dask worker) nothing changes."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -245,7 +247,9 @@ def handle_signals():
         raise Terminated()
 
     previous = signal.signal(signal.SIGTERM, raise_terminated)
+    previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+        signal.signal(signal.SIGINT, previous_int)

@@ -111,7 +111,8 @@ def test_run_export_puts_the_export_and_the_principled_render_beside_the_report(
     assert main(["run", str(sphere_scene), "--out", str(out), "--methods", "chandraker",
                  "--spp", "16", "--export"]) == 0
     assert sorted(p.name for p in (out / "export").iterdir()) == sorted(
-        ["mitsuba_tabulated.xml", "mitsuba_principled.xml", "principled.json", "material.gltf"])
+        [".flashbrdf-output", "mitsuba_tabulated.xml", "mitsuba_principled.xml", "principled.json",
+         "material.gltf"])
     fit = json.loads((out / "export" / "principled.json").read_text())["fit"]
     report = json.loads((out / "report.json").read_text())
     rows = {(r["photo"], r["method"]): r for r in report["references"]}
