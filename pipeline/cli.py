@@ -8,6 +8,7 @@ import argparse
 import sys
 
 from brdf.errors import InputError
+from pipeline.dask_engine import add_engine_options
 
 
 def _parser():
@@ -72,12 +73,15 @@ def _parser():
     s = sub.add_parser("run", help="extract, infer, render and compare in one go")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
-    s.add_argument("--model", metavar="MODEL.npz")
-    s.add_argument("--methods", default="dsgplvm")
-    s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
-    s.add_argument("--no-anchor", action="store_true",
-                   help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
-                        "theta_h to pass through the observed slice, carried over theta_d")
+    _add_run_options(s)
+
+    s = sub.add_parser("batch", help="run every capture in a folder, as Dask tasks")
+    s.add_argument("captures_dir", metavar="CAPTURES_DIR")
+    s.add_argument("--out", required=True, metavar="OUT_DIR")
+    add_engine_options(s, "the captures")
+    s.add_argument("--force", action="store_true",
+                   help="rerun captures whose output is already complete")
+    _add_run_options(s)
 
     s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
     s.add_argument("--merl-dir", required=True, metavar="DIR")
@@ -87,12 +91,23 @@ def _parser():
     s.add_argument("--experiments", type=int, help="number of experiments (default 25)")
     s.add_argument("--time-budget", type=float, metavar="SECONDS",
                    help="stop starting experiments when this wall time would be exceeded")
+    add_engine_options(s, "the experiments")
 
     s = sub.add_parser("import-diligent", help="turn a DiLiGenT object folder into a scene folder")
     s.add_argument("obj_dir", metavar="OBJ_DIR")
     s.add_argument("--flash", required=True, type=int, metavar="INDEX")
     s.add_argument("--out", required=True, metavar="SCENE_DIR")
     return p
+
+
+def _add_run_options(s):
+    """The options `run` takes, shared by `batch`."""
+    s.add_argument("--model", metavar="MODEL.npz")
+    s.add_argument("--methods", default="dsgplvm")
+    s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
+    s.add_argument("--no-anchor", action="store_true",
+                   help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
+                        "theta_h to pass through the observed slice, carried over theta_d")
 
 
 def main(argv=None):

@@ -136,7 +136,9 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
     return rows
 
 
-def run(args):
+def run(args, load_methods=None):
+    """`flashbrdf run`; load_methods(names, model_path, anchor) -> {name: fitted method} replaces
+    the model read (batch passes its per-worker cache)."""
     import capture
     from pipeline.cmd_extract import write_extraction
     from pipeline.cmd_render import samples_per_pixel
@@ -156,7 +158,8 @@ def run(args):
     out.mkdir(parents=True, exist_ok=True)
     rho = write_extraction(out / "slice.csv", args.scene_dir, result, options)
 
-    fitted = stages.run("load model", _load_methods, methods, model_path, not args.no_anchor)
+    fitted = stages.run("load model", load_methods or _load_methods, methods, model_path,
+                        not args.no_anchor)
     predictions, two_d = {}, []
     for name in methods:
         table, variance, view, label = stages.run(f"infer {name}", _infer, fitted[name], name,
