@@ -91,9 +91,15 @@ def evaluate(args):
     """The paper's Table 1 protocol on --merl-dir (see infer.evaluate); with --render also its
     Table 2 (render.table2) on the mean-performing experiment's test materials, 2D predictions."""
     from infer.evaluate import experiment_predictor, run_evaluation
-    result = run_evaluation(args.merl_dir, args.out, quick=args.quick,
-                            experiments=getattr(args, "experiments", None),
-                            time_budget=getattr(args, "time_budget", None))
+    from pipeline.dask_engine import check_engine_options, dask_client
+    check_engine_options(args)
+    options = dict(quick=args.quick, experiments=getattr(args, "experiments", None),
+                   time_budget=getattr(args, "time_budget", None))
+    if getattr(args, "workers", None) or getattr(args, "scheduler", None):
+        with dask_client(args.workers, args.scheduler) as client:  # experiments as Dask tasks
+            result = run_evaluation(args.merl_dir, args.out, client=client, **options)
+    else:
+        result = run_evaluation(args.merl_dir, args.out, **options)
     if getattr(args, "render", False):
         from render import table2
         names, predict = experiment_predictor(args.merl_dir, result)
