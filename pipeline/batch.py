@@ -6,7 +6,7 @@ task that calls `run` in the worker process (pipeline/cmd_run.py, the same funct
 
 All or nothing per capture: the task builds the capture in a hidden staging folder inside OUT_DIR
 (`.<subfolder>.partial-<id>`), writes the marker `.batch_complete.json` (its summary row) last, and
-renames the folder into place. A capture is complete when OUT_DIR/<subfolder>/ holds the marker; a
+renames the folder into place. A capture is complete when OUT_DIR/<subfolder>/ holds a readable marker; a
 second call skips complete captures unless --force. Staging folders left by a killed worker are
 removed by the client when the batch ends (and at the start of the next batch).
 
@@ -56,9 +56,14 @@ def find_captures(captures_dir):
     return captures
 
 
-def is_complete(folder):
-    """True when `folder` is a capture output that a batch finished (its marker is there)."""
-    return (Path(folder) / MARKER).is_file()
+def completed_row(folder):
+    """The summary row in `folder`'s marker when a batch finished it, else None (no marker, or
+    one that cannot be read: the capture is run again)."""
+    try:
+        row = json.loads((Path(folder) / MARKER).read_text())
+    except (OSError, ValueError):
+        return None
+    return row if isinstance(row, dict) and row.get("status") == "ok" else None
 
 
 def _leftovers(out_dir, name):
@@ -265,7 +270,10 @@ def _run_tasks(client, todo, out_dir, options):
     from distributed import as_completed
     from tqdm import tqdm
     token = uuid.uuid4().hex[:8]
-    futures = {client.submit(run_capture, str(c), str(out_dir), options, retries=1, pure=False,
+    # Absolute paths (not resolved: a symlinked capture keeps its name): workers elsewhere see
+    # the same shared filesystem, not our working directory.
+    futures = {client.submit(run_capture, str(c.absolute()), str(Path(out_dir).absolute()),
+                             options, retries=1, pure=False,
                              key=f"batch-{c.name}-{token}"): c.name for c in todo}
     rows = {}
     total = len(futures)
@@ -310,8 +318,8 @@ def batch(args):
             shutil.rmtree(leftover, ignore_errors=True)
     rows, todo = {}, []
     for c in captures:
-        if not args.force and is_complete(out / c.name):
-            row = json.loads((out / c.name / MARKER).read_text())
+        row = None if args.force else completed_row(out / c.name)
+        if row is not None:
             row["reason"] = "complete from an earlier batch: skipped (--force reruns it)"
             rows[c.name] = row
         else:

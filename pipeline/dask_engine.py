@@ -10,6 +10,7 @@ also call `single_threaded()`, which covers workers started by hand on other mac
 import contextlib
 import logging
 import os
+import warnings
 
 from brdf.errors import InputError
 
@@ -54,15 +55,35 @@ def dask_client(workers=None, scheduler=None):
         except (OSError, TimeoutError, ValueError) as err:
             raise InputError("--scheduler", f"cannot reach a Dask scheduler at {scheduler}: "
                                             f"{str(err).splitlines()[0] if str(err) else err}")
-        with client:
+        try:
             yield client
+        finally:
+            _close(client)
         return
-    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
+    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}), \
+            warnings.catch_warnings():
+        # The scheduler's HTTP endpoint moves to a free port when 8787 is taken (another
+        # cluster on this host): not worth a warning on the user's terminal.
+        warnings.filterwarnings("ignore", message="Port .* is already in use")
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
                                processes=True, dashboard_address=None,
                                silence_logs=logging.CRITICAL, env=dict(WORKER_ENV))
-    with cluster, Client(cluster) as client:
-        yield client
+    try:
+        client = Client(cluster)
+        try:
+            yield client
+        finally:
+            _close(client)
+    finally:
+        _close(cluster)
+
+
+def _close(thing):
+    """Close a client or cluster once the work is done. On a loaded machine a worker process can
+    take longer than Dask's few seconds to exit; that must not turn a finished run into a
+    traceback (the processes are the nanny's daemonic children and end with it)."""
+    with contextlib.suppress(TimeoutError):
+        thing.close()
 
 
 @contextlib.contextmanager
