@@ -343,7 +343,7 @@ def _experiments_on_dask(client, data, all_splits, cache_file, quick, time_budge
     shared = client.scatter(data, broadcast=True)
     slots = max(1, len(client.scheduler_info().get("workers", {})))
     per_exp_s, finished = [], {}
-    running, submitted = as_completed(), 0
+    running, submitted = as_completed(loop=client.loop), 0
 
     def submit():
         nonlocal submitted
@@ -388,7 +388,7 @@ def _3d_on_dask(client, data, order, records, all_splits, cache_file, costs, str
                              cache_file, i == 0, stride, pure=False, retries=1,
                              key=f"table1-3d-{k}-{os.getpid()}"): (k, i == 0)
                for i, k in enumerate(order)}
-    for future in as_completed(futures):
+    for future in as_completed(futures, loop=client.loop):
         k, first = futures.pop(future)
         records[k]["errors_3d"], infer_3d_s = future.result()
         future.release()

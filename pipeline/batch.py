@@ -279,7 +279,8 @@ def _run_tasks(client, todo, out_dir, options):
     total = len(futures)
     with tqdm(total=total, unit="capture", file=sys.stderr,
               disable=not sys.stderr.isatty()) as bar:
-        for future in as_completed(futures):
+        # On this client's loop: the user (or a test) may hold another client in this process.
+        for future in as_completed(futures, loop=client.loop):
             name = futures.pop(future)
             try:
                 rows[name] = future.result()
