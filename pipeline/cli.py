@@ -78,7 +78,7 @@ def _parser():
     s = sub.add_parser("batch", help="run every capture in a folder, as Dask tasks")
     s.add_argument("captures_dir", metavar="CAPTURES_DIR")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
-    add_engine_options(s, "the captures")
+    add_engine_options(s, "the captures", "one worker per core")
     s.add_argument("--force", action="store_true",
                    help="rerun captures whose output is already complete")
     _add_run_options(s)
@@ -91,7 +91,7 @@ def _parser():
     s.add_argument("--experiments", type=int, help="number of experiments (default 25)")
     s.add_argument("--time-budget", type=float, metavar="SECONDS",
                    help="stop starting experiments when this wall time would be exceeded")
-    add_engine_options(s, "the experiments")
+    add_engine_options(s, "the experiments", "one after the other in this process")
 
     s = sub.add_parser("import-diligent", help="turn a DiLiGenT object folder into a scene folder")
     s.add_argument("obj_dir", metavar="OBJ_DIR")

@@ -23,11 +23,12 @@ ALLOWED_FAILURES = 1
 CONNECT_TIMEOUT = "20s"
 
 
-def add_engine_options(parser, what):
-    """--workers N and --scheduler ADDRESS on an argparse sub-parser."""
+def add_engine_options(parser, what, default):
+    """--workers N and --scheduler ADDRESS on an argparse sub-parser; `default` says what
+    happens without either."""
     parser.add_argument("--workers", type=int, metavar="N",
                         help=f"run {what} as tasks on a local Dask cluster of N worker processes "
-                             "(one thread each)")
+                             f"(one thread each); without --workers and --scheduler: {default}")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help=f"run {what} on the running Dask scheduler at ADDRESS "
                              "(tcp://HOST:PORT) instead of a local cluster")
