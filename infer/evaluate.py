@@ -148,8 +148,9 @@ def _select_paper(trials, train, valid_idx, data):
     return best["method"], best["params"], out
 
 
-def run_experiment(k, split, data, cache, quick, costs, points, ablations):
-    """Fit every method on one split; 2D test errors; returns (record, fitted methods)."""
+def run_experiment(k, split, data, cache, quick, costs, points, ablations, measure=None):
+    """Fit every method on one split; 2D test errors; returns (record, fitted methods).
+    measure: tracemalloc peaks (default: when `costs` is still empty, i.e. the first experiment)."""
     train_idx, valid_idx, test_idx = split
     train = data.subset(train_idx)
     train.valid_3d = RowsView(cache, train_idx) if cache is not None else None
@@ -157,7 +158,8 @@ def run_experiment(k, split, data, cache, quick, costs, points, ablations):
     fitted, chosen, record = {}, {}, {"experiment": k, "test": [data.names[i] for i in test_idx],
                                       "errors_2d": {}}
     all_trials = {}
-    measure = not costs  # tracemalloc on the first experiment only (it slows numpy a little)
+    if measure is None:  # tracemalloc on the first experiment only (it slows numpy a little)
+        measure = not costs
     grids = {"dsgplvm": QUICK_DS_GRID if quick else DS_GRID,
              "pca": {kk: [v for v in vals if v is None or v < n_train] for kk, vals in PCA_GRID.items()},
              "oracle": ORACLE_GRID}
@@ -294,17 +296,129 @@ def _warm_up():
     valid_mask_2d(), cosine_weights(), _geometry()
 
 
+# ----------------------------------------------------------------------------- as Dask tasks
+def experiment_task(k, split, data, cache_file, quick, with_ablations):
+    """Experiment k as an independent, picklable task: run_experiment on its own accumulators.
+    -> {"record", "costs", "points", "ablations", "seconds"} of this experiment alone, which
+    merge_experiment adds in experiment order, giving the sequential loop's numbers."""
+    t0 = time.perf_counter()
+    _warm_up()
+    cache = build_cache(data.paths, cache_file) if cache_file else None  # opens the shared file
+    costs, points, ablations = {}, [], {} if with_ablations else None
+    record, _ = run_experiment(k, split, data, cache, quick, costs, points, ablations,
+                               measure=(k == 0))
+    return {"record": record, "costs": costs, "points": points, "ablations": ablations,
+            "seconds": time.perf_counter() - t0}
+
+
+def merge_experiment(part, records, costs, points, ablations):
+    """Add one experiment_task result to the run's accumulators, as run_experiment would have."""
+    records.append(part["record"])
+    for name, c in part["costs"].items():
+        total = costs.setdefault(name, {"train_s": [], "infer_2d_s": [], "infer_3d_s": None,
+                                        "peak_mb": None})
+        total["train_s"] += c["train_s"]
+        total["infer_2d_s"] += c["infer_2d_s"]
+        if c["peak_mb"] is not None:
+            total["peak_mb"] = c["peak_mb"]
+    points += part["points"]
+    for label, entry in (part["ablations"] or {}).items():
+        total = ablations.setdefault(label, {})
+        if "skipped" in entry:
+            total.setdefault("skipped", entry["skipped"])
+        if "errors" in entry:
+            total["errors"] = total.get("errors", []) + entry["errors"]
+
+
+def experiment_3d_task(chosen, split, data, cache_file, first, stride):
+    """run_3d of one experiment as a task: -> (errors_3d, {method: 3D inference s or None})."""
+    record, costs = {"chosen": chosen}, {name: {} for name in chosen}
+    run_3d(record, split, data, build_cache(data.paths, cache_file), costs, first, stride)
+    return record["errors_3d"], {name: c.get("infer_3d_s") for name, c in costs.items()}
+
+
+def _experiments_on_dask(client, data, all_splits, cache_file, quick, time_budget, start,
+                         reserve_3d, accumulators, write, notes):
+    """The 2D experiments as Dask tasks, at most one per worker in flight (so the time budget
+    can stop new ones as the sequential loop does), merged in experiment order as they finish
+    into accumulators = (records, costs, points, ablations); write() after each merge."""
+    from distributed import as_completed
+    records = accumulators[0]
+    shared = client.scatter(data, broadcast=True)
+    slots = max(1, len(client.scheduler_info().get("workers", {})))
+    per_exp_s, finished = [], {}
+    running, submitted = as_completed(loop=client.loop), 0
+
+    def submit():
+        nonlocal submitted
+        k = submitted
+        running.add(client.submit(experiment_task, k, all_splits[k], shared, cache_file, quick,
+                                  k < 1 or not time_budget, pure=False, retries=1,
+                                  key=f"table1-experiment-{k}-{os.getpid()}"))
+        submitted += 1
+
+    def over_budget():
+        return (time_budget and per_exp_s and time.perf_counter() - start + np.mean(per_exp_s)
+                + reserve_3d > time_budget)
+
+    while submitted < min(slots, len(all_splits)):
+        submit()
+    for future in running:
+        part = future.result()
+        future.release()
+        finished[part["record"]["experiment"]] = part
+        per_exp_s.append(part["seconds"])
+        while len(records) in finished:  # merge the finished prefix, in experiment order
+            done = finished.pop(len(records))
+            merge_experiment(done, *accumulators)
+            print(f"experiment {len(records) - 1}: {done['seconds']:.1f} s, dsgplvm LAB-log "
+                  f"{lab_log(done['record']['errors_2d']['dsgplvm']):.3f}", flush=True)
+            write()
+        if submitted < len(all_splits):
+            if over_budget():
+                if not any(n.startswith("time budget") for n in notes):
+                    notes.append(f"time budget {time_budget:.0f} s: stopped after {submitted} of "
+                                 f"{len(all_splits)} experiments (2D).")
+            else:
+                submit()
+
+
+def _3d_on_dask(client, data, order, records, all_splits, cache_file, costs, stride, write):
+    """3D metrics of the experiments in `order` as Dask tasks, all at once, added to their
+    records as they finish (the first in `order` also times 3D inference). -> number done."""
+    from distributed import as_completed
+    shared = client.scatter(data, broadcast=True)
+    futures = {client.submit(experiment_3d_task, records[k]["chosen"], all_splits[k], shared,
+                             cache_file, i == 0, stride, pure=False, retries=1,
+                             key=f"table1-3d-{k}-{os.getpid()}"): (k, i == 0)
+               for i, k in enumerate(order)}
+    for future in as_completed(futures, loop=client.loop):
+        k, first = futures.pop(future)
+        records[k]["errors_3d"], infer_3d_s = future.result()
+        future.release()
+        if first:
+            for name, seconds in infer_3d_s.items():
+                costs[name]["infer_3d_s"] = seconds
+        print(f"3D metrics, experiment {k}: done", flush=True)
+        write()
+    return len(order)
+
+
 def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments_3d=None,
-                   time_budget=None, seed=0, command=None, keep_cache=False, cache_dir=None):
+                   time_budget=None, seed=0, command=None, keep_cache=False, cache_dir=None,
+                   client=None):
     """Run the protocol on every MERL table in merl_dir; write table1.md/json and the plot.
-    The float32 3D cache (N × 40 MB) goes to cache_dir (default out_dir) and is removed after."""
+    The float32 3D cache (N × 40 MB) goes to cache_dir (default out_dir) and is removed after.
+    client: a dask.distributed Client to run the experiments on as tasks (same numbers); the
+    cache file must then be on a filesystem the workers share. experiments: how many (default
+    25, or 1 with quick)."""
     start = time.perf_counter()
     _warm_up()
     if len(merl.list_merl(merl_dir)) < 5:
         raise InputError(merl_dir, "evaluate needs at least 5 MERL tables")
     data = TrainingSet.from_merl_dir(merl_dir)
     n = len(data)
-    n_exp = 1 if quick else (experiments or 25)
+    n_exp = experiments or (1 if quick else 25)
     all_splits = splits(n, -(-n_exp // 5), seed)[:n_exp]
     n_3d = (1 if quick else 2) if experiments_3d is None else experiments_3d
     os.makedirs(out_dir, exist_ok=True)
@@ -319,7 +433,15 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
         result = {"dataset": "MERL (NBRDF proxy)", "command": command, "notes": notes}
         per_3d_s = 900.0  # first guess of one experiment's 3D metrics on 2 shared cores
         reserve_3d = per_3d_s * n_3d
-        for k, split in enumerate(all_splits):
+
+        def write():
+            _write(out_dir, result, records, costs, points, ablations, len(all_splits))
+
+        if client is not None:
+            _experiments_on_dask(client, data, all_splits, cache_file if n_3d else None, quick,
+                                 time_budget, start, reserve_3d, (records, costs, points,
+                                                                  ablations), write, notes)
+        for k, split in enumerate(all_splits if client is None else []):
             elapsed = time.perf_counter() - start
             if (time_budget and records and
                     elapsed + np.mean(per_exp_s) + reserve_3d > time_budget):
@@ -333,11 +455,14 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
             per_exp_s.append(time.perf_counter() - t0)
             print(f"experiment {k}: {per_exp_s[-1]:.1f} s, dsgplvm LAB-log "
                   f"{lab_log(record['errors_2d']['dsgplvm']):.3f}", flush=True)
-            _write(out_dir, result, records, costs, points, ablations, len(all_splits))
+            write()
         best = _mean_performing(records)
         order = [best] + [i for i in range(len(records)) if i != best]
         done_3d = 0
-        for k in order:
+        if client is not None and n_3d:
+            done_3d = _3d_on_dask(client, data, order[:n_3d], records, all_splits, cache_file,
+                                  costs, stride=5 if quick else 1, write=write)
+        for k in order if client is None else []:
             if done_3d >= n_3d:
                 break
             if time_budget and done_3d and time.perf_counter() - start + per_3d_s > time_budget:
@@ -349,7 +474,7 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
             done_3d += 1
             per_3d_s = time.perf_counter() - t0
             print(f"3D metrics, experiment {k}: {per_3d_s:.1f} s", flush=True)
-            _write(out_dir, result, records, costs, points, ablations, len(all_splits))
+            write()
         notes.append(f"3D metrics computed on {done_3d} experiment(s) (the mean-performing one first): "
                      + ("every 5th phi_d bin only (--quick smoke run)." if quick else
                         "every valid bin of every test table."))

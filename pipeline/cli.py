@@ -11,6 +11,7 @@ from brdf.errors import InputError
 from pipeline.safety import Terminated, handle_signals, hold_native_stderr
 
 FORCE_HELP = "replace OUT_DIR if an earlier flashbrdf command made it (never any other folder)"
+from pipeline.dask_engine import add_engine_options
 
 
 def _parser():
@@ -90,17 +91,15 @@ def _parser():
     s.add_argument("scene_dir", metavar="SCENE_DIR")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     s.add_argument("--force", action="store_true", help=FORCE_HELP)
-    s.add_argument("--model", metavar="MODEL.npz")
-    s.add_argument("--methods", default="dsgplvm")
-    s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
-    s.add_argument("--materials", default="auto", metavar="auto|K",
-                   help="segment into materials first (default auto: K chosen, 1 for one material)")
-    s.add_argument("--no-anchor", action="store_true",
-                   help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
-                        "theta_h to pass through the observed slice, carried over theta_d")
-    s.add_argument("--export", action="store_true",
-                   help="also export the default method's BRDF (flashbrdf export) into OUT_DIR/export "
-                        "and render its Principled fit beside the tabulated BRDF")
+    _add_run_options(s)
+
+    s = sub.add_parser("batch", help="run every capture in a folder, as Dask tasks")
+    s.add_argument("captures_dir", metavar="CAPTURES_DIR")
+    s.add_argument("--out", required=True, metavar="OUT_DIR")
+    add_engine_options(s, "the captures", "one worker per core")
+    s.add_argument("--force", action="store_true",
+                   help="rerun captures whose output is already complete")
+    _add_run_options(s)
 
     s = sub.add_parser("evaluate", help="the paper's Table 1 (and Table 2 with --render)")
     s.add_argument("--merl-dir", required=True, action="append", metavar="DIR",
@@ -114,6 +113,7 @@ def _parser():
     s.add_argument("--experiments", type=int, help="number of experiments (default 25)")
     s.add_argument("--time-budget", type=float, metavar="SECONDS",
                    help="stop starting experiments when this wall time would be exceeded")
+    add_engine_options(s, "the experiments", "one after the other in this process")
 
     s = sub.add_parser("export", help="a MERL table for Mitsuba 3, Blender and glTF")
     s.add_argument("brdf", metavar="BRDF.binary")
@@ -129,6 +129,21 @@ def _parser():
     s.add_argument("--out", required=True, metavar="SCENE_DIR")
     s.add_argument("--force", action="store_true", help=FORCE_HELP)
     return p
+
+
+def _add_run_options(s):
+    """The options `run` takes, shared by `batch`."""
+    s.add_argument("--model", metavar="MODEL.npz")
+    s.add_argument("--methods", default="dsgplvm")
+    s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
+    s.add_argument("--materials", default="auto", metavar="auto|K",
+                   help="segment into materials first (default auto: K chosen, 1 for one material)")
+    s.add_argument("--no-anchor", action="store_true",
+                   help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
+                        "theta_h to pass through the observed slice, carried over theta_d")
+    s.add_argument("--export", action="store_true",
+                   help="also export the default method's BRDF (flashbrdf export) into OUT_DIR/export "
+                        "and render its Principled fit beside the tabulated BRDF")
 
 
 def main(argv=None):

@@ -132,13 +132,19 @@ def evaluate(args):
         raise InputError("--merl-dir", "the cross-validation protocol takes one folder; give "
                                        "--test-dir to train on several")
     from infer.evaluate import experiment_predictor, run_evaluation
+    from pipeline.dask_engine import check_engine_options, dask_client
+    check_engine_options(args)
     merl_dir = folders[0]
     check_outputs(inputs=_merl_inputs(folders), outputs=[args.out], folders=[args.out])
+    options = dict(quick=args.quick, experiments=getattr(args, "experiments", None),
+                   time_budget=getattr(args, "time_budget", None))
     with staged_output_dir(args.out, force=getattr(args, "force", False),
                            command="evaluate") as out:
-        result = run_evaluation(merl_dir, out, quick=args.quick,
-                                experiments=getattr(args, "experiments", None),
-                                time_budget=getattr(args, "time_budget", None))
+        if getattr(args, "workers", None) or getattr(args, "scheduler", None):
+            with dask_client(args.workers, args.scheduler) as client:  # experiments as Dask tasks
+                result = run_evaluation(merl_dir, out, client=client, **options)
+        else:
+            result = run_evaluation(merl_dir, out, **options)
         if getattr(args, "render", False):
             from render import table2
             names, predict = experiment_predictor(merl_dir, result)

@@ -157,7 +157,9 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
     return rows
 
 
-def run(args):
+def run(args, load_methods=None):
+    """`flashbrdf run`; load_methods(names, model_path, anchor) -> {name: fitted method} replaces
+    the model read (batch passes its per-worker cache)."""
     import capture
     from pipeline.cmd_render import samples_per_pixel
 
@@ -174,11 +176,12 @@ def run(args):
     loaded = _check_references(references)
     with staged_output_dir(args.out, force=getattr(args, "force", False), command="run") as staged:
         stages, report = _run_stages(args, scene, methods, model_path, spp, references, loaded,
-                                     Path(staged))
+                                     Path(staged), load_methods)
     return _finish(stages, report, Path(args.out))
 
 
-def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
+def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
+                load_methods=None):
     """The slow part of `run`, into the staged folder `out`: returns (stages, report dict)."""
     from types import SimpleNamespace
 
@@ -193,7 +196,8 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out):
     materials = materials_option(getattr(args, "materials", None))
     export = getattr(args, "export", False)
     stages, notes = _Stages(total=6 + 2 * len(methods) + 2 * export), []
-    fitted = stages.run("load model", _load_methods, methods, model_path, not args.no_anchor)
+    fitted = stages.run("load model", load_methods or _load_methods, methods, model_path,
+                        not args.no_anchor)
     options = ExtractOptions()
     samples = stages.run("extract", collect_samples, scene, options)
     segmentation, faces = stages.run("segment", segment_scene, samples, materials)

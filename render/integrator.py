@@ -30,7 +30,8 @@ def _dot(a, b):
 
 
 def _default_threads():
-    return max(1, min(2, os.cpu_count() or 1))
+    """$FLASHBRDF_THREADS (as infer; a batch worker sets 1), else 2 or the cores if fewer."""
+    return max(1, int(os.environ.get("FLASHBRDF_THREADS") or min(2, os.cpu_count() or 1)))
 
 
 def render_point_light(points, normals, view, brdf, light_position, intensity_rgb, occluded=None):

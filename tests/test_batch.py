@@ -1,0 +1,208 @@
+"""`flashbrdf batch` on Dask: tiny synthetic captures (48² spheres, 4 spp renders).
+
+Most tests share one single-worker LocalCluster through `--scheduler` (a cluster starts in a few
+seconds); one test uses `--workers 2`, the default local cluster. Together they check that a
+capture's numbers do not depend on the worker or the number of workers (ΔE equal to a sequential
+`run` to 1e-9: both are the same deterministic code on the same inputs), exit codes 0/1/2, resume
+and --force, the summary, the per-worker model cache, and a killed worker's capture.
+"""
+
+import csv
+import json
+import os
+import shutil
+import sys
+import threading
+import time
+from pathlib import Path
+
+import cloudpickle
+import dask
+import pytest
+from distributed import Client, LocalCluster
+from distributed.diagnostics.plugin import WorkerPlugin
+
+from pipeline.batch import MARKER
+from pipeline.cli import main
+from pipeline.dask_engine import ALLOWED_FAILURES
+from pipeline.sample_capture import make_sample_capture
+
+MATERIALS = {"a": "red-specular-plastic", "b": "gold-paint"}
+RUN_OPTIONS = ["--methods", "dsgplvm,chandraker", "--spp", "4"]
+
+# The plugin below is defined here; workers cannot import this test module, so it travels by value.
+cloudpickle.register_pickle_by_value(sys.modules[__name__])
+
+
+@pytest.fixture(scope="module")
+def captures(merl_proxy, tmp_path_factory):
+    folder = tmp_path_factory.mktemp("captures")
+    for name, material in MATERIALS.items():
+        make_sample_capture(merl_proxy(material), folder / name, size=48, spp=16, shape="sphere",
+                            envmaps={"ref_pisa": "pisa_latlong_256x128.hdr"})
+    (folder / "notes").mkdir()  # a subfolder without scene.json is not a capture
+    return folder
+
+
+@pytest.fixture(scope="module")
+def sequential(captures, tmp_path_factory):
+    """{capture: out folder} of plain `flashbrdf run`, one after the other."""
+    out = tmp_path_factory.mktemp("sequential")
+    for name in MATERIALS:
+        assert main(["run", str(captures / name), "--out", str(out / name), *RUN_OPTIONS]) == 0
+    return {name: out / name for name in MATERIALS}
+
+
+@pytest.fixture(scope="module")
+def scheduler():
+    """A one-worker, one-thread local cluster's address, with the batch's retry rule."""
+    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
+        cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=50)
+    with cluster:
+        yield cluster.scheduler_address
+
+
+@pytest.fixture(scope="module")
+def two_workers(captures, tmp_path_factory):
+    out = tmp_path_factory.mktemp("batch") / "out"
+    code = main(["batch", str(captures), "--out", str(out), "--workers", "2", *RUN_OPTIONS])
+    return code, out
+
+
+def _summary(out):
+    with open(out / "summary.csv", newline="") as f:
+        return {row["capture"]: row for row in csv.DictReader(f)}
+
+
+def _delta_e(folder):
+    report = json.loads((folder / "report.json").read_text())
+    return {(r["method"], r["photo"]): r["delta_e_log_mean"] for r in report["references"]}
+
+
+def _files(folder):
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
+
+
+def test_two_workers_equal_sequential_runs(two_workers, sequential):
+    code, out = two_workers
+    assert code == 0
+    rows = _summary(out)
+    assert set(rows) == set(MATERIALS)  # "notes" has no scene.json
+    for name, seq in sequential.items():
+        # Same files as `run` writes, plus the completion marker; nothing half-written beside.
+        assert _files(out / name) == sorted(_files(seq) + [MARKER])
+        got, want = _delta_e(out / name), _delta_e(seq)
+        assert got.keys() == want.keys() == {("dsgplvm", "ref_pisa"), ("chandraker", "ref_pisa")}
+        for key in want:
+            assert got[key] == pytest.approx(want[key], abs=1e-9)
+            column = f"delta_e_log {key[0]}/{key[1]}"
+            assert float(rows[name][column]) == pytest.approx(want[key], abs=1e-9)
+        assert rows[name]["status"] == "ok" and rows[name]["reason"] == ""
+        assert float(rows[name]["seconds"]) > 0 and rows[name]["worker"]
+        slice_report = json.loads((out / name / "slice.json").read_text())
+        assert slice_report["slice_csv"] == str((out / name / "slice.csv").resolve())
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]
+    md = (out / "summary.md").read_text()
+    assert "2 ok (0 skipped as complete), 0 failed" in md and md.count("| ok |") == 2
+
+
+def test_resume_force_and_one_worker(two_workers, sequential, scheduler, captures):
+    """A second call skips complete captures; a capture without its marker is rerun; --force
+    reruns all. One worker then runs both captures, reading the model once, with the same ΔE."""
+    code, out = two_workers
+    before = {n: (out / n / "report.json").stat().st_mtime_ns for n in MATERIALS}
+    assert main(["batch", str(captures), "--out", str(out), "--scheduler", scheduler,
+                 *RUN_OPTIONS]) == 0
+    assert {n: (out / n / "report.json").stat().st_mtime_ns for n in MATERIALS} == before
+    assert all("skipped" in row["reason"] for row in _summary(out).values())
+
+    (out / "b" / MARKER).unlink()  # as if b's output were from an older, unfinished batch
+    assert main(["batch", str(captures), "--out", str(out), "--scheduler", scheduler,
+                 *RUN_OPTIONS]) == 0
+    assert (out / "a" / "report.json").stat().st_mtime_ns == before["a"]
+    assert (out / "b" / "report.json").stat().st_mtime_ns != before["b"]
+    assert (out / "b" / MARKER).is_file() and "skipped" not in _summary(out)["b"]["reason"]
+
+    for log in (out / "logs").glob("*.log"):
+        log.unlink()
+    assert main(["batch", str(captures), "--out", str(out), "--scheduler", scheduler, "--force",
+                 *RUN_OPTIONS]) == 0
+    rows = _summary(out)
+    assert all(row["reason"] == "" and row["status"] == "ok" for row in rows.values())
+    assert len({row["worker"] for row in rows.values()}) == 1
+    logs = "".join((out / "logs" / f"{n}.log").read_text() for n in MATERIALS)
+    assert logs.count("model: reading") <= 1 and logs.count("model: already read") >= 1
+    for name, seq in sequential.items():
+        got, want = _delta_e(out / name), _delta_e(seq)
+        assert all(got[k] == pytest.approx(want[k], abs=1e-9) for k in want)
+
+
+class KillWhenStaged(WorkerPlugin):
+    """Test-only: kill the worker process (os._exit) once the capture `name`'s staging folder
+    holds a file, i.e. half-way through its `run`; on every worker, every attempt."""
+
+    def __init__(self, name, out):
+        self.name, self.out = name, str(out)
+
+    def setup(self, worker):
+        self.worker = worker
+
+    def transition(self, key, start, finish, **kwargs):
+        if finish == "executing" and str(key).startswith(f"batch-{self.name}-"):
+            earlier = set(Path(self.out).glob(f".{self.name}.partial-*"))  # a killed attempt's
+            threading.Thread(target=self._kill_when_staged, args=(earlier,), daemon=True).start()
+
+    def _kill_when_staged(self, earlier):
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            for staging in set(Path(self.out).glob(f".{self.name}.partial-*")) - earlier:
+                if any(staging.iterdir()):
+                    os._exit(1)
+            time.sleep(0.002)
+
+
+def test_failures_exit_1_killed_worker_retried_once(captures, scheduler, tmp_path, capsys):
+    folder = tmp_path / "captures"
+    folder.mkdir()
+    shutil.copytree(captures / "a", folder / "crash", symlinks=True)
+    (folder / "broken").mkdir()
+    (folder / "broken" / "scene.json").write_text("{not json")
+    out = tmp_path / "out"
+    with Client(scheduler) as client:
+        client.register_plugin(KillWhenStaged("crash", out), name="kill-when-staged")
+        try:
+            code = main(["batch", str(folder), "--out", str(out), "--scheduler", scheduler,
+                         *RUN_OPTIONS])
+        finally:
+            client.unregister_worker_plugin("kill-when-staged")
+    assert code == 1
+    rows = _summary(out)
+    assert rows["broken"]["status"] == "failed" and "scene.json" in rows["broken"]["reason"]
+    assert rows["crash"]["status"] == "failed" and "KilledWorker" in rows["crash"]["reason"]
+    # Retried once: two attempts started, each killed with its staging folder half-written.
+    assert (out / "logs" / "crash.log").read_text().count(": started on ") == 2
+    assert sorted(p.name for p in out.iterdir()) == ["logs", "summary.csv", "summary.md"]
+    err = capsys.readouterr().err
+    assert "crash failed" in err and "broken failed" in err
+
+
+def test_no_capture_or_bad_options_exit_2(captures, tmp_path, capsys, monkeypatch):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    (empty / "notes").mkdir()
+    out = tmp_path / "out"
+    assert main(["batch", str(empty), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no capture" in err[0] and not out.exists()
+    assert main(["batch", str(captures), "--out", str(out), "--workers", "0"]) == 2
+    assert "--workers" in capsys.readouterr().err and not out.exists()
+    assert main(["batch", str(captures), "--out", str(out), "--methods", "magic"]) == 2
+    assert "magic" in capsys.readouterr().err and not out.exists()
+    # An --out that would put an output folder onto an input capture.
+    assert main(["batch", str(captures), "--out", str(captures)]) == 2
+    assert "overwrite" in capsys.readouterr().err
+    monkeypatch.setattr("pipeline.dask_engine.CONNECT_TIMEOUT", "1s")
+    assert main(["batch", str(captures), "--out", str(out), "--scheduler",
+                 "tcp://127.0.0.1:9"]) == 2
+    assert "--scheduler" in capsys.readouterr().err
