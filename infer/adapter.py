@@ -170,6 +170,11 @@ class DSGPLVMMethod(InferenceMethod):
         # the GP's variance is one number per view (isotropic), broadcast over its dimensions
         var = np.asarray(var, float).ravel()
         var = self.bin_variance(var[np.isfinite(var)][0] if np.isfinite(var).any() else np.nan)
+        # Off the training data the GP's variance saturates at its prior while the error keeps
+        # growing: widen the intervals by the squared novelty (distance over the training
+        # slices' own 99th-percentile spacing) beyond 1. On RGL (NBRDF proxy), with the shipped
+        # MERL-only model, this took 90% coverage from 70.6% to 80.0% (benchmarks/generalisation.py).
+        var *= max(1.0, self.model_.novelty(feats)) ** 2
         var[invalid] = np.nan
         return table, var
 

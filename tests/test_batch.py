@@ -166,6 +166,14 @@ def test_failures_exit_1_killed_worker_retried_once(captures, scheduler, tmp_pat
     folder = tmp_path / "captures"
     folder.mkdir()
     shutil.copytree(captures / "a", folder / "crash", symlinks=True)
+    # the copy sits at another depth: its relative envmap paths are made absolute, or run's
+    # input check would fail it (bad input) before the worker is killed
+    scene = json.loads((folder / "crash" / "scene.json").read_text())
+    for photo in scene["photos"]:
+        light = photo.get("light") or {}
+        if light.get("type") == "envmap":
+            light["file"] = str((captures / "a" / light["file"]).resolve())
+    (folder / "crash" / "scene.json").write_text(json.dumps(scene))
     (folder / "broken").mkdir()
     (folder / "broken" / "scene.json").write_text("{not json")
     out = tmp_path / "out"
