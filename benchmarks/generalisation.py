@@ -29,8 +29,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from brdf import colour, merl, metrics  # noqa: E402
+from brdf import merl, metrics  # noqa: E402
 from infer import TrainingSet, make_method, novelty_warning  # noqa: E402
+from infer.adapter import standardised_residuals  # noqa: E402
 from infer.evaluate import PAPER_FIXED, tune_baselines  # noqa: E402
 
 BANDS_DEG = ((0, 30), (30, 60), (60, 75), (75, 90))
@@ -49,17 +50,12 @@ def band_errors(pred, true):
     return out
 
 
-def interval_hits(method, pred, variance, true, coverage=0.9):
-    """(bins inside the central `coverage` interval, bins scored) in the method's feature space,
-    θd > 0 (θd = 0 is the observation)."""
+def interval_hits(method, rho, true, coverage=0.9):
+    """(bins inside the central `coverage` interval, bins scored), θd > 0, in the method's
+    feature space (infer.adapter.standardised_residuals)."""
     from scipy.stats import norm
-    space = getattr(method, "feature_space", "rgb")
-    resid = (colour.rho_to_features(np.nan_to_num(true), space=space)
-             - colour.rho_to_features(np.nan_to_num(pred), space=space))
-    ok = np.isfinite(true).all(-1)[..., None] & np.isfinite(variance) & (variance > 0)
-    ok[:, 0] = False
-    z = np.abs(resid[ok]) / np.sqrt(variance[ok])
-    return int((z <= norm.ppf(0.5 + coverage / 2)).sum()), int(ok.sum())
+    z = standardised_residuals(method, rho, true)
+    return int((z <= norm.ppf(0.5 + coverage / 2)).sum()), int(z.size)
 
 
 def fit_all(training, seed):
@@ -96,7 +92,7 @@ def score(fitted, test, index, records):
             rec = {"method": name, "material": test.names[i], "lab_log": errs[0],
                    "bands": errs[1:], "predict_ms": ms}
             if name == "dsgplvm":
-                rec["hits"], rec["bins"] = interval_hits(method, pred, variance, test.tables_2d[i])
+                rec["hits"], rec["bins"] = interval_hits(method, test.slices[i], test.tables_2d[i])
                 rec["novelty"], warning = novelty_warning(method, test.slices[i])
                 rec["warned"] = warning is not None
             records.append(rec)
@@ -142,7 +138,7 @@ def markdown(result):
                   f"- Central 90% intervals of dsgplvm hold {100 * d['coverage90']:.1f}% of the "
                   f"held-out bins (θd > 0; target 80–95%).",
                   f"- Novelty warnings: {d['warned']} of {d['materials']} materials.",
-                  f"- Fit seconds: " + ", ".join(f"{k} {v:.0f}" for k, v in
+                  "- Fit seconds: " + ", ".join(f"{k} {v:.0f}" for k, v in
                                                   block["fit_seconds"].items()), ""]
         lines += ["| material | " + " | ".join(METHODS) + " |",
                   "|---|" + "---|" * len(METHODS)]

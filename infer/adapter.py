@@ -222,24 +222,27 @@ def optimise_latent(model, feats, n_starts=5):
     return best.x[None]
 
 
+def standardised_residuals(method, rho, true):
+    """|z| of one held-out material: the residual of each (θh, θd > 0, channel) bin in the
+    method's feature space over its predicted standard deviation, (n,) for the bins with a
+    finite truth and a positive variance. rho (90, 3) slice, true (90, 90, 3) table, 1/sr. The
+    θd = 0 row is left out: anchoring makes it the observation."""
+    pred, var = method.predict(rho, "2d")
+    space = getattr(method, "feature_space", "rgb")
+    resid = (colour.rho_to_features(np.nan_to_num(true), space=space)
+             - colour.rho_to_features(np.nan_to_num(pred), space=space))
+    ok = np.isfinite(true).all(-1)[..., None] & np.isfinite(var) & (var > 0)
+    ok[:, 0] = False
+    return np.abs(resid[ok]) / np.sqrt(var[ok])
+
+
 def calibration_factor(method, slices, tables_2d, coverage=0.9):
     """κ that makes a fitted method's central `coverage` intervals cover that share of held-out
-    bins: the squared ratio of the `coverage` quantile of |z| to the normal one, z the residual of
-    each (θh, θd > 0, channel) bin in the method's feature space over its predicted standard
-    deviation. slices (M, 90, 3), tables_2d (M, 90, 90, 3) in 1/sr, never trained on. The θd = 0
-    row is left out: anchoring makes it the observation."""
+    bins: the squared ratio of the `coverage` quantile of |z| (standardised_residuals) to the
+    normal one. slices (M, 90, 3), tables_2d (M, 90, 90, 3) in 1/sr, never trained on."""
     from scipy.stats import norm
-    z = []
-    for rho, true in zip(slices, tables_2d):
-        pred, var = method.predict(rho, "2d")
-        space = getattr(method, "feature_space", "rgb")
-        resid = (colour.rho_to_features(np.nan_to_num(true), space=space)
-                 - colour.rho_to_features(np.nan_to_num(pred), space=space))
-        ok = np.isfinite(true).all(-1)[..., None] & np.isfinite(var) & (var > 0)
-        ok[:, 0] = False
-        z.append(np.abs(resid[ok]) / np.sqrt(var[ok]))
-    z = np.concatenate(z)
+    z = np.concatenate([standardised_residuals(method, rho, true)
+                        for rho, true in zip(slices, tables_2d)])
     if not z.size:
         return 1.0
     return float((np.quantile(z, coverage) / norm.ppf(0.5 + coverage / 2)) ** 2)
-

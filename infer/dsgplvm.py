@@ -180,6 +180,7 @@ class DSGPLVM:
         self.cycle_info_ = info
         self.n_cycles_ = len(history) - 1
         self._build_posteriors()
+        self._novelty_bound_cache = None
         self.fit_time_ = time.perf_counter() - t0
         return self
 
@@ -218,11 +219,18 @@ class DSGPLVM:
         y = np.atleast_2d(np.asarray(slice_features, dtype=float))
         y = impute_missing((y[:, src.keep] - src.mean[src.keep]) / src.scale, src.data)
         nearest = np.sqrt(masked_squared_distances(y, src.data).min(axis=1))
-        own = distances_from_gram(src.gram)
-        np.fill_diagonal(own, np.inf)
-        bound = np.quantile(np.sqrt(np.maximum(own.min(axis=1), 0.0)), self.NOVELTY_QUANTILE)
-        ratio = nearest / max(bound, 1e-12)
+        ratio = nearest / self._novelty_bound()
         return float(ratio[0]) if np.ndim(slice_features) == 1 else ratio
+
+    def _novelty_bound(self):
+        """The training rows' NOVELTY_QUANTILE nearest-neighbour distance; fixed once fitted, so
+        computed once (predict asks for novelty on every slice)."""
+        if getattr(self, "_novelty_bound_cache", None) is None:
+            own = distances_from_gram(self.view_data_[self.source_view].gram)
+            np.fill_diagonal(own, np.inf)
+            bound = np.quantile(np.sqrt(np.maximum(own.min(axis=1), 0.0)), self.NOVELTY_QUANTILE)
+            self._novelty_bound_cache = max(float(bound), 1e-12)
+        return self._novelty_bound_cache
 
     def predict_weights(self, slice_features, view="2d"):
         """Prediction of `view` as an affine combination of its training rows, for lazy (streamed) 3D.

@@ -129,20 +129,10 @@ def load_dsgplvm(blob, training=None, feature_space="lab"):
 
 
 def _restore_2d_rows(model, training, feature_space):
-    """Rebuild the 2D view's centred, scaled rows from the training tables, checked against the
-    fitted model's stored keep mask, scale and Gram matrix (they must describe the same data)."""
+    """Rebuild the 2D view's training rows from the stored tables (infer.viewdata.restore_rows)."""
     from infer.adapter import table_features
-    from infer.viewdata import ViewData, prepare_view
-    stored = model.view_data_["2d"]
-    rebuilt = prepare_view(table_features(training.tables_2d, feature_space))
-    if not np.array_equal(rebuilt.keep, stored.keep) or \
-            not np.isclose(rebuilt.scale, stored.scale, rtol=1e-4):
-        raise InputError("model", "the stored 2D tables do not match the trained DS-GPLVM")
-    data = rebuilt.data * (rebuilt.scale / stored.scale)
-    if not np.allclose(data @ data.T, stored.gram, rtol=1e-3, atol=1e-3 * np.abs(stored.gram).max()):
-        raise InputError("model", "the stored 2D tables do not match the trained DS-GPLVM's Gram")
-    model.view_data_["2d"] = ViewData(keep=stored.keep, mean=rebuilt.mean, scale=stored.scale,
-                                      gram=stored.gram, n_dims=stored.n_dims, data=data)
+    from infer.viewdata import restore_rows
+    restore_rows(model, "2d", table_features(training.tables_2d, feature_space))
 
 
 def load_method(path, name, merl_dir=None, **overrides):

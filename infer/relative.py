@@ -26,6 +26,7 @@ from brdf import merl
 from infer.common import (InferenceMethod, check_slice, clip_to_range, fill_slice, scatter_valid,
                           valid_bins_3d, valid_mask_2d)
 from infer.gp import loo_bin_variance
+from infer.viewdata import restore_rows
 
 RATIO_EPSILON = 1e-2               # relative to the channel level: below 1% of it, ρ counts as black
 LEVEL_MAX_THETA_H_DEG = 75.0       # the level ignores the grazing end of the slice, which captures miss
@@ -202,18 +203,3 @@ def stream_relative(training, weights, levels, filled, workers=None):
     for i in range(len(training)):
         total += one(i)
     return total
-
-
-def restore_rows(model, view, rows):
-    """Give a loaded DSGPLVM the centred, scaled training rows of `view` back, checked against its
-    stored keep mask and scale (they must describe the same data)."""
-    from brdf.errors import InputError
-    from infer.viewdata import ViewData, prepare_view
-    stored = model.view_data_[view]
-    rebuilt = prepare_view(rows)
-    if not np.array_equal(rebuilt.keep, stored.keep) or \
-            not np.isclose(rebuilt.scale, stored.scale, rtol=1e-4):
-        raise InputError("model", f"the stored tables do not match the trained DS-GPLVM ({view})")
-    model.view_data_[view] = ViewData(keep=stored.keep, mean=rebuilt.mean, scale=stored.scale,
-                                      gram=stored.gram, n_dims=stored.n_dims,
-                                      data=rebuilt.data * (rebuilt.scale / stored.scale))

@@ -88,3 +88,22 @@ def pca_latent(grams, n_dims, q=None, variance=0.95):
     scores = u[:, :q] * np.sqrt(s[:q])
     std0 = scores[:, 0].std()
     return scores / (std0 if std0 > 0 else 1.0), q
+
+
+def restore_rows(model, view, rows):
+    """Give a loaded DSGPLVM the centred, scaled training rows of `view` back from the raw rows
+    (N, D) they were made of, checked against the stored keep mask, scale and Gram matrix (they
+    must describe the same data; a model file whose tables were swapped fails here)."""
+    from brdf.errors import InputError
+    stored = model.view_data_[view]
+    rebuilt = prepare_view(rows)
+    if not np.array_equal(rebuilt.keep, stored.keep) or \
+            not np.isclose(rebuilt.scale, stored.scale, rtol=1e-4):
+        raise InputError("model", f"the stored tables do not match the trained DS-GPLVM ({view})")
+    data = rebuilt.data * (rebuilt.scale / stored.scale)
+    if not np.allclose(data @ data.T, stored.gram, rtol=1e-3, atol=1e-3 * np.abs(stored.gram).max()):
+        raise InputError("model", f"the stored tables do not match the trained DS-GPLVM's Gram "
+                                  f"({view})")
+    model.view_data_[view] = ViewData(keep=stored.keep, mean=rebuilt.mean, scale=stored.scale,
+                                      gram=stored.gram, n_dims=stored.n_dims, data=data)
+
