@@ -61,7 +61,7 @@ def band_errors(pred_2d, true_2d, bands=THETA_D_BANDS_DEG):
 
 def default_methods():
     """Every method `infer` offers, then dsgplvm-paper and the oracle."""
-    return [m for m in METHODS if m != "oracle"] + list(BESIDE_MODEL)
+    return [m for m in METHODS if not make_method(m).evaluation_only] + list(BESIDE_MODEL)
 
 
 def _fit_beside_model(name, train, seed):
@@ -76,7 +76,7 @@ def _score(method, test):
     out = {}
     for i, name in enumerate(test.names):
         start = time.perf_counter()
-        if method.name == "oracle":
+        if method.evaluation_only:
             pred = method.predict_truth(test.tables_2d[i])
         else:
             pred = method.predict(test.slices[i], "2d")[0]
@@ -136,7 +136,7 @@ def score_methods(train, test, methods=None, seed=0, feature_space="auto"):
     for name in names:
         per_material = _score(fitted[name], test)
         result["methods"][name] = _summary(per_material) | {
-            "fit_s": fit_s[name], "params": fitted[name].get_params(),
+            "fit_s": fit_s[name], "params": fitted[name].fitted_params(),
             "per_material": per_material}
     return result
 

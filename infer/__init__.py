@@ -67,6 +67,12 @@ def make_method(name, **params):
     return METHODS[name](**params)
 
 
-__all__ = ["METHODS", "make_method", "novelty_warning", "InferenceMethod", "TrainingSet", "DSGPLVMMethod",
+def method_from_model(name, model, training, **params):
+    """A fitted method `name` around a DSGPLVM `model` trained before on `training` (TrainingSet),
+    e.g. read from MODEL.npz or reused across prediction-time switches: loading, not fitting."""
+    return type(make_method(name, **params)).from_model(model, training, **params)
+
+
+__all__ = ["METHODS", "make_method", "method_from_model", "novelty_warning", "InferenceMethod", "TrainingSet", "DSGPLVMMethod",
            "RelativeDSGPLVMMethod", "PCA",
            "Ashikhmin", "Chandraker", "Noll", "Oracle", "save_model", "read_model", "load_method"]

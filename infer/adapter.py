@@ -64,34 +64,31 @@ class DSGPLVMMethod(InferenceMethod):
     anchor: False (the paper) or True, our addition: the prediction is corrected along theta_h so
     its theta_d = 0 row passes through the observed slice (infer.common.anchor_to_slice). The 3D
     prediction takes the correction computed on the 2D prediction, so both views agree.
+    A DSGPLVM trained before (read from a model file) is used through `from_model`, not `fit`.
     """
     name = "dsgplvm"
-    representation = "absolute"
+    has_uncertainty = True
 
     def __init__(self, q=None, beta=50.0, feature_space="lab", views=("1d", "2d"), seed=0,
-                 latent="backprojection", model=None, anchor=False, representation="absolute",
+                 latent="backprojection", anchor=False, representation="absolute",
                  calibration=1.0, **model_kw):
         if representation != "absolute":
             raise ValueError("DSGPLVMMethod is the absolute representation; see infer.dsgplvm_method")
-        self.q, self.beta, self.feature_space = q, beta, feature_space
-        self.views, self.seed, self.model_kw = tuple(views), seed, model_kw
         if latent not in ("backprojection", "optimise"):
             raise ValueError(f"latent must be 'backprojection' or 'optimise', not {latent!r}")
-        self.latent = latent
-        self.anchor = bool(anchor)
-        self.calibration = calibration
-        self.model = model  # an already fitted DSGPLVM (e.g. loaded from a file); fit never changes it
+        self.q, self.beta, self.feature_space = q, beta, feature_space
+        self.views, self.seed, self.latent = views, seed, latent
+        self.anchor, self.representation, self.calibration = anchor, representation, calibration
+        self.model_kw = model_kw
 
     @property
     def feature_label(self):
         """What the predictive variance is measured in, for reports."""
         return ("CIELAB" if self.feature_space == "lab" else "RGB") + " of ln(1 + rho/1e-3)"
 
-    def get_params(self):
-        return {"representation": self.representation,
-                "q": self.q, "beta": self.beta, "feature_space": self.feature_space,
-                "views": list(self.views), "seed": self.seed, "latent": self.latent,
-                "anchor": self.anchor, "calibration": self.calibration, **self.model_kw}
+    def get_params(self, deep=True):
+        """BaseEstimator's, plus the keyword arguments that go to DSGPLVM."""
+        return {**super().get_params(deep), **self.model_kw}
 
     def view_features(self, training, features_2d=None):
         """{view: (N, D_v) features}; features_2d: table_features of the 2D tables if at hand."""
@@ -108,17 +105,27 @@ class DSGPLVMMethod(InferenceMethod):
         return views
 
     def fit(self, training, labels=None):
-        self.training_ = training
         feats = table_features(training.tables_2d, self.feature_space)
+        model = _model_class()(q=self.q, beta=self.beta, seed=self.seed, views=tuple(self.views),
+                               **self.model_kw)
+        model = model.fit(self.view_features(training, feats), labels=labels)
+        return self._use_model(model, training, feats)
+
+    @classmethod
+    def from_model(cls, model, training, **params):
+        """A fitted estimator around a DSGPLVM trained before (e.g. read from MODEL.npz) on
+        `training` (TrainingSet): loading, not fitting. params: the constructor's arguments."""
+        return cls(**params)._use_model(model, training)
+
+    def _use_model(self, model, training, feats=None):
+        """Set the fitted state from a trained DSGPLVM and its training set; returns self."""
+        self.training_ = training
+        if feats is None:
+            feats = table_features(training.tables_2d, self.feature_space)
         with np.errstate(invalid="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)   # all-NaN bins below the horizon
             self.range_2d_ = (np.nanmin(feats, axis=0), np.nanmax(feats, axis=0))
-        if self.model is None:
-            model = _model_class()(q=self.q, beta=self.beta, seed=self.seed, views=self.views,
-                                   **self.model_kw)
-            self.model_ = model.fit(self.view_features(training, feats), labels=labels)
-        else:
-            self.model_ = self.model
+        self.model_ = model
         rows = self.model_.view_data_["2d"].data
         self.bin_variance_ = None if rows is None else \
             loo_bin_variance(self.model_.posteriors_["2d"], rows)

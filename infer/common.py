@@ -12,6 +12,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
+from sklearn.base import BaseEstimator
 
 from brdf import merl, views
 from brdf.errors import InputError
@@ -179,15 +180,26 @@ class TrainingSet:
 
 
 # ----------------------------------------------------------------------------- estimator base
-class InferenceMethod:
+class InferenceMethod(BaseEstimator):
     """Base of every method: fit(training) then predict(flash_slice, view) -> (table, variance).
 
     table: (90, 90, 3) for view "2d", (90, 90, 180, 3) for "3d", 1/sr, NaN where MERL has no data.
     variance: per-bin predictive variance in the method's feature space (same shape), or None.
     Methods whose 3D prediction is a weighted sum of training tables in some mapped space implement
     `combination(flash_slice)` -> (weights (N,), LinearSpace); the 3D table is then streamed.
+
+    The scikit-learn contract: __init__ only stores its arguments (get_params/clone/set_params
+    come from BaseEstimator), fit sets attributes ending in "_" and returns self, and never changes
+    a constructor argument. Optional abilities are declared here, so callers ask for them instead
+    of testing names:
+    - evaluation_only: the method predicts from the true table (predict_truth), not from a slice;
+    - closed_form_3d: predict_valid_3d(rho, sel) gives 3D bins directly, without training tables;
+    - has_uncertainty: predict returns a per-bin variance (bin_variance).
     """
     name = "base"
+    evaluation_only = False
+    closed_form_3d = False
+    has_uncertainty = False
 
     def fit(self, training):
         raise NotImplementedError
@@ -205,13 +217,39 @@ class InferenceMethod:
         values = stream_combination(self.training_, weights, space)
         return scatter_valid(values), None
 
+    def predict_truth(self, true_table_2d):
+        """Evaluation-only methods (evaluation_only): the prediction from the true 2D table
+        (90, 90, 3) -> (90, 90, 3) in 1/sr."""
+        raise NotImplementedError(f"{self.name} predicts from a flash slice, not the true table")
+
+    def predict_valid_3d(self, rho, sel=slice(None)):
+        """closed_form_3d methods: ρ (n, 3) on the valid 3D bins `sel` (a slice or indices into
+        valid_bins_3d()) for a checked slice rho (90, 3)."""
+        raise NotImplementedError(f"{self.name} has no closed-form 3D prediction")
+
+    def training_3d(self):
+        """Where this fitted method reads its 3D training tables from: "stored" (rows held in
+        memory or in the model file), "files" (MERL tables read one at a time) or None."""
+        training = getattr(self, "training_", None)
+        if training is None:
+            return None
+        if training.valid_3d is not None:
+            return "stored"
+        return "files" if training.paths is not None else None
+
+    def can_predict_3d(self):
+        """Whether predict(..., "3d") can run: closed-form, or with 3D training tables at hand."""
+        return self.closed_form_3d or self.training_3d() is not None
+
     def novelty(self, flash_slice):
         """How far a slice lies from what the method was trained on (> 1: outside), or None for
         methods that do not measure it."""
         return None
 
-    def get_params(self):
-        return {}
+    def fitted_params(self):
+        """get_params() with the hyperparameters fit chose filled in, so that
+        make_method(name, **fitted_params()).fit(same training) reproduces this fit without search."""
+        return self.get_params()
 
 
 class LinearSpace:

@@ -9,7 +9,7 @@ import os
 import numpy as np
 
 from brdf import colour, merl, metrics
-from infer.baselines import Oracle, dual_weights
+from infer.baselines import dual_weights
 from infer.common import clip_to_range, valid_bins_3d
 
 CHUNK = 131_072  # bins per chunk: 60 training rows × 131 k × 3 × 8 B ≈ 190 MB
@@ -99,9 +99,9 @@ def evaluate_3d(cache, train, test, methods, slices, chunk=CHUNK, stride=1):
     chunks = _chunks(cache.shape[1], chunk, stride)
     plans = {}
     for name, m in methods.items():
-        if isinstance(m, Oracle):
+        if m.evaluation_only:
             plans[name] = ("linear",) + _oracle_weights(cache, m, train, test, chunks) + (None,)
-        elif hasattr(m, "predict_valid_3d"):
+        elif m.closed_form_3d:
             plans[name] = ("direct", m)
         else:
             combos = [m.combination(s) for s in slices]

@@ -18,11 +18,12 @@ import time
 import tracemalloc
 
 import numpy as np
+from sklearn.model_selection import ParameterGrid
 
 from brdf import merl, metrics
 from brdf.atomic import write_text
 from brdf.errors import InputError
-from infer import TrainingSet, make_method
+from infer import TrainingSet, make_method, method_from_model
 from infer.adapter import calibration_factor
 from infer.eval3d import RowsView, build_cache, evaluate_3d
 from infer.report import summarise_errors, write_markdown, write_runtime_plot
@@ -63,7 +64,7 @@ def errors_2d(method, data, index):
     """[brdf_errors dict] of a fitted method's 2D predictions for materials `index` of `data`."""
     out = []
     for i in index:
-        if method.name == "oracle":
+        if method.evaluation_only:
             pred = method.predict_truth(data.tables_2d[i])
         else:
             pred = method.predict(data.slices[i], "2d")[0]
@@ -77,12 +78,10 @@ def lab_log(errs):
 
 def select(name, grid, train, valid, data, fixed=None):
     """Grid search on validation LAB-log: -> (best fitted method, best params, [(params, err, s)])."""
-    keys = list(grid)
-    combos = [dict(zip(keys, vals)) for vals in np.array(np.meshgrid(*[range(len(grid[k]))
-              for k in keys], indexing="ij")).reshape(len(keys), -1).T.tolist()]
     trials, best = [], None
-    for c in combos:
-        params = {k: grid[k][i] for k, i in c.items()} | (fixed or {})
+    for combo in ParameterGrid(grid):
+        # in the grid's key order (ParameterGrid sorts them), as the reports print them
+        params = {k: combo[k] for k in grid} | (fixed or {})
         t0 = time.perf_counter()
         m = make_method(name, **params).fit(train)
         fit_s = time.perf_counter() - t0
@@ -108,7 +107,7 @@ def tune_baselines(training, seed=0, feature_space="auto"):
     # the per-bin variance is calibrated on the same held-out 20%: central 90% intervals there
     # cover 90% of the bins
     kappa = calibration_factor(best, training.slices[valid], training.tables_2d[valid])
-    return {"pca": pca_params, "ashikhmin": make_method("ashikhmin").fit(training).get_params(),
+    return {"pca": pca_params, "ashikhmin": make_method("ashikhmin").fit(training).fitted_params(),
             "noll": {}, "chandraker": {},
             "dsgplvm": {"feature_space": ds["feature_space"], "calibration": kappa}}
 
@@ -140,7 +139,7 @@ def _select_paper(trials, train, valid_idx, data):
         if t["params"].get("feature_space") != "lab":
             continue
         params = t["params"] | PAPER_FIXED
-        m = make_method("dsgplvm", **params, model=t["method"].model_).fit(train)
+        m = method_from_model("dsgplvm", t["method"].model_, train, **params)
         err = lab_log(errors_2d(m, data, valid_idx))
         out.append({"params": params, "valid_lab_log": err, "fit_s": t["fit_s"], "method": m})
         if best is None or err < best["valid_lab_log"]:
@@ -179,7 +178,7 @@ def run_experiment(k, split, data, cache, quick, costs, points, ablations, measu
             train_s = time.perf_counter() - t0
         else:
             m, trials = make_method(name).fit(train), []
-            params = m.get_params()
+            params = m.fitted_params()
             train_s = time.perf_counter() - t0
             if measure:  # peak of one fit plus one 2D prediction
                 _, _, peak = _measure(lambda: errors_2d(make_method(name, **params).fit(train),
@@ -235,7 +234,8 @@ def run_ablations(base, train, data, test_idx, ablations, k, points, quick=False
         p = params | change
         try:
             model = models.get(_fit_key(p))
-            m = make_method("dsgplvm", **p, model=model).fit(train)
+            m = make_method("dsgplvm", **p).fit(train) if model is None else \
+                method_from_model("dsgplvm", model, train, **p)
         except TypeError as err:  # the model does not offer this switch
             ablations.setdefault(label, {"skipped": str(err)})
             continue
@@ -268,7 +268,7 @@ def experiment_predictor(merl_dir, result, view="2d", seed=0):
         if method not in fitted:
             fitted[method] = build_method(method, **chosen[method]).fit(train)
         i = data.names.index(name)
-        if method == "oracle":
+        if fitted[method].evaluation_only:
             return fitted[method].predict_truth(data.tables_2d[i]) if view == "2d" else None
         return fitted[method].predict(data.slices[i], view)[0]
 
@@ -497,7 +497,7 @@ def run_3d(record, split, data, cache, costs, first, stride=1):
     slices = data.slices[test_idx]
     if first:  # the CLI's streamed 3D inference time, one material
         for name, m in methods.items():
-            if name != "oracle":
+            if not m.evaluation_only:
                 t0 = time.perf_counter()
                 m.predict(slices[0], "3d")
                 costs[name]["infer_3d_s"] = time.perf_counter() - t0

@@ -145,7 +145,7 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
     """{name: fitted method} for several methods from one read of MODEL.npz (a model with a 3D
     view holds GBs of rows: read once, shared). overrides: {name: {hyperparameter: value}}.
     fit_seconds: a dict that receives each method's load-and-fit wall time, if given."""
-    from infer import make_method
+    from infer import make_method, method_from_model
     training, params, blob = read_model(path, merl_dir)
     methods = {}
     for name in names:
@@ -157,13 +157,15 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
             # models written before the relative representation store none: they are absolute
             kw.setdefault("representation", "absolute")
             try:
-                kw["model"] = load_dsgplvm(
+                model = load_dsgplvm(
                     blob, training if kw["representation"] == "absolute" else None,
                     kw.get("feature_space", "lab"))
             except DECODE_ERRORS as err:
                 raise InputError(path, f"cannot read the DS-GPLVM stored in the model "
                                        f"({type(err).__name__}: {err})") from None
-        methods[name] = make_method(name, **kw).fit(training)
+            methods[name] = method_from_model(name, model, training, **kw)
+        else:
+            methods[name] = make_method(name, **kw).fit(training)
         if fit_seconds is not None:
             fit_seconds[name] = time.perf_counter() - start
     return methods

@@ -25,6 +25,7 @@ import numpy as np
 from brdf import merl
 from infer.common import (InferenceMethod, check_slice, clip_to_range, fill_slice, scatter_valid,
                           valid_bins_3d, valid_mask_2d)
+from infer.dsgplvm import DSGPLVM
 from infer.gp import loo_bin_variance
 from infer.viewdata import restore_rows
 
@@ -103,40 +104,48 @@ class RelativeDSGPLVMMethod(InferenceMethod):
     then multiplied back onto the observed row. q, beta, seed, **model_kw go to DSGPLVM.
     calibration: κ, the factor on the per-bin predictive variance that makes central 90% intervals
     cover 90% of held-out bins (set by `flashbrdf train` on a held-out split; 1.0 = uncalibrated).
-    model: a fitted DSGPLVM to reuse (from a model file); fit() never changes it.
+    A DSGPLVM trained before (from a model file) is used through `from_model`, not `fit`.
     """
     name = "dsgplvm"
-    representation = "relative"
+    has_uncertainty = True
     feature_label = f"ln(rho/L + {RATIO_EPSILON:g}) per channel, L the channel's slice level"
 
     def __init__(self, q=None, beta=50.0, variance=0.95, max_cycles=10, seed=0, calibration=1.0,
-                 model=None, anchor=True, representation="relative", **model_kw):
+                 anchor=True, representation="relative", **model_kw):
         # anchor: accepted for the command line's --no-anchor; a relative prediction passes through
         # the observed row by construction, so there is nothing to switch off
         if representation != "relative":
             raise ValueError("RelativeDSGPLVMMethod is the relative representation")
-        self.anchor = anchor
+        self.anchor, self.representation = anchor, representation
         self.q, self.beta, self.variance, self.max_cycles = q, beta, variance, max_cycles
-        self.seed, self.calibration, self.model, self.model_kw = seed, calibration, model, model_kw
+        self.seed, self.calibration, self.model_kw = seed, calibration, model_kw
 
-    def get_params(self):
-        return {"representation": self.representation, "q": self.q, "beta": self.beta,
-                "variance": self.variance, "max_cycles": self.max_cycles, "seed": self.seed,
-                "calibration": self.calibration, **self.model_kw}
+    def get_params(self, deep=True):
+        """BaseEstimator's, plus the keyword arguments that go to DSGPLVM."""
+        return {**super().get_params(deep), **self.model_kw}
 
     def fit(self, training, labels=None):
+        levels, filled, feats, ratios = training_rows(training)
+        model = DSGPLVM(q=self.q, beta=self.beta, variance=self.variance,
+                        max_cycles=self.max_cycles, seed=self.seed,
+                        views=("1d", "2d"), **self.model_kw).fit(
+            {"1d": feats, "2d": ratios}, labels=None if labels is None else np.repeat(labels, 3))
+        return self._use_model(model, training, (levels, filled, feats, ratios))
+
+    @classmethod
+    def from_model(cls, model, training, **params):
+        """A fitted estimator around a DSGPLVM trained before (e.g. read from MODEL.npz) on
+        `training` (TrainingSet): loading, not fitting. params: the constructor's arguments.
+        A model stored without its 2D rows gets them back from the training tables."""
+        return cls(**params)._use_model(model, training)
+
+    def _use_model(self, model, training, rows=None):
+        """Set the fitted state from a trained DSGPLVM and its training set; returns self."""
         self.training_ = training
-        self.levels_, self.filled_, feats, ratios = training_rows(training)
-        if self.model is not None:
-            self.model_ = self.model
-            if self.model_.view_data_["2d"].data is None:
-                restore_rows(self.model_, "2d", ratios)
-        else:
-            from infer.dsgplvm import DSGPLVM
-            self.model_ = DSGPLVM(q=self.q, beta=self.beta, variance=self.variance,
-                                  max_cycles=self.max_cycles, seed=self.seed,
-                                  views=("1d", "2d"), **self.model_kw).fit(
-                {"1d": feats, "2d": ratios}, labels=None if labels is None else np.repeat(labels, 3))
+        self.levels_, self.filled_, feats, ratios = training_rows(training) if rows is None else rows
+        self.model_ = model
+        if self.model_.view_data_["2d"].data is None:
+            restore_rows(self.model_, "2d", ratios)
         with np.errstate(invalid="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)   # columns no training row has
             self.ratio_range_ = (np.nanmin(ratios, axis=0), np.nanmax(ratios, axis=0))

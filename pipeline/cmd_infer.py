@@ -74,7 +74,7 @@ def infer(args):
         overrides = {"anchor": not getattr(args, "no_anchor", False)} \
             if args.method == "dsgplvm" else {}
         method = load_method(args.model, args.method, args.merl_dir, **overrides)
-        has_3d = args.method in ("chandraker", "ashikhmin") or method.training_.has_3d()
+        has_3d = method.can_predict_3d()
     if view == "auto":
         view = "3d" if has_3d else "2d"
     elif view == "3d" and not has_3d:
@@ -96,7 +96,7 @@ def infer(args):
               "slice": str(args.slice), "view": view,
               "predicted": "3D table" if view == "3d" else "2D table copied across phi_d",
               "observed_theta_h_bins": int(np.isfinite(rho).all(axis=1).sum()),
-              "params": method.get_params(),
+              "params": method.fitted_params(),
               "timings": {"load_s": t1 - t0, "predict_s": t2 - t1, "write_s": t3 - t2,
                           "total_s": t3 - t0},
               "uncertainty": _uncertainty_summary(variance, getattr(method, "feature_label", "")),

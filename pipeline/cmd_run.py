@@ -62,12 +62,13 @@ class _Stages:
 
 
 def _methods(text):
-    from infer import METHODS
+    from infer import METHODS, make_method
     names = [m.strip() for m in text.split(",") if m.strip()]
-    unknown = [m for m in names if m not in METHODS or m == "oracle"]
+    usable = [m for m in METHODS if not make_method(m).evaluation_only]
+    unknown = [m for m in names if m not in usable]
     if not names or unknown:
         raise InputError("--methods", f"unknown method(s) {', '.join(unknown) or '(none)'}; "
-                                      f"expected some of {', '.join(m for m in METHODS if m != 'oracle')}")
+                                      f"expected some of {', '.join(usable)}")
     return list(dict.fromkeys(names))
 
 
@@ -98,8 +99,7 @@ def _infer(method, method_name, model_path, rho, out_dir):
     from brdf import merl, views
     from infer import novelty_warning
     start = time.perf_counter()
-    view = "3d" if getattr(getattr(method, "training_", None), "valid_3d", None) is not None \
-        else "2d"
+    view = "3d" if method.training_3d() == "stored" else "2d"
     table, variance = method.predict(rho, view=view)
     seconds = time.perf_counter() - start
     novelty, warning = novelty_warning(method, rho, f"{method_name}")

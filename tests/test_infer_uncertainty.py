@@ -5,7 +5,7 @@ known (tests/test_infer_baselines.py builds them on MERL bin centres)."""
 import numpy as np
 import pytest
 
-from infer import DSGPLVMMethod, RelativeDSGPLVMMethod, make_method, novelty_warning
+from infer import DSGPLVMMethod, RelativeDSGPLVMMethod, method_from_model, novelty_warning
 from infer.adapter import calibration_factor
 from infer.relative import channel_levels, from_ratio, ratio_field
 from infer.common import fill_slice
@@ -34,8 +34,8 @@ def test_variance_is_per_bin_and_scales_with_calibration(fitted, materials):
     # per bin, not one number per view: the leave-one-out shape varies over (θh, θd)
     assert np.nanstd(var) / np.nanmean(var) > 0.1
     # κ multiplies the variance and nothing else
-    scaled = make_method("dsgplvm", **(fitted.get_params() | {"calibration": 4.0}),
-                         model=fitted.model_).fit(materials.subset(range(7)))
+    scaled = method_from_model("dsgplvm", fitted.model_, materials.subset(range(7)),
+                               **(fitted.get_params() | {"calibration": 4.0}))
     table4, var4 = scaled.predict(materials.slices[7], "2d")
     np.testing.assert_array_equal(table4, table)
     np.testing.assert_allclose(var4[valid], 4.0 * var[valid], rtol=1e-12)
@@ -46,12 +46,12 @@ def test_calibration_factor_undoes_a_known_miscalibration(fitted, materials):
     kappa = calibration_factor(fitted, materials.slices[held], materials.tables_2d[held])
     assert np.isfinite(kappa) and kappa > 0
     # z ∝ 1/sqrt(κ): a method already scaled by c needs κ/c, exactly (same residuals)
-    scaled = make_method("dsgplvm", **(fitted.get_params() | {"calibration": 3.0}),
-                         model=fitted.model_).fit(materials.subset(range(7)))
+    scaled = method_from_model("dsgplvm", fitted.model_, materials.subset(range(7)),
+                               **(fitted.get_params() | {"calibration": 3.0}))
     again = calibration_factor(scaled, materials.slices[held], materials.tables_2d[held])
     assert again == pytest.approx(kappa / 3.0, rel=1e-9)
-    calibrated = make_method("dsgplvm", **(fitted.get_params() | {"calibration": kappa}),
-                             model=fitted.model_).fit(materials.subset(range(7)))
+    calibrated = method_from_model("dsgplvm", fitted.model_, materials.subset(range(7)),
+                               **(fitted.get_params() | {"calibration": kappa}))
     # after calibration, the 90% quantile of |z| on the same bins is the normal one: κ becomes 1
     assert calibration_factor(calibrated, materials.slices[held],
                               materials.tables_2d[held]) == pytest.approx(1.0, rel=1e-9)
@@ -78,8 +78,9 @@ def test_refit_on_other_data_equals_a_fresh_fit(materials):
     # fit() must not keep the first data set's model: fit(A) then fit(B) == fresh fit(B)
     a, b = materials.subset(range(5)), materials.subset(range(3, 9))
     method = DSGPLVMMethod(max_cycles=2, feature_space="rgb")
+    before = method.get_params()
     method.fit(a)
-    assert method.model is None                           # the constructor argument is untouched
+    assert method.get_params() == before                  # the constructor arguments are untouched
     refit = method.fit(b).predict(materials.slices[2], "2d")[0]
     fresh = DSGPLVMMethod(max_cycles=2, feature_space="rgb").fit(b).predict(materials.slices[2],
                                                                             "2d")[0]

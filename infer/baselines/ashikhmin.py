@@ -54,6 +54,7 @@ def ratio_2d(r0):
 
 class Ashikhmin(InferenceMethod):
     name = "ashikhmin"
+    closed_form_3d = True
 
     def __init__(self, r0=None):
         self.r0 = r0  # None: fit on the training set
@@ -79,14 +80,13 @@ class Ashikhmin(InferenceMethod):
         self.r0_ = float(np.exp(best.x if best.fun <= costs[k] else grid[k]))
         return self
 
-    def get_params(self):
+    def fitted_params(self):
         return {"r0": self.r0_}
 
     def _predict_2d(self, rho):
         return fill_slice(rho)[:, None, :] * ratio_2d(self.r0_)[:, :, None], None
 
     def predict_valid_3d(self, rho, sel=slice(None)):
-        """ρ (n, 3) on the valid 3D bins `sel` (slice/indices into infer.common.valid_bins_3d)."""
         inv_d, inv_d0, _ = _geometry()
         ih, jd, _ = valid_bins_3d()
         ih, jd = ih[sel], jd[sel]

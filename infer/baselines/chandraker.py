@@ -13,6 +13,7 @@ from infer.common import InferenceMethod, fill_slice, scatter_valid, valid_bins_
 
 class Chandraker(InferenceMethod):
     name = "chandraker"
+    closed_form_3d = True
 
     def fit(self, training=None):
         """Nothing to learn; `training` is accepted for the common interface."""
@@ -25,7 +26,6 @@ class Chandraker(InferenceMethod):
         return table, None
 
     def predict_valid_3d(self, rho, sel=slice(None)):
-        """ρ (n, 3) on the valid 3D bins `sel` (slice/indices into infer.common.valid_bins_3d)."""
         return fill_slice(rho)[valid_bins_3d()[0][sel]]
 
     def _predict_3d(self, rho):

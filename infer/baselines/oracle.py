@@ -31,9 +31,11 @@ def dual_weights(raw_gram, cross, ridge):
 
 class Oracle(PCA):
     name = "oracle"
+    evaluation_only = True
+    n_components = None  # all N−1 components (PCA.fit reads it); not a hyperparameter here
 
     def __init__(self, ridge=1e-6):
-        super().__init__(n_components=None, ridge=ridge)
+        self.ridge = ridge
 
     def predict_truth(self, true_table_2d):
         """Ridge projection of the true 2D table (90, 90, 3) -> predicted (90, 90, 3), NaN invalid."""

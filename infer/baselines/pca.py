@@ -65,9 +65,6 @@ class PCA(InferenceMethod):
         self.n_components = n_components   # None: all N-1
         self.ridge = ridge
 
-    def get_params(self):
-        return {"n_components": self.n_components, "ridge": self.ridge}
-
     def fit(self, training):
         self.training_ = training
         valid = valid_mask_2d()
