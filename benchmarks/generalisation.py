@@ -12,7 +12,7 @@ Two settings, each 2D Table-1 metrics per material and per θd band:
 - "merl+test-folds": the --test-dir tables cut into seeded folds; each fold is predicted by methods
   trained on MERL plus the other folds, so no claim rests on a material that was trained on (what
   `flashbrdf train --merl-dir MERL --merl-dir MY_TABLES` gives for materials of the same kinds).
-Hyperparameters are chosen exactly as `flashbrdf train` chooses them (infer.evaluate.tune_baselines:
+Hyperparameters are chosen exactly as `flashbrdf train` chooses them (infer.model_selection.tune_baselines:
 a seeded 80/20 split of the training tables, never the test tables), including the DS-GPLVM's
 variance calibration κ. Also reported: the share of held-out (θh, θd > 0, channel) bins inside the
 central 90% interval of the default method, the novelty warnings, and prediction / fit times.
@@ -32,7 +32,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from brdf import merl, metrics  # noqa: E402
 from infer import TrainingSet, make_method, novelty_warning  # noqa: E402
 from infer.adapter import standardised_residuals  # noqa: E402
-from infer.evaluate import PAPER_FIXED, tune_baselines  # noqa: E402
+from infer.evaluate import PAPER_FIXED  # noqa: E402
+from infer.model_selection import tune_baselines  # noqa: E402
 
 BANDS_DEG = ((0, 30), (30, 60), (60, 75), (75, 90))
 METHODS = ("dsgplvm", "dsgplvm-paper", "dsgplvm-relative", "pca", "noll", "chandraker",

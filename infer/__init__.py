@@ -12,7 +12,8 @@ import numpy as np
 from brdf import merl
 from infer.adapter import DSGPLVMMethod
 from infer.baselines import PCA, Ashikhmin, Chandraker, Noll, Oracle
-from infer.common import InferenceMethod, TrainingSet
+from infer.estimator import InferenceMethod
+from infer.training_set import TrainingSet
 from infer.model_file import load_method, read_model, save_model
 from infer.relative import RelativeDSGPLVMMethod
 

@@ -14,9 +14,10 @@ import numpy as np
 
 from brdf import colour
 from infer.gp import loo_bin_variance
-from infer.common import (AnchoredSpace, InferenceMethod, LinearSpace, anchor_log_correction,
-                          anchor_to_slice, check_slice, clip_to_range, scatter_valid,
-                          stream_combination, valid_flat_3d, valid_mask_2d)
+from brdf.bins import scatter_valid, valid_flat_3d, valid_mask_2d
+from infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
+from infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_combination
+from infer.slices import check_slice
 
 
 def _model_class():
@@ -62,7 +63,7 @@ class DSGPLVMMethod(InferenceMethod):
     latent "backprojection" (the paper, Eq. 9) or "optimise" (ablation without back-constraints at
     test time: x* maximises the 1D GP's predictive density of the observed slice bins).
     anchor: False (the paper) or True, our addition: the prediction is corrected along theta_h so
-    its theta_d = 0 row passes through the observed slice (infer.common.anchor_to_slice). The 3D
+    its theta_d = 0 row passes through the observed slice (infer.anchoring.anchor_to_slice). The 3D
     prediction takes the correction computed on the 2D prediction, so both views agree.
     A DSGPLVM trained before (read from a model file) is used through `from_model`, not `fit`.
     """

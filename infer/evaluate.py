@@ -18,23 +18,19 @@ import time
 import tracemalloc
 
 import numpy as np
-from sklearn.model_selection import ParameterGrid
 
-from brdf import merl, metrics
+from brdf import merl
 from brdf.atomic import write_text
 from brdf.errors import InputError
 from infer import TrainingSet, make_method, method_from_model
-from infer.adapter import calibration_factor
+from infer.model_selection import DS_FIXED, DS_GRID, PCA_GRID, errors_2d, lab_log, select
 from infer.eval3d import RowsView, build_cache, evaluate_3d
 from infer.report import summarise_errors, write_markdown, write_runtime_plot
 
-DS_GRID = {"q": [None], "beta": [50.0, 100.0], "feature_space": ["lab", "rgb"]}
-DS_FIXED = {"anchor": True}                      # "dsgplvm" is the anchored DS-GPLVM of infer/run
 PAPER = "dsgplvm-paper"                          # the paper's DS-GPLVM, scored from the same fits
 PAPER_FIXED = {"feature_space": "lab", "anchor": False}
 METHOD_ORDER = ("chandraker", "ashikhmin", "noll", "pca", "oracle", "dsgplvm", PAPER)
 PREDICTION_ONLY = ("anchor", "latent")           # switches that need no refit
-PCA_GRID = {"n_components": [3, 6, 12, 24, None], "ridge": [1e-3, 1e-2, 1e-1, 1.0, 10.0]}
 ORACLE_GRID = {"ridge": [1e-6, 1e-2, 1.0]}
 QUICK_DS_GRID = {"q": [None], "beta": [50.0], "feature_space": ["lab", "rgb"],
                  "max_cycles": [10]}  # smoke run: short ADM
@@ -58,58 +54,6 @@ def splits(n, repetitions, seed=0, folds=5):
             train = np.concatenate([parts[g] for g in range(folds) if g not in (f, (f + 1) % folds)])
             out.append((np.sort(train), np.sort(valid), np.sort(test)))
     return out
-
-
-def errors_2d(method, data, index):
-    """[brdf_errors dict] of a fitted method's 2D predictions for materials `index` of `data`."""
-    out = []
-    for i in index:
-        if method.evaluation_only:
-            pred = method.predict_truth(data.tables_2d[i])
-        else:
-            pred = method.predict(data.slices[i], "2d")[0]
-        out.append(metrics.brdf_errors(pred, data.tables_2d[i]))
-    return out
-
-
-def lab_log(errs):
-    return float(np.mean([e["lab_log"] for e in errs]))
-
-
-def select(name, grid, train, valid, data, fixed=None):
-    """Grid search on validation LAB-log: -> (best fitted method, best params, [(params, err, s)])."""
-    trials, best = [], None
-    for combo in ParameterGrid(grid):
-        # in the grid's key order (ParameterGrid sorts them), as the reports print them
-        params = {k: combo[k] for k in grid} | (fixed or {})
-        t0 = time.perf_counter()
-        m = make_method(name, **params).fit(train)
-        fit_s = time.perf_counter() - t0
-        err = lab_log(errors_2d(m, data, valid))
-        trials.append({"params": params, "valid_lab_log": err, "fit_s": fit_s, "method": m})
-        if best is None or err < best["valid_lab_log"]:
-            best = trials[-1]
-    return best["method"], best["params"], trials
-
-
-def tune_baselines(training, seed=0, feature_space="auto"):
-    """Hyperparameters for `flashbrdf train`: ashikhmin r0 on all; pca and (feature_space "auto")
-    the DS-GPLVM's feature space on a seeded 80/20 split, scored like Table 1's validation."""
-    n = len(training)
-    order = np.random.default_rng(seed).permutation(n)
-    cut = max(1, n // 5)
-    valid, train = np.sort(order[:cut]), np.sort(order[cut:])
-    grid = {k: [v for v in vals if v is None or v < len(train)] for k, vals in PCA_GRID.items()}
-    _, pca_params, _ = select("pca", grid, training.subset(train), valid, training)
-    spaces = DS_GRID["feature_space"] if feature_space == "auto" else [feature_space]
-    best, ds, _ = select("dsgplvm", {"feature_space": spaces},
-                         training.subset(train), valid, training, fixed=DS_FIXED)
-    # the per-bin variance is calibrated on the same held-out 20%: central 90% intervals there
-    # cover 90% of the bins
-    kappa = calibration_factor(best, training.slices[valid], training.tables_2d[valid])
-    return {"pca": pca_params, "ashikhmin": make_method("ashikhmin").fit(training).fitted_params(),
-            "noll": {}, "chandraker": {},
-            "dsgplvm": {"feature_space": ds["feature_space"], "calibration": kappa}}
 
 
 def _measure(fn):
@@ -292,7 +236,7 @@ def _warm_up():
     """Fill the geometry caches so that timings measure methods, not one-off set-up."""
     from infer.baselines.ashikhmin import _geometry
     from infer.baselines.pca import cosine_weights
-    from infer.common import valid_mask_2d
+    from brdf.bins import valid_mask_2d
     valid_mask_2d(), cosine_weights(), _geometry()
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from brdf.atomic import atomic_path
 from brdf.errors import DECODE_ERRORS, InputError
-from infer.common import TrainingSet
+from infer.training_set import TrainingSet
 
 FORMAT = "flashbrdf-infer-model-1"
 

@@ -12,7 +12,7 @@ neighbourhood.
 For one channel c with level L (median of the observed slice over θh < LEVEL_MAX_THETA_H_DEG):
 - slice features  f(θh) = ln(ρ(θh, 0)/L + ε), NaN where the bin is missing or θh ≥ FEATURE_MAX_THETA_H_DEG;
 - ratio field     r(θh, θd[, φd]) = ln(ρ(θh, θd[, φd])/L + ε) − f̄(θh),
-  with f̄ the slice filled over its missing bins (infer.common.fill_slice);
+  with f̄ the slice filled over its missing bins (infer.slices.fill_slice);
 - inverse         ρ = L·(exp(f̄(θh) + r) − ε), clamped ≥ 0.
 ε = RATIO_EPSILON (relative to L) keeps the logs finite for black bins. Values are ρ in 1/sr; arrays
 are (90,) over θh, (90, 90) over (θh, θd) or (n, ) over valid 3D bins with their θh index.
@@ -23,8 +23,9 @@ import warnings
 import numpy as np
 
 from brdf import merl
-from infer.common import (InferenceMethod, check_slice, clip_to_range, fill_slice, scatter_valid,
-                          valid_bins_3d, valid_mask_2d)
+from brdf.bins import scatter_valid, valid_bins_3d, valid_mask_2d
+from infer.estimator import InferenceMethod, clip_to_range
+from infer.slices import check_slice, fill_slice
 from infer.dsgplvm import DSGPLVM
 from infer.gp import loo_bin_variance
 from infer.viewdata import restore_rows

@@ -7,12 +7,12 @@ exactly the one `train` would have written.
 
 import time
 
-from infer.evaluate import tune_baselines
+from infer.model_selection import tune_baselines
 from infer.model_file import save_model
 
 
 def train_model(training, path, views=("1d", "2d"), seed=0, feature_space="auto", merl_dirs=()):
-    """Tune every method's hyperparameters on `training` (infer.evaluate.tune_baselines), fit the
+    """Tune every method's hyperparameters on `training` (infer.model_selection.tune_baselines), fit the
     DS-GPLVM and write MODEL.npz to `path` (atomically). training: TrainingSet; views: the
     DS-GPLVM's views; merl_dirs: the training folders, recorded in the file. Returns the params
     dict stored in the file, with `train_seconds` (all of it) and `fit_seconds` {"tuning",

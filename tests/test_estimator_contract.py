@@ -1,4 +1,4 @@
-"""The scikit-learn estimator contract of every inference method (infer.common.InferenceMethod):
+"""The scikit-learn estimator contract of every inference method (infer.estimator.InferenceMethod):
 get_params round-trips through make_method and sklearn.base.clone, fit never changes a constructor
 argument, and fitting on A then on B predicts exactly what a fresh fit on B predicts. Synthetic
 Ashikhmin–Premože materials on MERL bin centres (tests/test_infer_baselines.py)."""

@@ -1,10 +1,10 @@
-"""Slice anchoring (infer.common.anchor_to_slice): what it guarantees and what smoothing buys."""
+"""Slice anchoring (infer.anchoring.anchor_to_slice): what it guarantees and what smoothing buys."""
 
 import numpy as np
 import pytest
 
 from brdf.colour import FEATURE_OFFSET as E
-from infer.common import anchor_to_slice
+from infer.anchoring import anchor_to_slice
 
 
 def _smooth_table():

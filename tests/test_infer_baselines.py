@@ -6,7 +6,7 @@ import pytest
 
 from infer import PCA, Ashikhmin, Chandraker, Noll, Oracle, TrainingSet
 from infer.baselines.ashikhmin import denominator, schlick
-from infer.common import cos_in_out_valid, mean_over_phi_d, scatter_valid, valid_bins_3d
+from brdf.bins import cos_in_out_valid, mean_over_phi_d, scatter_valid, valid_bins_3d
 from brdf import merl
 
 
@@ -162,7 +162,7 @@ def test_streamed_3d_metrics_equal_brdf_metrics(mixed_set):
 
 def test_streamed_3d_combination_is_thread_count_independent(mixed_set):
     from infer.adapter import FeatureSpace
-    from infer.common import stream_combination
+    from infer.estimator import stream_combination
     w = np.array([0.5, -0.2, 0.0, 0.4, 0.3] + [0.0] * (len(mixed_set) - 5))
     one = stream_combination(mixed_set, w, FeatureSpace(), workers=1)
     two = stream_combination(mixed_set, w, FeatureSpace(), workers=2)
@@ -178,7 +178,7 @@ def test_streamed_3d_combination_is_thread_count_independent(mixed_set):
 
 def test_streamed_combination_clips_to_the_training_range_when_asked(mixed_set):
     from infer.adapter import FeatureSpace
-    from infer.common import LinearSpace, stream_combination
+    from infer.estimator import LinearSpace, stream_combination
     # 3·T0 − 2·T1 extrapolates beyond both tables; a GP mean with large ± weights does the same.
     w = np.zeros(len(mixed_set))
     w[[0, 1]] = 3.0, -2.0

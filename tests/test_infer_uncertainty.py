@@ -8,7 +8,7 @@ import pytest
 from infer import DSGPLVMMethod, RelativeDSGPLVMMethod, method_from_model, novelty_warning
 from infer.adapter import calibration_factor
 from infer.relative import channel_levels, from_ratio, ratio_field
-from infer.common import fill_slice
+from infer.slices import fill_slice
 from tests.test_infer_baselines import ap_material, training_set
 
 

@@ -1,4 +1,4 @@
-"""Baselines of the paper's Table 1 behind the common fit/predict interface (see infer.common)."""
+"""Baselines of the paper's Table 1 behind the common fit/predict interface (see infer.estimator)."""
 
 from infer.baselines.ashikhmin import Ashikhmin
 from infer.baselines.chandraker import Chandraker

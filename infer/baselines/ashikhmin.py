@@ -22,8 +22,9 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from brdf import merl, metrics
-from infer.common import (InferenceMethod, cos_in_out_valid, fill_slice, mean_over_phi_d,
-                          scatter_valid, valid_bins_3d)
+from brdf.bins import cos_in_out_valid, mean_over_phi_d, scatter_valid, valid_bins_3d
+from infer.estimator import InferenceMethod
+from infer.slices import fill_slice
 
 
 def schlick(cos_theta_d, r0):

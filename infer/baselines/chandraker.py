@@ -8,7 +8,9 @@ It reproduces the observed slice exactly at θd bin 0.
 
 import numpy as np
 
-from infer.common import InferenceMethod, fill_slice, scatter_valid, valid_bins_3d, valid_mask_2d
+from brdf.bins import scatter_valid, valid_bins_3d, valid_mask_2d
+from infer.estimator import InferenceMethod
+from infer.slices import fill_slice
 
 
 class Chandraker(InferenceMethod):

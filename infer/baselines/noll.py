@@ -17,7 +17,8 @@ robust (soft-L1) loss stands in for their outlier handling.
 import numpy as np
 from scipy.optimize import least_squares, nnls
 
-from infer.common import InferenceMethod, LinearSpace, valid_bins_3d
+from brdf.bins import valid_bins_3d
+from infer.estimator import InferenceMethod, LinearSpace
 
 EPS = 1e-3     # 1/sr, log metric offset
 DELTA = 1e-9   # 1/sr, keeps the correction ratio finite for black fits

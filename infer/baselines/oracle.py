@@ -10,7 +10,7 @@ In dual form (training-material weights) it needs only raw inner products of map
 import numpy as np
 
 from infer.baselines.pca import PCA, LogRelative3D, to_mapped
-from infer.common import valid_mask_2d
+from brdf.bins import valid_mask_2d
 
 
 def dual_weights(raw_gram, cross, ridge):

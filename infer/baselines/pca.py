@@ -19,8 +19,8 @@ import functools
 
 import numpy as np
 
-from infer.common import (InferenceMethod, LinearSpace, cos_in_out_valid, mean_over_phi_d,
-                          valid_bins_3d, valid_mask_2d)
+from brdf.bins import cos_in_out_valid, mean_over_phi_d, valid_bins_3d, valid_mask_2d
+from infer.estimator import InferenceMethod, LinearSpace
 
 EPS = 1e-3
 

@@ -1,0 +1,80 @@
+"""Anchoring: a θh correction that takes a predicted table's θd = 0 row to the observed flash slice,
+carried over every θd (and φd), like Nöll et al.'s correction functions. ρ in 1/sr; ln c (90, 3).
+"""
+
+import numpy as np
+from scipy.ndimage import gaussian_filter1d
+
+from brdf.bins import valid_bins_3d
+from brdf.colour import FEATURE_OFFSET
+from brdf.merl import N_THETA_H
+from infer.estimator import LinearSpace
+
+
+ANCHOR_SMOOTHING_BINS = 2.0  # see anchor_to_slice; chosen in benchmarks, not on test data
+
+
+def anchor_log_correction(first_row, flash_slice, smoothing_bins=None):
+    """ln c (90, 3): the per-θh, per-channel correction that takes a predicted θd = 0 row
+    `first_row` (90, 3) to the observed `flash_slice` (90, 3, NaN where empty), both in 1/sr.
+
+    c = (ρ_obs + e) / (ρ_pred + e), e = brdf.colour.FEATURE_OFFSET, i.e. a shift in the ln(1 + ρ/e)
+    feature space. Empty slice bins take ln c interpolated along θh (held constant beyond the
+    observed range). ln c is then smoothed along θh with a Gaussian of `smoothing_bins` bins (None:
+    ANCHOR_SMOOTHING_BINS): a bump of the prediction's θd = 0 row that its other rows lack is the
+    blend's own artefact, and cancelling it bin by bin would stamp a dark line across every θd.
+    0 makes the θd = 0 row pass exactly through the observation. None when no bin is observed.
+    """
+    e = FEATURE_OFFSET
+    if smoothing_bins is None:
+        smoothing_bins = ANCHOR_SMOOTHING_BINS
+    log_c = (np.log(np.asarray(flash_slice, dtype=float) + e)
+             - np.log(np.maximum(np.asarray(first_row, dtype=float), 0.0) + e))
+    known = np.isfinite(log_c).all(axis=1)
+    if not known.any():
+        return None
+    bins = np.arange(N_THETA_H)
+    log_c = np.stack([np.interp(bins, bins[known], log_c[known, c]) for c in range(3)], axis=1)
+    if smoothing_bins > 0:
+        log_c = gaussian_filter1d(log_c, smoothing_bins, axis=0, mode="nearest")
+    return log_c
+
+
+def apply_log_correction(rho, log_c):
+    """ρ' = (ρ + e)·exp(ln c) − e, clamped ≥ 0, NaN kept; ρ (..., 3), ln c broadcastable to it."""
+    e = FEATURE_OFFSET
+    rho = np.asarray(rho, dtype=float)
+    out = np.maximum((np.maximum(rho, 0.0) + e) * np.exp(log_c) - e, 0.0)
+    out[np.isnan(rho)] = np.nan
+    return out
+
+
+def anchor_to_slice(table, flash_slice, smoothing_bins=None):
+    """Correct a predicted table so that its θd = 0 row follows the observed slice, like Nöll et
+    al.'s correction functions: anchor_log_correction of its θd = 0 row (the φd-mean for a 3D
+    table), carried over every θd (and φd). table: (90, 90, 3) or (90, 90, 180, 3) in 1/sr, NaN
+    where no data; flash_slice: (90, 3), NaN where empty. Returns a new table.
+    """
+    table = np.asarray(table, dtype=float)
+    first = table[:, 0] if table.ndim == 3 else np.nanmean(table[:, 0], axis=1)
+    log_c = anchor_log_correction(first, flash_slice, smoothing_bins)
+    if log_c is None:
+        return table.copy()
+    shape = (N_THETA_H, 1, 3) if table.ndim == 3 else (N_THETA_H, 1, 1, 3)
+    return apply_log_correction(table, log_c.reshape(shape))
+
+
+class AnchoredSpace(LinearSpace):
+    """Another method's combination space whose inverse also applies a θh correction ln c (90, 3)
+    (anchor_log_correction), so streamed 3D predictions are anchored like the 2D ones."""
+
+    def __init__(self, base, log_c):
+        self.base, self.log_c = base, log_c
+        self.clip_to_training = base.clip_to_training
+
+    def forward(self, rho, sel=slice(None)):
+        return self.base.forward(rho, sel)
+
+    def inverse(self, mapped, sel=slice(None)):
+        return apply_log_correction(self.base.inverse(mapped, sel),
+                                    self.log_c[valid_bins_3d()[0][sel]])

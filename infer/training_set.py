@@ -1,0 +1,81 @@
+"""The training materials every method fits on: names, flash slices, 2D tables, and 3D tables read
+one at a time (MERL files or stored rows). Values in 1/sr, NaN where MERL has no data.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from brdf import merl, views
+from brdf.bins import valid_bins_3d, valid_flat_3d
+from brdf.errors import InputError
+
+
+@dataclass
+class TrainingSet:
+    """Training materials: names (N,), flash slices (N, 90, 3), 2D tables (N, 90, 90, 3), in 1/sr.
+
+    3D tables are never all held in memory: `table_3d_valid(i)` reads one at a time, either from
+    `paths` (MERL .binary files) or from `valid_3d` (N, n_valid, 3) stored rows (array or memmap).
+    """
+    names: list
+    slices: np.ndarray
+    tables_2d: np.ndarray
+    paths: list = None
+    valid_3d: np.ndarray = field(default=None, repr=False)
+
+    def __len__(self):
+        return len(self.names)
+
+    @classmethod
+    def from_merl_dir(cls, folder, names=None, keep_3d=False):
+        """Read the MERL tables of `folder` (all, or those in `names`, in that order).
+        keep_3d: also hold their valid 3D bins as float32 rows (N × 1.1 M × 3 × 4 B)."""
+        found = dict(merl.list_merl(folder))
+        if not found:
+            raise InputError(folder, "no .binary MERL tables in this folder")
+        names = list(found) if names is None else list(names)
+        missing = [n for n in names if n not in found]
+        if missing:
+            raise InputError(folder, f"missing MERL tables: {', '.join(missing[:5])}")
+        slices, tables, rows = [], [], []
+        ih, jd, kd = valid_bins_3d()
+        for n in names:
+            table = merl.read_merl(found[n])
+            slices.append(views.flash_slice(table)[0])
+            tables.append(views.table_2d(table))
+            if keep_3d:
+                rows.append(table[ih, jd, kd].astype(np.float32))
+        return cls(names, np.array(slices), np.array(tables), [found[n] for n in names],
+                   np.array(rows) if keep_3d else None)
+
+    @classmethod
+    def from_merl_dirs(cls, folders, keep_3d=False):
+        """Every MERL table of every folder in `folders` (a list of paths), folder by folder, in
+        one set. Names must be unique across folders and no folder may be empty (InputError,
+        checked before any table is read: brdf.merl.list_merl_dirs)."""
+        merl.list_merl_dirs(folders)
+        parts = [cls.from_merl_dir(f, keep_3d=keep_3d) for f in folders]
+        return cls(names=[n for p in parts for n in p.names],
+                   slices=np.concatenate([p.slices for p in parts]),
+                   tables_2d=np.concatenate([p.tables_2d for p in parts]),
+                   paths=[q for p in parts for q in p.paths],
+                   valid_3d=np.concatenate([p.valid_3d for p in parts]) if keep_3d else None)
+
+    def subset(self, index):
+        index = list(index)
+        return TrainingSet([self.names[i] for i in index], self.slices[index], self.tables_2d[index],
+                           None if self.paths is None else [self.paths[i] for i in index],
+                           None if self.valid_3d is None else self.valid_3d[index])
+
+    def has_3d(self):
+        return self.valid_3d is not None or self.paths is not None
+
+    def table_3d_valid(self, i, dtype=np.float64):
+        """ρ on the valid 3D bins of material i, (n_valid, 3) of `dtype`."""
+        if self.valid_3d is not None:
+            return np.asarray(self.valid_3d[i], dtype=dtype)
+        if self.paths is None:
+            raise InputError("--merl-dir", "3D prediction needs the training tables: give --merl-dir "
+                             "or train with --views 1d,2d,3d")
+        return merl.read_merl_bins(self.paths[i], valid_flat_3d(), dtype)
