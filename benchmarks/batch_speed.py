@@ -153,7 +153,7 @@ def _numbers(value, path=""):
 def part_table1(work, merl_dir, k, materials):
     """run_evaluation in this process (2D only), in a loop and on a 2-worker local cluster."""
     sys.path.insert(0, str(REPO))
-    from infer.evaluate import run_evaluation
+    from experiments.evaluate import run_evaluation
     from pipeline.dask_engine import dask_client
     subset = work / "merl"
     subset.mkdir()

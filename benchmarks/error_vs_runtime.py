@@ -12,7 +12,7 @@ benchmarks/results/error_vs_runtime.png (reads JSON only, runs in a second).
   test_set.json, which has the same fields). Filled marker: mean; open marker: median. Skipped with
   a note when the file is absent.
 
-The layout (labels in a non-overlapping column with leader lines) is infer/runtime_plot.py, which
+The layout (labels in a non-overlapping column with leader lines) is experiments/runtime_plot.py, which
 `flashbrdf evaluate` also uses for its own error_vs_runtime.png.
 """
 
@@ -25,7 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from infer.runtime_plot import grid_points, make_figure, write_figure  # noqa: E402
+from experiments.runtime_plot import grid_points, make_figure, write_figure  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
 

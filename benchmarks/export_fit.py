@@ -79,7 +79,7 @@ def block_means(image, mask, block=4):
 def part_plugin(args):
     import render.mitsuba_bsdf as mbsdf
     from render.scene_render import render_sphere, sphere_view
-    from render.table2 import default_envmaps
+    from render.envmap import default_envmaps
     if not mbsdf.llvm_available():
         raise SystemExit("llvm_ad_rgb unavailable: pip install -e '.[mitsuba]', apt-get install "
                          "libllvm19")
@@ -124,7 +124,7 @@ def part_noise(args):
     roughplastic's and principled's (fitted to the same table)."""
     import render.mitsuba_bsdf as mbsdf
     from render.scene_render import sphere_view
-    from render.table2 import default_envmaps
+    from render.envmap import default_envmaps
     mbsdf.register("llvm_ad_rgb")
     pisa = default_envmaps()[0]
     mask = sphere_view(args.size)[0]
@@ -170,7 +170,7 @@ def part_recovery(args):
 
 
 def part_measured(args):
-    from render.table2 import default_envmaps
+    from render.envmap import default_envmaps
     pisa = default_envmaps()[0]
     rows = []
     sets = [("MERL (NBRDF proxy)", args.merl_dir), ("RGL (NBRDF proxy)", args.rgl_dir)]

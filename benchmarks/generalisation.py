@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from brdf import merl, metrics  # noqa: E402
 from infer import TrainingSet, make_method, novelty_warning  # noqa: E402
 from infer.adapter import standardised_residuals  # noqa: E402
-from infer.evaluate import PAPER_FIXED  # noqa: E402
+from experiments.evaluate import PAPER_FIXED  # noqa: E402
 from infer.model_selection import tune_baselines  # noqa: E402
 
 BANDS_DEG = ((0, 30), (30, 60), (60, 75), (75, 90))

@@ -5,7 +5,7 @@ Training is exactly `flashbrdf train` (infer.training.train_model: the same hype
 selection, the same model file), and every method in the model file is scored as `flashbrdf infer`
 loads it (through the file, dsgplvm anchored), so a number here is what a user gets from
 `train` + `infer`. Two methods are not in the model file and are fitted beside it:
-`dsgplvm-paper` (infer.evaluate.build_method: log-LAB features, unanchored, default β) and the
+`dsgplvm-paper` (experiments.evaluate.build_method: log-LAB features, unanchored, default β) and the
 `oracle` (the true table projected on the training PCA basis, default ridge).
 
 Scores per test table (2D, ρ(θh, θd) against the table's own 2D view):
@@ -28,9 +28,9 @@ from brdf import merl, metrics
 from brdf.atomic import write_text
 from brdf.errors import InputError
 from infer import METHODS, TrainingSet, make_method
-from infer.evaluate import PAPER, _warm_up, build_method
+from experiments.evaluate import PAPER, _warm_up, build_method
 from infer.model_file import load_methods
-from infer.report import summarise_errors
+from experiments.report import summarise_errors
 from infer.training import train_model
 
 THETA_D_BANDS_DEG = ((0, 30), (30, 60), (60, 75), (75, 90))

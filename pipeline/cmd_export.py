@@ -16,7 +16,7 @@ from render.export import FORMATS, MITSUBA_USAGE, export_table, parse_formats
 
 def pisa_envmap():
     """Path of ../shared's pisa map, or None when it is not there (the render check is skipped)."""
-    from render.table2 import default_envmaps
+    from render.envmap import default_envmaps
     try:
         return default_envmaps()[0]
     except InputError:

@@ -111,8 +111,8 @@ def infer(args):
 
 
 def evaluate(args):
-    """The paper's Table 1 protocol on --merl-dir (see infer.evaluate); with --render also its
-    Table 2 (render.table2) on the mean-performing experiment's test materials, 2D predictions.
+    """The paper's Table 1 protocol on --merl-dir (see experiments.evaluate); with --render also its
+    Table 2 (experiments.table2) on the mean-performing experiment's test materials, 2D predictions.
     With --test-dir: trained on every --merl-dir table, scored on the --test-dir tables
     (experiments.test_set), written all or nothing."""
     folders = _merl_dirs(args.merl_dir)
@@ -131,7 +131,7 @@ def evaluate(args):
     if len(folders) != 1:
         raise InputError("--merl-dir", "the cross-validation protocol takes one folder; give "
                                        "--test-dir to train on several")
-    from infer.evaluate import experiment_predictor, run_evaluation
+    from experiments.evaluate import experiment_predictor, run_evaluation
     from pipeline.dask_engine import check_engine_options, dask_client
     check_engine_options(args)
     merl_dir = folders[0]
@@ -146,7 +146,7 @@ def evaluate(args):
         else:
             result = run_evaluation(merl_dir, out, **options)
         if getattr(args, "render", False):
-            from render import table2
+            from experiments.table2 import table2
             names, predict = experiment_predictor(merl_dir, result)
             table2(merl_dir, out, predict, names=names)
     return 0

@@ -16,9 +16,6 @@ Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
   render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geometry=None)
       -> iterator of (photo, image (H, W, 3) float32 in photo units, mask (H, W))
   render_sphere(table, envmap_path, size=128, spp=64, seed=0, ...) -> (size, size, 3) float32
-  table2(merl_dir, out_dir, predict, names=None, methods=METHODS, envmaps=None, size=128,
-         spp=64, seed=0, figure_materials=3) -> dict; writes table2.json/.md/.png
-      predict(name, method) -> (90, 90, 180, 3) table or None
   compare_images(pred, ref, mask=None) -> (metrics dict, delta_e (H, W))
   write_comparison(out_dir, pred, ref, mask=None, ...) -> metrics (compare.json + delta_e.png)
   write_exr(path, rgb), read_image(path), read_mask(path, shape=None), write_preview(path, rgb)
@@ -31,11 +28,10 @@ from render.images import read_image, read_mask, tonemap, write_exr, write_previ
 from render.integrator import render_directional_light, render_envmap, render_point_light
 from render.scene_render import (MaterialMap, SceneGeometry, render_scene, render_sphere,
                                  sphere_view)
-from render.table2 import table2
 
 __all__ = [
     "BRDFModel", "EnvMap", "GGX", "Lambert", "SceneGeometry", "TabulatedBRDF", "compare_images",
     "read_envmap_pixels", "read_image", "read_mask", "render_directional_light", "render_envmap",
-    "MaterialMap", "render_point_light", "render_scene", "render_sphere", "sphere_view", "table2", "tonemap",
+    "MaterialMap", "render_point_light", "render_scene", "render_sphere", "sphere_view", "tonemap",
     "write_comparison", "write_delta_e_png", "write_exr", "write_preview",
 ]

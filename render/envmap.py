@@ -21,6 +21,7 @@ hemisphere where rho cos > 0.
 """
 
 import os
+from pathlib import Path
 
 import numpy as np
 
@@ -28,6 +29,20 @@ from brdf.errors import InputError
 
 # Rec. 709 / linear sRGB luminance weights.
 LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722])
+ENVMAPS = ("pisa_latlong_256x128.hdr", "grace_latlong_256x128.hdr", "uffizi_latlong_256x128.hdr")
+
+
+def default_envmaps():
+    """Paths of pisa and two other maps in ../shared/data/envmaps (or $FLASHBRDF_SHARED)."""
+    shared = Path(os.environ.get("FLASHBRDF_SHARED",
+                                 Path(__file__).resolve().parents[2] / "shared"))
+    folder = shared / "data" / "envmaps"
+    paths = [folder / name for name in ENVMAPS]
+    missing = [p for p in paths if not p.is_file()]
+    if missing:
+        raise InputError(missing[0], "environment map not found (set FLASHBRDF_SHARED or pass "
+                                     "envmaps=...)")
+    return paths
 
 
 def read_envmap_pixels(path):

@@ -1,10 +1,10 @@
-"""infer/runtime_plot.py (evaluate's and benchmarks/error_vs_runtime.py's figure): the label column
+"""experiments/runtime_plot.py (evaluate's and benchmarks/error_vs_runtime.py's figure): the label column
 never overlaps, on crowded synthetic points."""
 
 import numpy as np
 from matplotlib.text import Text
 
-import infer.runtime_plot as evr
+import experiments.runtime_plot as evr
 
 
 def test_spread_keeps_order_pitch_and_range():

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from distributed import Client, LocalCluster
 
-from infer import evaluate
+from experiments import evaluate
 from test_infer_cli import QUICK
 
 

@@ -145,7 +145,7 @@ def test_streamed_3d_metrics_equal_brdf_metrics(mixed_set):
     # evaluate_3d shares the truth's transforms across methods and sums chunk by chunk: it must
     # give brdf.metrics.brdf_errors on the full tables (float64 round-off only)
     from brdf import metrics
-    from infer.eval3d import evaluate_3d
+    from experiments.eval3d import evaluate_3d
     train, test = np.arange(5), np.array([5])
     training = mixed_set.subset(train)
     methods = {"chandraker": Chandraker().fit(None), "pca": PCA(None, 1e-2).fit(training)}

@@ -1,11 +1,11 @@
-"""render.table2 (Table 2 of the paper): scores and files on a tiny run."""
+"""experiments.table2 (Table 2 of the paper): scores and files on a tiny run."""
 
 import json
 
 import numpy as np
 
 from brdf.merl import read_merl
-from render import table2
+from experiments.table2 import table2
 from render.images import write_exr
 
 

@@ -17,24 +17,10 @@ import numpy as np
 from brdf.atomic import atomic_path, write_text
 from brdf.errors import InputError
 from render.compare import compare_images
-from render.envmap import EnvMap
+from render.envmap import EnvMap, default_envmaps
 from render.scene_render import render_sphere, sphere_view
 
 METHODS = ("dsgplvm", "dsgplvm-paper", "pca", "noll", "chandraker", "ashikhmin", "oracle")
-ENVMAPS = ("pisa_latlong_256x128.hdr", "grace_latlong_256x128.hdr", "uffizi_latlong_256x128.hdr")
-
-
-def default_envmaps():
-    """Paths of pisa and two other maps in ../shared/data/envmaps (or $FLASHBRDF_SHARED)."""
-    shared = Path(os.environ.get("FLASHBRDF_SHARED",
-                                 Path(__file__).resolve().parents[2] / "shared"))
-    folder = shared / "data" / "envmaps"
-    paths = [folder / name for name in ENVMAPS]
-    missing = [p for p in paths if not p.is_file()]
-    if missing:
-        raise InputError(missing[0], "environment map not found (set FLASHBRDF_SHARED or pass "
-                                     "envmaps=...)")
-    return paths
 
 
 def table2(merl_dir, out_dir, predict, names=None, methods=METHODS, envmaps=None, size=128,

@@ -24,8 +24,8 @@ from brdf.atomic import write_text
 from brdf.errors import InputError
 from infer import TrainingSet, make_method, method_from_model
 from infer.model_selection import DS_FIXED, DS_GRID, PCA_GRID, errors_2d, lab_log, select
-from infer.eval3d import RowsView, build_cache, evaluate_3d
-from infer.report import summarise_errors, write_markdown, write_runtime_plot
+from experiments.eval3d import RowsView, build_cache, evaluate_3d
+from experiments.report import summarise_errors, write_markdown, write_runtime_plot
 
 PAPER = "dsgplvm-paper"                          # the paper's DS-GPLVM, scored from the same fits
 PAPER_FIXED = {"feature_space": "lab", "anchor": False}
@@ -195,7 +195,7 @@ def run_ablations(base, train, data, test_idx, ablations, k, points, quick=False
 
 
 def experiment_predictor(merl_dir, result, view="2d", seed=0):
-    """(names, predict) for the paper's Table 2 (render.table2): the test materials of Table 1's
+    """(names, predict) for the paper's Table 2 (experiments.table2): the test materials of Table 1's
     mean-performing experiment, each method refitted on that experiment's training set with its
     chosen hyperparameters. predict(name, method) -> table ((90, 90, 3) for view "2d", 3D streamed
     from merl_dir for "3d"), the oracle from the true 2D table, or None for unknown methods."""
@@ -473,7 +473,7 @@ def _write(out_dir, result, records, costs, points, ablations, planned):
     result["per_experiment"] = [{"experiment": r["experiment"], "test": r["test"],
                                  "errors_2d": r["errors_2d"], "errors_3d": r.get("errors_3d")}
                                 for r in records]
-    from infer.report import PAPER_TABLE1
+    from experiments.report import PAPER_TABLE1
     result["paper_table1"] = PAPER_TABLE1
     write_text(os.path.join(out_dir, "table1.json"), json.dumps(result, indent=1, default=str) + "\n")
     write_markdown(os.path.join(out_dir, "table1.md"), result)
