@@ -8,10 +8,11 @@ import argparse
 import sys
 
 from brdf.errors import InputError
+from pipeline import commands
+from pipeline.dask_engine import add_engine_options
 from pipeline.safety import Terminated, handle_signals, hold_native_stderr
 
 FORCE_HELP = "replace OUT_DIR if an earlier flashbrdf command made it (never any other folder)"
-from pipeline.dask_engine import add_engine_options
 
 
 def _parser():
@@ -148,17 +149,12 @@ def _add_run_options(s):
 
 def main(argv=None):
     args = _parser().parse_args(argv)
-    from pipeline import commands
-    handler = getattr(commands, args.command.replace("-", "_"))
     try:
         with hold_native_stderr(), handle_signals():
-            return handler(args) or 0
+            return getattr(commands, args.command.replace("-", "_"))(args) or 0
     except InputError as err:
         print(f"flashbrdf {args.command}: error: {err}", file=sys.stderr)
         return 2
-    except NotImplementedError:
-        print(f"flashbrdf {args.command}: not implemented yet", file=sys.stderr)
-        return 1
     except KeyboardInterrupt:  # staged outputs were removed on the way out
         print(f"flashbrdf {args.command}: interrupted; no output written", file=sys.stderr)
         return 130

@@ -89,11 +89,25 @@ def test_missing_file_exits_2(tmp_path, capsys):
     assert "nope.binary" in capsys.readouterr().err
 
 
-def test_unbuilt_commands_say_so(capsys, tmp_path, monkeypatch):
+def test_a_bug_inside_a_command_is_not_hidden(tmp_path, monkeypatch):
+    # only bad input (InputError) and signals map to exit statuses; anything else is a bug and
+    # propagates (the console script then exits 1 with its traceback)
     from pipeline import commands
-    monkeypatch.setattr(commands, "run", commands._delegate("cmd_absent_for_test", "run"))
-    assert main(["run", str(tmp_path), "--out", str(tmp_path / "o")]) == 1
-    assert "not implemented yet" in capsys.readouterr().err
+
+    def broken(args):
+        raise NotImplementedError("a bug")
+
+    monkeypatch.setattr(commands, "run", broken)
+    with pytest.raises(NotImplementedError, match="a bug"):
+        main(["run", str(tmp_path), "--out", str(tmp_path / "o")])
+
+
+def test_every_command_has_its_function():
+    from pipeline import commands
+    from pipeline.cli import _parser
+    names = {c.replace("-", "_") for c in _parser()._subparsers._group_actions[0].choices}
+    assert names == set(commands.COMMANDS)
+    assert all(callable(getattr(commands, n)) for n in names)
 
 
 def test_read_merl_bins_equals_read_merl_at_those_bins(blue_acrylic, tmp_path):
