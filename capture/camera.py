@@ -24,14 +24,12 @@ def pixel_rays(camera, rows, cols):
     """
     rows = np.asarray(rows, dtype=np.float64).ravel()
     cols = np.asarray(cols, dtype=np.float64).ravel()
-    rot = camera.world_from_camera[:3, :3]
-    t = camera.world_from_camera[:3, 3]
     if camera.model == "orthographic":
         s = camera.pixel_size
         local = np.stack([(cols - (camera.width - 1) / 2) * s, (rows - (camera.height - 1) / 2) * s,
                           np.zeros_like(rows)], axis=-1)
-        origins = local @ rot.T + t
-        directions = np.broadcast_to(rot[:, 2], origins.shape)
+        origins = camera.to_world(local)
+        directions = np.broadcast_to(camera.forward, origins.shape)
         return origins, directions
     if camera.distortion is None:
         x = (cols - camera.cx) / camera.fx
@@ -43,8 +41,8 @@ def pixel_rays(camera, rows, cols):
         x, y = norm[:, 0], norm[:, 1]
     local = np.stack([x, y, np.ones_like(x)], axis=-1)
     local /= np.linalg.norm(local, axis=-1, keepdims=True)
-    directions = local @ rot.T
-    origins = np.broadcast_to(t, directions.shape)
+    directions = camera.to_world(local, point=False)
+    origins = np.broadcast_to(camera.centre_world, directions.shape)
     return origins, directions
 
 
@@ -53,7 +51,7 @@ def embree_rays(camera, rows, cols, shift):
     and directions (N, 3), WORLD frame, NOT unit length (Embree does not need them unit; this is
     the hot path of extraction, so the float64 work is left to the rays that hit)."""
     if camera.model == "pinhole" and camera.distortion is None:
-        rot = camera.world_from_camera[:3, :3].astype(np.float32)
+        rot = camera.rotation.astype(np.float32)   # the hot path: float32 by hand, not to_world
         x = ((np.asarray(cols, np.float32) - np.float32(camera.cx)) / np.float32(camera.fx))
         y = ((np.asarray(rows, np.float32) - np.float32(camera.cy)) / np.float32(camera.fy))
         directions = np.empty((len(x), 3), dtype=np.float32)
@@ -61,7 +59,7 @@ def embree_rays(camera, rows, cols, shift):
         directions += x[:, None] * rot[:, 0]
         directions += y[:, None] * rot[:, 1]
         origins = np.empty_like(directions)
-        origins[:] = (camera.world_from_camera[:3, 3] - shift).astype(np.float32)
+        origins[:] = (camera.centre_world - shift).astype(np.float32)
         return origins, directions
     origins, directions = pixel_rays(camera, rows, cols)
     return (origins - shift).astype(np.float32), directions.astype(np.float32)
@@ -88,8 +86,8 @@ def view_directions(camera, points, rows=None, cols=None):
         return -pixel_rays(camera, rows, cols)[1]
     points = np.asarray(points, dtype=np.float64)
     if camera.model == "orthographic":
-        return np.broadcast_to(-camera.world_from_camera[:3, 2], points.shape).copy()
-    w = camera.world_from_camera[:3, 3] - points
+        return np.broadcast_to(-camera.forward, points.shape).copy()
+    w = camera.centre_world - points
     return w / np.linalg.norm(w, axis=-1, keepdims=True)
 
 
@@ -100,8 +98,7 @@ def project_points(camera, points):
     depth (N,) camera-frame z (points behind a pinhole camera get z <= 0).
     """
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    camera_from_world = np.linalg.inv(camera.world_from_camera)
-    local = points @ camera_from_world[:3, :3].T + camera_from_world[:3, 3]
+    local = camera.to_camera(points)
     z = local[:, 2]
     if camera.model == "orthographic":
         s = camera.pixel_size

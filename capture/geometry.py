@@ -284,9 +284,9 @@ def surface_at_pixels(target, camera, rows, cols, dtype=np.float64):
     points = relative.astype(np.float64) + mi.centre
     normals = _shading_normals(mi, face, weights, dtype)
     if camera.model == "orthographic":
-        view = np.tile(-camera.world_from_camera[:3, 2].astype(dtype), (len(points), 1))
+        view = np.tile(-camera.forward.astype(dtype), (len(points), 1))
     else:
-        view = (camera.world_from_camera[:3, 3] - mi.centre).astype(np.float32) - relative
+        view = (camera.centre_world - mi.centre).astype(np.float32) - relative
         view = view.astype(dtype, copy=False)
         view /= np.sqrt(np.einsum("ij,ij->i", view, view))[:, None]
     return Surface(rows, cols, points, normals, view, face)

@@ -70,7 +70,6 @@ def surface_from_normal_map(geometry, camera=None, pixel_mask=None):
     if pixel_mask is not None:
         mask = mask & pixel_mask
     rows, cols = np.nonzero(mask)
-    rot = camera.world_from_camera[:3, :3]
-    normals = normals_cam[rows, cols] @ rot.T
+    normals = camera.to_world(normals_cam[rows, cols], point=False)
     view = -np.array(pixel_rays(camera, rows, cols)[1])
     return Surface(rows, cols, None, normals, view, None)

@@ -65,6 +65,22 @@ class Camera:
         """(3, 3) world_from_camera rotation part (columns: camera x, y, z axes in world)."""
         return self.world_from_camera[:3, :3].copy()
 
+    @property
+    def forward(self):
+        """(3,) unit WORLD direction of the optical axis (camera +z), away from the camera."""
+        return self.world_from_camera[:3, 2].copy()
+
+    def to_world(self, v, point=True):
+        """CAMERA-frame points (point=True) or directions (…, 3) -> WORLD frame, float64."""
+        out = np.asarray(v, dtype=np.float64) @ self.world_from_camera[:3, :3].T
+        return out + self.world_from_camera[:3, 3] if point else out
+
+    def to_camera(self, v, point=True):
+        """WORLD-frame points (point=True) or directions (…, 3) -> CAMERA frame, float64."""
+        camera_from_world = np.linalg.inv(self.world_from_camera)
+        out = np.asarray(v, dtype=np.float64) @ camera_from_world[:3, :3].T
+        return out + camera_from_world[:3, 3] if point else out
+
 
 @dataclass(frozen=True, eq=False)
 class Light:

@@ -105,8 +105,7 @@ def render_surface(surface, camera, light, brdf, spp=64, seed=0, occluded=None, 
     if light.type == "point":
         if points is None:
             raise InputError(where, "a point light needs mesh geometry (a normal map has no depth)")
-        rot, origin = camera.world_from_camera[:3, :3], camera.world_from_camera[:3, 3]
-        position = rot @ np.asarray(light.position, float) + origin   # camera frame -> world
+        position = camera.to_world(light.position)
         return render_point_light(points, surface.normals, surface.view_dirs, brdf, position,
                                   light.intensity_rgb, occluded)
     if points is None:

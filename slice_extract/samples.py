@@ -55,11 +55,10 @@ def light_setup(photo):
                          f"must be positive in every channel for a flash photo, got "
                          f"{power.tolist()}")
     if light.type == "point":
-        pose = camera.world_from_camera
-        position = pose[:3, :3] @ light.position + pose[:3, 3]
+        position = camera.to_world(light.position)
         at_view = camera.model == "pinhole" and not np.any(light.position)
         return LightSetup("point", power, position=position, at_viewpoint=at_view)
-    view = -camera.world_from_camera[:3, 2]
+    view = -camera.forward
     at_view = camera.model == "orthographic" and bool(np.allclose(light.direction, view,
                                                                   atol=1e-12))
     return LightSetup("directional", power, direction=light.direction, at_viewpoint=at_view)
