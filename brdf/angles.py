@@ -15,7 +15,7 @@ All angles are radians; direction arrays are (..., 3) unit vectors pointing away
 
 import numpy as np
 
-from brdf.merl import N_PHI_D, N_THETA_D, N_THETA_H
+from brdf.merl import N_PHI_D, N_THETA_D, N_THETA_H, theta_h_bin_coordinate
 
 _TINY = 1e-12
 
@@ -95,7 +95,7 @@ def merl_bin_index(theta_h, theta_d, phi_d):
     theta_h uses square-root spacing, theta_d and phi_d 1-degree bins; phi_d is folded into [0, pi).
     """
     theta_h = np.asarray(theta_h, dtype=np.float64)
-    i = np.sqrt(np.clip(theta_h, 0, None) / (np.pi / 2)) * N_THETA_H
+    i = theta_h_bin_coordinate(np.clip(theta_h, 0, None))
     j = np.asarray(theta_d, dtype=np.float64) / (np.pi / 2) * N_THETA_D
     k = np.mod(np.asarray(phi_d, dtype=np.float64), np.pi) / np.pi * N_PHI_D
     return (np.clip(i, 0, N_THETA_H - 1).astype(np.intp),
@@ -108,8 +108,7 @@ def merl_bin_coordinates(theta_h, theta_d, phi_d):
 
     u_h and u_d are clamped to [0, 89]; u_p is in [-0.5, 179.5) and periodic with period 180.
     """
-    u_h = np.sqrt(np.clip(np.asarray(theta_h, dtype=np.float64), 0, None) / (np.pi / 2)) \
-        * N_THETA_H - 0.5
+    u_h = theta_h_bin_coordinate(np.clip(np.asarray(theta_h, dtype=np.float64), 0, None)) - 0.5
     u_d = np.degrees(np.asarray(theta_d, dtype=np.float64)) - 0.5
     u_p = np.mod(np.degrees(np.asarray(phi_d, dtype=np.float64)), 180.0) - 0.5
     return (np.clip(u_h, 0, N_THETA_H - 1), np.clip(u_d, 0, N_THETA_D - 1), u_p)

@@ -23,9 +23,22 @@ MERL_SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 MERL_FILE_SIZE = 12 + 8 * 3 * N_THETA_H * N_THETA_D * N_PHI_D  # 34,992,012 bytes
 
 
+def theta_h_bin_coordinate(theta_h):
+    """MERL's square-root θh binning: the continuous bin coordinate u = 90·sqrt(θh / (π/2)) of
+    θh in radians (≥ 0), any shape; bin i spans [i, i + 1). Callers clip and floor as they need.
+    The inverse is theta_h_from_bin_coordinate."""
+    return np.sqrt(theta_h / (np.pi / 2)) * N_THETA_H
+
+
+def theta_h_from_bin_coordinate(u, quarter_turn=np.pi / 2):
+    """θh = quarter_turn·(u / 90)² of bin coordinates u (any shape): integers give bin edges,
+    i + 0.5 bin centres. quarter_turn: π/2 for radians (default), 90.0 for degrees."""
+    return quarter_turn * (u / N_THETA_H) ** 2
+
+
 def theta_h_centres():
     """theta_h bin centres in radians, (90,): (pi/2)((i + 0.5)/90)^2 (square-root spacing)."""
-    return (np.pi / 2) * ((np.arange(N_THETA_H) + 0.5) / N_THETA_H) ** 2
+    return theta_h_from_bin_coordinate(np.arange(N_THETA_H) + 0.5)
 
 
 def theta_d_centres():

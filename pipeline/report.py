@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from brdf import merl
 from brdf.atomic import write_text
 from pipeline import report_figures as figs
 
@@ -105,7 +106,7 @@ def coverage(theta_h_deg, observed):
     if not seen.any():
         return {"bins_observed": 0, "samples": 0}, [
             "no θh bin was observed: the whole prediction comes from the prior"]
-    edges = 90.0 * (np.arange(91) / 90.0) ** 2  # theta_h bin edges in degrees (square-root spacing)
+    edges = merl.theta_h_from_bin_coordinate(np.arange(merl.N_THETA_H + 1), 90.0)  # in degrees
     first, last = int(np.argmax(seen)), int(len(seen) - 1 - np.argmax(seen[::-1]))
     info = {"bins_observed": int(seen.sum()), "samples": int(n[seen].sum()),
             "theta_h_observed_deg": [float(edges[first]), float(edges[last + 1])]}

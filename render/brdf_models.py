@@ -11,6 +11,8 @@ wi points toward the light, wo toward the viewer; all vectors are unit (..., 3).
 
 import numpy as np
 
+from brdf.merl import N_THETA_H, theta_h_bin_coordinate, theta_h_from_bin_coordinate
+
 INV_PI = 1.0 / np.pi
 
 
@@ -174,6 +176,7 @@ def merl_flat_index_local(wi, wo, three_d=True):
     hx, hy, hz = h[..., 0], h[..., 1], h[..., 2]
     sin_h = np.sqrt(hx * hx + hy * hy)
     theta_h = np.arctan2(sin_h, hz)
+    # brdf.merl.theta_h_bin_coordinate, specialised (tests/test_render_brdf.py checks they agree)
     i = np.minimum(np.sqrt(theta_h * (180.0 / np.pi)) * (90.0 / np.sqrt(90.0)), 89.0)
     cos_d = np.minimum(np.maximum(np.einsum("...k,...k->...", wi, h), -1.0), 1.0)
     j = np.minimum(np.arccos(cos_d) * (180.0 / np.pi), 89.0)
@@ -194,7 +197,7 @@ def merl_flat_index_local(wi, wo, three_d=True):
 
 def _theta_h_edges():
     """MERL theta_h bin edges (91,) in radians: (pi/2) (i/90)^2."""
-    return (np.pi / 2) * (np.arange(91) / 90.0) ** 2
+    return theta_h_from_bin_coordinate(np.arange(N_THETA_H + 1))
 
 
 class TabulatedBRDF(HalfVectorMixture):
@@ -289,7 +292,7 @@ class TabulatedBRDF(HalfVectorMixture):
 
     def _h_bin(self, cos_h):
         theta_h = np.arccos(np.clip(cos_h, -1.0, 1.0))
-        return np.clip(np.floor(np.sqrt(theta_h / (np.pi / 2)) * 90.0).astype(np.int64), 0, 89)
+        return np.clip(np.floor(theta_h_bin_coordinate(theta_h)).astype(np.int64), 0, N_THETA_H - 1)
 
     def _sample_h(self, u):
         u1 = np.clip(u[..., 0], 0.0, np.nextafter(1.0, 0))
