@@ -25,6 +25,12 @@ def _srgb_matrices():
     return rgb_to_xyz, np.linalg.inv(rgb_to_xyz), white
 
 
+def srgb_encode(linear):
+    """The sRGB transfer curve (IEC 61966-2-1): linear values in [0, 1] -> encoded [0, 1], any
+    shape. For display only; every colour metric here works on linear values."""
+    return np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+
+
 def linear_rgb_to_lab(rgb):
     """CIELAB (..., 3) of linear sRGB triplets (..., 3); white (1, 1, 1) -> L = 100.
 

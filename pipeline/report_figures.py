@@ -7,6 +7,7 @@ of log-CIELAB (see pipeline/report.py for what the numbers mean).
 import numpy as np
 
 from brdf.atomic import atomic_path
+from brdf.colour import srgb_encode
 
 CHANNELS = ("R", "G", "B")
 CHANNEL_COLOURS = ("tab:red", "tab:green", "tab:blue")
@@ -106,9 +107,10 @@ def brdf_images(path, method, table_2d, uncertainty=None, uncertainty_label="unc
 
 
 def tone_map(image, scale):
-    """Linear RGB -> displayable sRGB-encoded [0,1]: times `scale`, clipped, sRGB curve; NaN -> 0."""
-    x = np.clip(np.nan_to_num(np.asarray(image, float) * scale), 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * x ** (1 / 2.4) - 0.055)
+    """Linear RGB -> displayable sRGB-encoded [0,1]: times `scale`, clipped, sRGB curve; NaN -> 0.
+    render.images.tonemap (the PNG previews) rolls highlights off softly instead; the report keeps
+    its hard clip, so its figures stay as they were. Both share brdf.colour.srgb_encode."""
+    return srgb_encode(np.clip(np.nan_to_num(np.asarray(image, float) * scale), 0.0, 1.0))
 
 
 def exposure_for(reference):

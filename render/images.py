@@ -8,6 +8,7 @@ import os
 import numpy as np
 
 from brdf.atomic import atomic_path
+from brdf.colour import srgb_encode
 from brdf.errors import InputError
 
 
@@ -55,8 +56,7 @@ def tonemap(rgb, exposure=None):
         exposure = 1.0 / np.percentile(positive, 99) if positive.size else 1.0
     x = rgb * exposure
     x = x / (1.0 + x / 4.0) * 1.25          # maps 1 -> 1, compresses highlights smoothly
-    x = np.clip(x, 0.0, 1.0)
-    srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    srgb = srgb_encode(np.clip(x, 0.0, 1.0))
     return (np.clip(srgb, 0, 1) * 255 + 0.5).astype(np.uint8)
 
 
