@@ -18,10 +18,17 @@ import math
 import os
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from brdf import merl
 from brdf.atomic import write_text
+from brdf.errors import InputError
+from brdf.merl import theta_h_centres
+from brdf.metrics import summarise
+from brdf.views import table_2d
+from render import images
+from render.compare import compare_images
 from pipeline import report_figures as figs
 
 HOW_TO_READ = """\
@@ -67,18 +74,17 @@ def _fmt(x, digits=2):
 
 
 def read_image(source):
-    """An array passes through; a path is read: EXR/HDR/PFM via OpenImageIO, else OpenCV (RGB)."""
+    """An array passes through; a path is read: EXR/HDR/PFM with render.images.read_image (the
+    one linear-image reader), else OpenCV as stored (RGB: masks, ΔE PNGs). None where it is
+    missing or unreadable, where render.images.read_image raises: the report is written without it."""
     if source is None or isinstance(source, np.ndarray):
         return source
     path = Path(source)
     if path.suffix.lower() in (".exr", ".hdr", ".pfm"):
-        from capture import read_float_image
-        from brdf.errors import InputError
         try:
-            return read_float_image(path)
+            return images.read_image(path)
         except InputError:
             return None
-    import cv2
     image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
     if image is None:
         return None
@@ -89,7 +95,6 @@ def image_errors(render, reference, mask=None):
     """(delta_e_map (H,W) NaN outside, delta_e_log_mean, delta_e_log_median, rel_rmse, pixels):
     render.compare.compare_images (the contract's compare rule) as a tuple, NaN for no pixel.
     mask: nonzero = object, (H, W) or (H, W, C)."""
-    from render.compare import compare_images
     if mask is not None:
         mask = np.asarray(mask)
         mask = (mask.reshape(mask.shape[0], mask.shape[1], -1).max(-1) > 0)
@@ -130,7 +135,6 @@ def coverage(theta_h_deg, observed):
 def _table_2d(table):
     table = np.asarray(table, dtype=float)
     if table.ndim == 4:
-        from brdf.views import table_2d
         return table_2d(table)
     return table
 
@@ -197,7 +201,6 @@ def _reference_rows(references, fig_dir, max_figures):
 
 
 def _summary(rows):
-    from brdf.metrics import summarise
     out = {}
     for method in dict.fromkeys(r["method"] for r in rows):
         mine = [r for r in rows if r["method"] == method]
@@ -214,7 +217,6 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
 
     extra: more JSON fields for report.json (e.g. "materials"); sections: markdown lines put
     after the notes and warnings (figures they name must already be in OUT_DIR)."""
-    from brdf.merl import theta_h_centres
     out_dir = Path(out_dir)
     fig_dir = out_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
