@@ -22,10 +22,13 @@ import numpy as np
 from brdf import merl
 from brdf.atomic import write_text
 from brdf.errors import InputError
+from brdf.bins import valid_mask_2d
 from infer import TrainingSet, make_method, method_from_model
+from infer.baselines.ashikhmin import _geometry
+from infer.baselines.pca import cosine_weights
 from infer.model_selection import DS_FIXED, DS_GRID, PCA_GRID, errors_2d, lab_log, select
 from experiments.eval3d import RowsView, build_cache, evaluate_3d
-from experiments.report import summarise_errors, write_markdown, write_runtime_plot
+from experiments.report import PAPER_TABLE1, summarise_errors, write_markdown, write_runtime_plot
 
 PAPER = "dsgplvm-paper"                          # the paper's DS-GPLVM, scored from the same fits
 PAPER_FIXED = {"feature_space": "lab", "anchor": False}
@@ -234,9 +237,6 @@ def _summary(records, key):
 
 def _warm_up():
     """Fill the geometry caches so that timings measure methods, not one-off set-up."""
-    from infer.baselines.ashikhmin import _geometry
-    from infer.baselines.pca import cosine_weights
-    from brdf.bins import valid_mask_2d
     valid_mask_2d(), cosine_weights(), _geometry()
 
 
@@ -286,7 +286,7 @@ def _experiments_on_dask(client, data, all_splits, cache_file, quick, time_budge
     """The 2D experiments as Dask tasks, at most one per worker in flight (so the time budget
     can stop new ones as the sequential loop does), merged in experiment order as they finish
     into accumulators = (records, costs, points, ablations); write() after each merge."""
-    from distributed import as_completed
+    from distributed import as_completed  # only with --workers/--scheduler: dask is slow to import
     records = accumulators[0]
     shared = client.scatter(data, broadcast=True)
     slots = max(1, len(client.scheduler_info().get("workers", {})))
@@ -330,7 +330,7 @@ def _experiments_on_dask(client, data, all_splits, cache_file, quick, time_budge
 def _3d_on_dask(client, data, order, records, all_splits, cache_file, costs, stride, write):
     """3D metrics of the experiments in `order` as Dask tasks, all at once, added to their
     records as they finish (the first in `order` also times 3D inference). -> number done."""
-    from distributed import as_completed
+    from distributed import as_completed  # only with --workers/--scheduler: dask is slow to import
     shared = client.scatter(data, broadcast=True)
     futures = {client.submit(experiment_3d_task, records[k]["chosen"], all_splits[k], shared,
                              cache_file, i == 0, stride, pure=False, retries=1,
@@ -473,7 +473,6 @@ def _write(out_dir, result, records, costs, points, ablations, planned):
     result["per_experiment"] = [{"experiment": r["experiment"], "test": r["test"],
                                  "errors_2d": r["errors_2d"], "errors_3d": r.get("errors_3d")}
                                 for r in records]
-    from experiments.report import PAPER_TABLE1
     result["paper_table1"] = PAPER_TABLE1
     write_text(os.path.join(out_dir, "table1.json"), json.dumps(result, indent=1, default=str) + "\n")
     write_markdown(os.path.join(out_dir, "table1.md"), result)

@@ -12,13 +12,20 @@ import os
 import time
 from pathlib import Path
 
+import matplotlib
 import numpy as np
+from tqdm import tqdm
 
 from brdf.atomic import atomic_path, write_text
 from brdf.errors import InputError
+from brdf.merl import list_merl, read_merl
 from render.compare import compare_images
 from render.envmap import EnvMap, default_envmaps
+from render.images import tonemap
 from render.scene_render import render_sphere, sphere_view
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402  (after choosing the file-only backend)
 
 METHODS = ("dsgplvm", "dsgplvm-paper", "pca", "noll", "chandraker", "ashikhmin", "oracle")
 
@@ -31,7 +38,6 @@ def table2(merl_dir, out_dir, predict, names=None, methods=METHODS, envmaps=None
     names: materials (default every *.binary in merl_dir), their truth read from merl_dir.
     Returns the result dict (also in table2.json).
     """
-    from brdf.merl import list_merl, read_merl
     tables = dict(list_merl(merl_dir))
     names = list(tables) if names is None else list(names)
     unknown = [n for n in names if n not in tables]
@@ -45,7 +51,6 @@ def table2(merl_dir, out_dir, predict, names=None, methods=METHODS, envmaps=None
     start = time.perf_counter()
     iterator = names
     if progress:
-        from tqdm import tqdm
         iterator = tqdm(names, desc="Table 2", unit="material", disable=None)
     for k, name in enumerate(iterator):
         truth = read_merl(tables[name])
@@ -105,10 +110,6 @@ def _markdown(result):
 
 def _figure(path, shown, methods, mask, env_name):
     """Truth, each method and its Delta E map, a row pair per material."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    from render.images import tonemap
     cols = 1 + len(methods)
     fig, axes = plt.subplots(2 * len(shown), cols, figsize=(1.6 * cols, 3.4 * len(shown)),
                              squeeze=False)

@@ -11,18 +11,16 @@ a 3D view uses its 2D view's weights (the GP posterior mean is linear in the tra
 import warnings
 
 import numpy as np
+from scipy.optimize import minimize
+from scipy.stats import norm
 
 from brdf import colour
+from infer.dsgplvm import DSGPLVM
 from infer.gp import loo_bin_variance
 from brdf.bins import scatter_valid, valid_flat_3d, valid_mask_2d
 from infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
 from infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_combination
 from infer.slices import check_slice
-
-
-def _model_class():
-    from infer.dsgplvm import DSGPLVM
-    return DSGPLVM
 
 
 class FeatureSpace(LinearSpace):
@@ -107,7 +105,7 @@ class DSGPLVMMethod(InferenceMethod):
 
     def fit(self, training, labels=None):
         feats = table_features(training.tables_2d, self.feature_space)
-        model = _model_class()(q=self.q, beta=self.beta, seed=self.seed, views=tuple(self.views),
+        model = DSGPLVM(q=self.q, beta=self.beta, seed=self.seed, views=tuple(self.views),
                                **self.model_kw)
         model = model.fit(self.view_features(training, feats), labels=labels)
         return self._use_model(model, training, feats)
@@ -212,7 +210,6 @@ class DSGPLVMMethod(InferenceMethod):
 def optimise_latent(model, feats, n_starts=5):
     """x* (1, q) minimising the 1D GP's negative log predictive density of the observed slice bins,
     started from the back-projection and the latents of the nearest training slices."""
-    from scipy.optimize import minimize
     src = model.view_data_[model.source_view]
     y = (np.asarray(feats, float)[src.keep] - src.mean[src.keep]) / src.scale
     ok = np.isfinite(y)
@@ -248,7 +245,6 @@ def calibration_factor(method, slices, tables_2d, coverage=0.9):
     """κ that makes a fitted method's central `coverage` intervals cover that share of held-out
     bins: the squared ratio of the `coverage` quantile of |z| (standardised_residuals) to the
     normal one. slices (M, 90, 3), tables_2d (M, 90, 90, 3) in 1/sr, never trained on."""
-    from scipy.stats import norm
     z = np.concatenate([standardised_residuals(method, rho, true)
                         for rho, true in zip(slices, tables_2d)])
     if not z.size:

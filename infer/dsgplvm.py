@@ -6,6 +6,7 @@ features are. Inference projects a 1D slice with the 1D back-mapping (Eq. 9) and
 the target view's GP posterior (Eq. 20).
 """
 
+import inspect
 import logging
 import time
 
@@ -14,6 +15,7 @@ from scipy import optimize
 from threadpoolctl import threadpool_limits
 
 from . import adm
+from .dsgplvm_io import load_model, save_model
 from .backmap import backmap_kernel, fit_loo, impute_missing, krr_weights, masked_squared_distances
 from .gp import GPPosterior
 from .prior import distances_from_gram, joint_laplacian, mean_squared_distance, spectral_labels
@@ -69,7 +71,6 @@ class DSGPLVM:
 
     def get_params(self):
         """Constructor arguments (scikit-learn style), as a dict."""
-        import inspect
         names = inspect.signature(type(self).__init__).parameters
         return {k: getattr(self, k) for k in names if k != "self"}
 
@@ -266,11 +267,9 @@ class DSGPLVM:
     # ------------------------------------------------------------------ persistence
     def save(self, path, store_views=None):
         """Write one .npz with what predicting needs (see infer.dsgplvm_io)."""
-        from .dsgplvm_io import save_model
         save_model(self, path, store_views)
 
     @classmethod
     def load(cls, path):
         """Read a model written by save()."""
-        from .dsgplvm_io import load_model
         return load_model(cls, path)

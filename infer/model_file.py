@@ -13,9 +13,13 @@ import zipfile
 
 import numpy as np
 
+from brdf import merl
 from brdf.atomic import atomic_path
 from brdf.errors import DECODE_ERRORS, InputError
+from infer.adapter import table_features
+from infer.dsgplvm import DSGPLVM
 from infer.training_set import TrainingSet
+from infer.viewdata import restore_rows
 
 FORMAT = "flashbrdf-infer-model-1"
 
@@ -104,7 +108,6 @@ def read_model(path, merl_dir=None):
     except DECODE_ERRORS as err:
         raise _unreadable(path, err) from None
     if training.valid_3d is None and merl_dir is not None:
-        from brdf import merl
         found = merl.list_merl_dirs(merl_dir)
         missing = [n for n in names if n not in found]
         if missing:
@@ -117,12 +120,11 @@ def read_model(path, merl_dir=None):
 
 def load_dsgplvm(blob, training=None, feature_space="lab"):
     """The DSGPLVM in `blob`; views stored without training rows get them back from `training`."""
-    from infer.adapter import _model_class
     with tempfile.TemporaryDirectory() as folder:
         path = os.path.join(folder, "dsgplvm.npz")
         with open(path, "wb") as f:
             f.write(blob)
-        model = _model_class().load(path)
+        model = DSGPLVM.load(path)
     if training is not None and model.view_data_["2d"].data is None:
         _restore_2d_rows(model, training, feature_space)
     return model
@@ -130,8 +132,6 @@ def load_dsgplvm(blob, training=None, feature_space="lab"):
 
 def _restore_2d_rows(model, training, feature_space):
     """Rebuild the 2D view's training rows from the stored tables (infer.viewdata.restore_rows)."""
-    from infer.adapter import table_features
-    from infer.viewdata import restore_rows
     restore_rows(model, "2d", table_features(training.tables_2d, feature_space))
 
 
@@ -145,7 +145,7 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
     """{name: fitted method} for several methods from one read of MODEL.npz (a model with a 3D
     view holds GBs of rows: read once, shared). overrides: {name: {hyperparameter: value}}.
     fit_seconds: a dict that receives each method's load-and-fit wall time, if given."""
-    from infer import make_method, method_from_model
+    from infer import make_method, method_from_model  # infer/__init__ imports this module
     training, params, blob = read_model(path, merl_dir)
     methods = {}
     for name in names:

@@ -51,6 +51,8 @@ def spectral_labels(grams, n_classes=2, seed=0):
     Affinity exp(-Σ_v d2_v / t_v / V): each view's squared distances normalised by its mean so that no
     view dominates. Fewer than 2·n_classes samples -> all in one class.
     """
+    # imported here: sklearn.cluster adds 2.2 s to every `import infer` (python -X importtime,
+    # 2 shared cores) and only training with labels clusters
     from sklearn.cluster import SpectralClustering
 
     n = len(grams[0])

@@ -7,6 +7,7 @@ exactly the one `train` would have written.
 
 import time
 
+from infer.adapter import DSGPLVMMethod
 from infer.model_selection import tune_baselines
 from infer.model_file import save_model
 
@@ -18,7 +19,6 @@ def train_model(training, path, views=("1d", "2d"), seed=0, feature_space="auto"
     dict stored in the file, with `train_seconds` (all of it) and `fit_seconds` {"tuning",
     "dsgplvm"} (the validation fits that pick hyperparameters, and the final DS-GPLVM fit).
     """
-    from infer import DSGPLVMMethod
     wanted = list(views)
     start = time.perf_counter()
     params = tune_baselines(training, seed=seed, feature_space=feature_space)

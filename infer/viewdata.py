@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from brdf.errors import InputError
+
 COLUMN_BLOCK = 262_144  # columns per block: 60 rows × 256 k × 8 B = 126 MB peak per block
 
 
@@ -94,7 +96,6 @@ def restore_rows(model, view, rows):
     """Give a loaded DSGPLVM the centred, scaled training rows of `view` back from the raw rows
     (N, D) they were made of, checked against the stored keep mask, scale and Gram matrix (they
     must describe the same data; a model file whose tables were swapped fails here)."""
-    from brdf.errors import InputError
     stored = model.view_data_[view]
     rebuilt = prepare_view(rows)
     if not np.array_equal(rebuilt.keep, stored.keep) or \

@@ -14,8 +14,10 @@ report.json follows the contract, {"stages": {name: seconds}, "references": [{"p
 figures. Every file is written atomically; NaN is written as null.
 """
 
+import json
 import math
 import os
+import warnings
 from pathlib import Path
 
 import cv2
@@ -145,7 +147,6 @@ def _variance_2d(variance):
         return None
     variance = np.asarray(variance, dtype=float)
     if variance.ndim == 4:  # a 3D (phi_d-resolved) variance: average over phi_d like the table
-        import warnings
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             variance = np.nanmean(variance, axis=2)
@@ -261,7 +262,6 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
         "total_seconds": float(sum(stages.values())),
         **(extra or {}),
     })
-    import json
     write_text(out_dir / "report.json", json.dumps(report, indent=1) + "\n")
     write_text(out_dir / "report.md", _markdown(report, n_photos, sections))
     return report
