@@ -8,7 +8,7 @@ import pytest
 from sklearn.base import clone
 
 from infer import METHODS, make_method, method_from_model
-from tests.test_infer_baselines import ap_material, training_set
+from tests.test_infer_uncertainty import materials  # noqa: F401  (the fixture: 9 AP materials)
 
 # every method by name, the DS-GPLVM in both representations, each with a short ADM (the contract
 # does not depend on convergence, and two cycles keep a fit under a second)
@@ -16,16 +16,6 @@ CASES = [(name, {}) for name in METHODS if name != "dsgplvm"] + [
     ("dsgplvm", {"representation": "absolute", "max_cycles": 2, "feature_space": "rgb"}),
     ("dsgplvm", {"representation": "relative", "max_cycles": 2})]
 IDS = [f"{n}-{p.get('representation', '')}".rstrip("-") for n, p in CASES]
-
-
-@pytest.fixture(scope="module")
-def materials():
-    rng = np.random.default_rng(11)
-    rows = [ap_material(a, r0, rng.uniform(0.1, 1, 3), diffuse=d)
-            for a, r0, d in [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02),
-                             (0.5, 0.9, 0.5), (0.15, 0.2, 0.05), (0.7, 0.05, 0.8),
-                             (0.25, 0.3, 0.2), (0.12, 0.06, 0.4)]]
-    return training_set(rows)
 
 
 def _predict(method, materials, i):
