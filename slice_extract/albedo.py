@@ -126,7 +126,7 @@ def estimate_albedo_map(samples, labels, options=None):
         delta[inside] = value[inside]
     on = labels > 0
     albedo = np.zeros(shape + (3,), np.float32)
-    albedo[on] = np.pi * (floors[labels[on] - 1] + delta[on])
+    albedo[on] = np.maximum(np.pi * (floors[labels[on] - 1] + delta[on]), 0.0)  # rounding
     return AlbedoMap(albedo, delta, floors, trusted)
 
 
