@@ -150,8 +150,11 @@ def material_features(rho, theta_h):
     return np.column_stack([chroma, brightness]), ~lobe[bins]
 
 
-def _merge_components(means, covariances, weights, separation, min_fraction):
-    """Groups of mixture components that are one material: list of index lists."""
+def _merge_components(means, covariances, weights, separation, min_fraction, margins=None):
+    """Groups of mixture components that are one material: list of index lists.
+
+    margins: a dict that receives "separations_merged" (the distances of the pairs merged as
+    one material) and "separation_kept" (the closest pair kept apart, None if one is left)."""
     groups = [[i] for i in range(len(weights))]
     mu = [m.copy() for m in means]
     cov = [c.copy() for c in covariances]
@@ -172,7 +175,11 @@ def _merge_components(means, covariances, weights, separation, min_fraction):
         else:
             d, x, y = min(pairs)
             if d >= separation:
+                if margins is not None:
+                    margins["separation_kept"] = round(d, 3)
                 break
+            if margins is not None:
+                margins.setdefault("separations_merged", []).append(round(d, 3))
         total = w[x] + w[y]
         m = (w[x] * mu[x] + w[y] * mu[y]) / total
         c = (w[x] * (cov[x] + np.outer(mu[x] - m, mu[x] - m))
@@ -218,12 +225,13 @@ def _refine(log_rho, bins, labels, k, options):
     return labels, k
 
 
-def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_common=3):
+def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_common=3,
+                        margins=None):
     """Materials whose slices agree are one material: merge every pair whose ln-rho slices
     differ by less than options.alike (median over the theta_h bins both observe, with at least
     min_count samples each, of the mean |difference| over channels). A material seen at grazing
     angles only (or only in the highlight) then joins the one it continues. Returns
-    (labels 0..k'-1, k')."""
+    (labels 0..k'-1, k'). margins: a dict whose "alike_gaps" list receives every pair's gap."""
     raw = np.stack([_binned_median(log_rho[labels == j], bins[labels == j],
                                    min_count=min_count) for j in range(k)])
     parent = list(range(k))
@@ -239,6 +247,8 @@ def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_com
             if common.sum() < min_common:
                 continue
             gap = np.median(np.abs(raw[a][common] - raw[b][common]).mean(axis=1))
+            if margins is not None:
+                margins.setdefault("alike_gaps", []).append(round(float(gap), 4))
             if gap < options.alike:
                 parent[root(b)] = root(a)
     roots = np.array([root(j) for j in range(k)])
@@ -317,8 +327,9 @@ def _cluster(rho, theta_h, options):
         models.append(gm)
         bic.append(float(gm.bic(x[fit])))
     best = models[int(np.argmin(bic))]
+    margins = criterion.setdefault("margins", {})
     groups = _merge_components(best.means_, best.covariances_, best.weights_,
-                               options.separation, options.min_fraction)
+                               options.separation, options.min_fraction, margins)
     criterion.update(bic={k + 1: b for k, b in enumerate(bic)}, bic_k=best.n_components,
                      merged_k=len(groups))
     if len(groups) == 1:
@@ -333,7 +344,8 @@ def _cluster(rho, theta_h, options):
     k = len(groups)
     for _ in range(options.max_materials):  # refine, merge look-alikes, until nothing merges
         labels, k = _refine(log_rho, bins, labels, k, options)
-        labels, merged = _merge_alike_slices(log_rho, bins, labels, k, options)
+        labels, merged = _merge_alike_slices(log_rho, bins, labels, k, options,
+                                             margins=margins)
         if merged == k:
             break
         k = merged
@@ -351,6 +363,7 @@ def _cluster(rho, theta_h, options):
         ratio[np.argmax(counts)] = 0.0  # the largest material is the reference
         ratios = {int(j): float(r) for j, r in enumerate(ratio)}
         worst = int(np.argmax(ratio))
+        margins.setdefault("worst_own_vs_one_slice", []).append(round(float(ratio[worst]), 4))
         if ratio[worst] <= options.explained:
             break
         residual[:, worst] = np.inf
