@@ -135,3 +135,29 @@ def _slice(scene, tmp_path):
     path = tmp_path / "slice.csv"
     assert main(["extract", str(scene), "--out", str(path)]) == 0
     return path
+
+
+def test_bad_albedo_inputs_exit_2_with_one_line(textured, tmp_path, capsys):
+    table = tmp_path / "t.binary"
+    assert main(["infer", "--slice", str(_slice(textured["scene"], tmp_path)), "--method",
+                 "chandraker", "--out", str(table)]) == 0
+    good = tmp_path / "good.exr"
+    write_exr(good, np.ones(textured["on"].shape + (3,)) * 0.3)
+    negative = tmp_path / "negative.exr"
+    write_exr(negative, -np.ones(textured["on"].shape + (3,)))
+    floors = tmp_path / "floors.exr"
+    write_exr(floors, np.ones(textured["on"].shape + (3,)))
+    floors.with_suffix(".json").write_text(json.dumps({"floors": [[0.1, 0.1, 0.1]] * 2}))
+    capsys.readouterr()
+    cases = {"negative.exr": ["render", "--brdf", str(table), "--albedo", str(negative)],
+             "floors.json": ["render", "--brdf", str(table), "--albedo", str(floors)],
+             "--albedo": ["segment", "--albedo", str(tmp_path / "a.png")]}
+    for name, (command, *rest) in cases.items():
+        out = tmp_path / f"out_{command}" / ("labels.png" if command == "segment" else "")
+        assert main([command, str(textured["scene"]), "--out", str(out), *rest]) == 2, name
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and name in err[0], (name, err)
+        assert not out.exists() and not (tmp_path / "a.png").exists()
+    # a good map without a .json sidecar takes each table's own floor, and renders
+    assert main(["render", str(textured["scene"]), "--brdf", str(table), "--albedo", str(good),
+                 "--out", str(tmp_path / "ok"), "--spp", "1"]) == 0
