@@ -121,11 +121,15 @@ def run_albedo_map(stages, out, samples, segmentation, faces, scene, notes):
     from render.albedo_map import DiffuseAlbedoMap
     result, albedo_faces = stages.run("albedo map", albedo_for_scene, samples,
                                       segmentation.labels, faces)
+    from render.images import write_preview
     write_albedo(out / "albedo.exr", result, albedo_faces)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    write_preview(out / "figures" / "albedo.png", result.albedo, exposure=1.0)  # albedo 1 = white
     notes.append("Rendered with the per-pixel diffuse albedo map `albedo.exr` (--albedo-map): "
                  "rho = T_k + A/pi - f_k; "
                  f"{100 * result.trusted[segmentation.labels > 0].mean():.0f}% of the object's "
-                 "pixels measured it, the rest took their neighbourhood's.")
+                 "pixels measured it, the rest took their neighbourhood's.\n\n"
+                 "![albedo map](figures/albedo.png)")
     camera = scene.photos_with_role("flash")[0].camera
     return lambda brdf: DiffuseAlbedoMap(brdf, result.albedo, result.floors, camera,
                                          albedo_faces)

@@ -98,6 +98,8 @@ def test_run_with_the_albedo_map_relights_the_print_better(textured, tmp_path):
     de = {name: json.loads((folder / "report.json").read_text())["references"][0]
           ["delta_e_log_mean"] for name, folder in (("plain", plain), ("mapped", mapped))}
     assert (mapped / "albedo.exr").is_file() and (mapped / "albedo.faces.npy").is_file()
+    assert "![albedo map](figures/albedo.png)" in (mapped / "report.md").read_text()
+    assert (mapped / "figures" / "albedo.png").is_file()
     assert not (plain / "albedo.exr").exists()
     # the print is +-30% of the albedo in red: a flat BRDF leaves that in every pixel; the
     # map puts it back, leaving the photon noise and the chandraker table's theta_d error
