@@ -1,15 +1,18 @@
 """Several materials on a real object: DiLiGenT pot2, one BRDF against one per material.
 
     nice -n 10 python benchmarks/multi_material.py [--methods dsgplvm] [--work DIR]
+        [--objects pot2,ball,cards] [--runs single,auto,auto_albedo]
 
 pot2 (../shared/data/real/diligent-pot2, 8-bit linear crops) is imported with shot 052 as the
 flash and the other 95 shots as references (`import-diligent --flash 52`). `run` is called
 twice through the public command line: `--materials 1` (today's single-material pipeline) and
 `--materials auto` (segment, then a slice, a BRDF and a render per material). The numbers are
 the mean over the 95 references of each render's ΔE log mean (the contract's compare metric).
+`auto_albedo` is `--materials auto --albedo-map` (the per-pixel diffuse albedo map on top).
 The DiLiGenT ball is segmented too, as the single-material check (auto must choose 1).
 The flash planar cards (three inks) are segmented on view 00 and the 8 other views rendered
-with one BRDF per material (`segment`, `extract --labels`, `infer`, `render --labels`).
+with one BRDF per material (`segment`, `extract --labels`, `infer`, `render --labels`), and
+again with the albedo map (`segment --albedo`, `render --albedo`) when auto_albedo is measured.
 Writes benchmarks/results/multi_material.{json,md} and multi_material_<object>_labels.png.
 """
 
