@@ -1,15 +1,18 @@
 """Several materials on a real object: DiLiGenT pot2, one BRDF against one per material.
 
     nice -n 10 python benchmarks/multi_material.py [--methods dsgplvm] [--work DIR]
+        [--objects pot2,ball,cards] [--runs single,auto,auto_albedo]
 
 pot2 (../shared/data/real/diligent-pot2, 8-bit linear crops) is imported with shot 052 as the
 flash and the other 95 shots as references (`import-diligent --flash 52`). `run` is called
 twice through the public command line: `--materials 1` (today's single-material pipeline) and
 `--materials auto` (segment, then a slice, a BRDF and a render per material). The numbers are
 the mean over the 95 references of each render's ΔE log mean (the contract's compare metric).
+`auto_albedo` is `--materials auto --albedo-map` (the per-pixel diffuse albedo map on top).
 The DiLiGenT ball is segmented too, as the single-material check (auto must choose 1).
 The flash planar cards (three inks) are segmented on view 00 and the 8 other views rendered
-with one BRDF per material (`segment`, `extract --labels`, `infer`, `render --labels`).
+with one BRDF per material (`segment`, `extract --labels`, `infer`, `render --labels`), and
+again with the albedo map (`segment --albedo`, `render --albedo`) when auto_albedo is measured.
 Writes benchmarks/results/multi_material.{json,md} and multi_material_<object>_labels.png.
 """
 
@@ -22,14 +25,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._real_common import RESULTS, SHARED, argument_parser, run_cli  # noqa: E402
 
 
-def _run(scene, out, materials, methods, log):
+RUNS = {"single": ("1", []), "auto": ("auto", []), "auto_albedo": ("auto", ["--albedo-map"])}
+
+
+def _run(scene, out, materials, methods, log, extra=()):
     rc, err, seconds = run_cli(["run", scene, "--out", out, "--methods", methods,
-                                "--materials", materials])
+                                "--materials", materials, "--force", *extra])
     if rc != 0:
         raise SystemExit(f"run --materials {materials} failed (exit {rc}): {err}")
     report = json.loads((Path(out) / "report.json").read_text())
     summary = {m: s["delta_e_log_mean"]["mean"] for m, s in report["summary"].items()}
-    log(f"--materials {materials}: {len(report['materials'])} material(s), mean ΔE log "
+    log(f"--materials {materials} {' '.join(extra)}: {len(report['materials'])} material(s), mean ΔE log "
         f"{summary} ({seconds:.0f} s)")
     return {"materials": len(report["materials"]), "delta_e_log_mean": summary,
             "references": {m: s["references"] for m, s in report["summary"].items()},
@@ -42,7 +48,11 @@ def main(argv=None):
     ap.set_defaults(methods="dsgplvm")
     ap.add_argument("--objects", default="pot2,ball,cards",
                     help="which to (re)measure; the others keep their entries in the JSON")
+    ap.add_argument("--runs", default="single,auto,auto_albedo",
+                    help="which runs to (re)measure: single (--materials 1), auto, auto_albedo "
+                         "(--materials auto --albedo-map); the others keep their entries")
     args = ap.parse_args(argv)
+    runs = [r for r in args.runs.split(",") if r]
     wanted = set(args.objects.split(","))
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     work = args.work
@@ -60,28 +70,33 @@ def main(argv=None):
             rc, err, _ = run_cli(["import-diligent", folder, "--flash", 52, "--out", scene])
             if rc != 0:
                 raise SystemExit(f"import-diligent {folder} failed (exit {rc}): {err}")
-        entry = {"command": command}
-        if name == "pot2":
-            entry["single"] = _run(scene, work / f"{name}_single", "1", args.methods, log)
-        auto = _run(scene, work / f"{name}_auto", "auto", args.methods, log)
-        entry["auto"] = auto
-        labels = work / f"{name}_auto" / "figures" / "labels.png"
-        shutil.copyfile(labels, RESULTS / f"multi_material_{name}_labels.png")
-        entry["labels_png"] = f"multi_material_{name}_labels.png"
-        if "single" in entry:
-            entry["reduction"] = {m: 1 - auto["delta_e_log_mean"][m] / v
-                                  for m, v in entry["single"]["delta_e_log_mean"].items()}
+        entry = result["objects"].get(name, {})
+        for run in runs:
+            if run == "single" and name != "pot2":
+                continue
+            materials, extra = RUNS[run]
+            entry[run] = dict(_run(scene, work / f"{name}_{run}", materials, args.methods, log,
+                                   extra), command=command)
+            if run == "auto":
+                shutil.copyfile(work / f"{name}_auto" / "figures" / "labels.png",
+                                RESULTS / f"multi_material_{name}_labels.png")
+                entry["labels_png"] = f"multi_material_{name}_labels.png"
+        reference = entry.get("single") or entry.get("auto")
+        entry["reduction"] = {run: {m: 1 - entry[run]["delta_e_log_mean"][m] / v
+                                    for m, v in reference["delta_e_log_mean"].items()
+                                    if m in entry[run]["delta_e_log_mean"]}
+                              for run in RUNS if run in entry and entry[run] is not reference}
         result["objects"][name] = entry
     if "cards" in wanted:
-        result["planar_cards"] = dict(_planar_cards(work, args.methods.split(","), log),
-                                      command=command)
+        result["planar_cards"] = dict(_planar_cards(work, args.methods.split(","), log,
+                                                    "auto_albedo" in runs), command=command)
     (RESULTS / "multi_material.json").write_text(json.dumps(result, indent=1) + "\n")
     (RESULTS / "multi_material.md").write_text(_markdown(result))
     log(f"wrote {RESULTS / 'multi_material.md'}")
     return 0
 
 
-def _planar_cards(work, methods, log):
+def _planar_cards(work, methods, log, albedo=False):
     """The planar cards: segment view 00 (auto), a slice and a BRDF per material, and every
     other view rendered with them. The views are rectified to the card, so one label image
     serves every view's pixel grid (each view's scene has its own flash photo and camera)."""
@@ -92,8 +107,8 @@ def _planar_cards(work, methods, log):
              if folder.is_dir() else
              planar_card_scenes(SHARED / "data" / "real" / "flash-planar-cards-blue", folder))
     flash = views[0]
-    labels = work / "planar_labels.png"
-    for argv in (["segment", flash, "--out", labels],
+    labels, albedo_exr = work / "planar_labels.png", work / "planar_albedo.exr"
+    for argv in (["segment", flash, "--out", labels, "--albedo", albedo_exr],
                  ["extract", flash, "--labels", labels, "--out", work / "planar_slices"]):
         rc, err, _ = run_cli(argv)
         if rc != 0:
@@ -112,18 +127,20 @@ def _planar_cards(work, methods, log):
             if rc != 0:
                 raise SystemExit(f"infer material {j} failed (exit {rc}): {err}")
             tables.append(str(table))
-        errors = []
-        for view in views[1:]:
-            target = work / "planar_render" / method / view.name
-            rc, err, _ = run_cli(["render", view, "--brdf", ",".join(tables), "--labels", labels,
-                                  "--out", target])
-            if rc != 0:
-                raise SystemExit(f"render {view.name} failed (exit {rc}): {err}")
-            compare = next(target.glob("*_compare.json"))
-            errors.append(json.loads(compare.read_text())["delta_e_log_mean"])
-        out["delta_e_log_mean"][method] = sum(errors) / len(errors)
-        out.setdefault("per_view", {})[method] = errors
-        log(f"planar cards, {k} material(s), {method}: mean ΔE log {out['delta_e_log_mean'][method]:.2f}")
+        for variant, extra in (("", []), ("_albedo", ["--albedo", albedo_exr]))[:1 + albedo]:
+            errors = []
+            for view in views[1:]:
+                target = work / f"planar_render{variant}" / method / view.name
+                rc, err, _ = run_cli(["render", view, "--brdf", ",".join(tables), "--labels",
+                                      labels, "--out", target, "--force", *extra])
+                if rc != 0:
+                    raise SystemExit(f"render {view.name} failed (exit {rc}): {err}")
+                compare = next(target.glob("*_compare.json"))
+                errors.append(json.loads(compare.read_text())["delta_e_log_mean"])
+            out.setdefault(f"delta_e_log_mean{variant}", {})[method] = sum(errors) / len(errors)
+            out.setdefault(f"per_view{variant}", {})[method] = errors
+            log(f"planar cards, {k} material(s), {method}{variant}: mean ΔE log "
+                f"{sum(errors) / len(errors):.2f}")
     return out
 
 
@@ -145,23 +162,30 @@ def _markdown(result):
     lines += ["",
              "| object | run | materials | pixels per material | method | ΔE log mean | change |",
              "|---|---|---|---|---|---|---|"]
+    names = {"single": "--materials 1", "auto": "--materials auto",
+             "auto_albedo": "--materials auto --albedo-map"}
     for name, entry in result["objects"].items():
-        for run in ("single", "auto"):
+        for run in RUNS:
             if run not in entry:
                 continue
             r = entry[run]
             for method, value in r["delta_e_log_mean"].items():
-                change = (f"{-100 * entry['reduction'][method]:+.0f}%"
-                          if run == "auto" and "reduction" in entry else "")
-                lines.append(f"| {name} | --materials {'1' if run == 'single' else 'auto'} | "
+                change = entry.get("reduction", {}).get(run, {}).get(method)
+                change = "" if change is None else f"{-100 * change:+.0f}%"
+                lines.append(f"| {name} | {names[run]} | "
                              f"{r['materials']} | {', '.join(map(str, r['pixels']))} | {method} | "
                              f"{value:.2f} | {change} |")
+    lines += ["", "change: against --materials 1 where it was run (pot2), else against "
+              "--materials auto."]
     cards = result.get("planar_cards")
     if cards:
         lines += ["", f"Planar cards (flash = {cards['flash_view']}, the other 8 views predicted; "
                   f"{cards['materials']} material(s) found): mean ΔE log "
                   + ", ".join(f"{m} {v:.2f}" for m, v in cards["delta_e_log_mean"].items())
-                  + " (one BRDF for the whole card: 16.98 for dsgplvm, planar_cards.md).", "",
+                  + " (one BRDF for the whole card: 16.98 for dsgplvm, planar_cards.md)"
+                  + ("; with the albedo map (segment --albedo, render --albedo): "
+                     + ", ".join(f"{m} {v:.2f}" for m, v in cards["delta_e_log_mean_albedo"].items())
+                     if cards.get("delta_e_log_mean_albedo") else "") + ".", "",
                   f"cards label map (auto): ![cards]({cards['labels_png']})"]
     lines += [""]
     for name, entry in result["objects"].items():

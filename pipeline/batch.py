@@ -42,7 +42,7 @@ from pipeline import dask_engine
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
 SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "worker")
-RUN_OPTIONS = ("model", "methods", "spp", "no_anchor")
+RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map")
 
 
 def find_captures(captures_dir):
@@ -178,7 +178,8 @@ def failed_row(name, reason, seconds=None, worker=""):
 def run_capture(scene_dir, out_dir, options):
     """The Dask task: `run` one capture into OUT_DIR/<name>/, all or nothing. -> summary row dict.
 
-    options: the run options {model, methods, spp, no_anchor}. Raises on unexpected errors (Dask
+    options: the run options (RUN_OPTIONS: model, methods, spp, no_anchor, materials,
+    albedo_map). Raises on unexpected errors (Dask
     retries once); bad input in the capture is returned as a failed row.
     """
     from pipeline.cmd_run import run
@@ -310,7 +311,9 @@ def batch(args):
         raise InputError(out, "exists and is not a folder")
     _check_outputs(out, args.captures_dir, captures)
     options = {"model": None if model is None else str(model.resolve()), "methods": args.methods,
-               "spp": args.spp, "no_anchor": args.no_anchor}
+               "spp": args.spp, "no_anchor": args.no_anchor,
+               "materials": getattr(args, "materials", "auto"),
+               "albedo_map": bool(getattr(args, "albedo_map", False))}
 
     start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)

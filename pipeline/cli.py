@@ -68,12 +68,17 @@ def _parser():
     s.add_argument("scene_dir", metavar="SCENE_DIR")
     s.add_argument("--out", required=True, metavar="LABELS.png")
     s.add_argument("--materials", default="auto", metavar="auto|K")
+    s.add_argument("--albedo", metavar="ALBEDO.exr",
+                   help="also write a per-pixel diffuse albedo map (textured materials)")
 
     s = sub.add_parser("render", help="render every reference photo's lighting")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
     s.add_argument("--brdf", required=True, metavar="BRDF.binary[,BRDF2.binary,...]")
     s.add_argument("--labels", metavar="LABELS.png",
                    help="material k of the label image is rendered with the k-th table")
+    s.add_argument("--albedo", metavar="ALBEDO.exr",
+                   help="a per-pixel diffuse albedo map (segment --albedo) replaces each "
+                        "material's diffuse floor")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     s.add_argument("--force", action="store_true", help=FORCE_HELP)
     s.add_argument("--spp", type=int, default=64)
@@ -139,6 +144,9 @@ def _add_run_options(s):
     s.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
     s.add_argument("--materials", default="auto", metavar="auto|K",
                    help="segment into materials first (default auto: K chosen, 1 for one material)")
+    s.add_argument("--albedo-map", action="store_true",
+                   help="estimate a per-pixel diffuse albedo map (OUT_DIR/albedo.exr) and render "
+                        "with it (textured materials)")
     s.add_argument("--no-anchor", action="store_true",
                    help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
                         "theta_h to pass through the observed slice, carried over theta_d")

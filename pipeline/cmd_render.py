@@ -35,6 +35,15 @@ def samples_per_pixel(args):
     return spp
 
 
+def flash_photo_camera(scene, where):
+    """The first flash photo's camera (the pixel grid of labels and albedo maps)."""
+    flash = scene.photos_with_role("flash")
+    if not flash:
+        raise InputError(f"{scene.json_path}: photos", f"{where} needs the flash photo's camera: "
+                                                       "no photo has role 'flash'")
+    return flash[0].camera
+
+
 def render(args):
     import capture
     from brdf.merl import read_merl
@@ -45,7 +54,8 @@ def render(args):
 
     spp = samples_per_pixel(args)
     scene = capture.load_scene(args.scene_dir)
-    check_outputs(inputs=[args.scene_dir, *scene.input_files(), args.brdf], outputs=[args.out],
+    check_outputs(inputs=[args.scene_dir, *scene.input_files(), args.brdf,
+                          getattr(args, "albedo", None)], outputs=[args.out],
                   folders=[args.out])
     references = scene.photos_with_role("reference")
     if not references:
@@ -59,13 +69,23 @@ def render(args):
     if labels_png:  # check the labels before reading any table
         from pipeline.cmd_segment import material_map_inputs
         labels, faces, camera = material_map_inputs(scene, labels_png, len(paths))
-    models = [TabulatedBRDF(read_merl(p), interpolate=interpolate) for p in paths]
+    tables = [read_merl(p) for p in paths]
+    models = [TabulatedBRDF(t, interpolate=interpolate) for t in tables]
     brdf = MaterialMap(models, labels, camera, faces) if labels_png else models[0]
+    albedo_exr = getattr(args, "albedo", None)
+    if albedo_exr:
+        from pipeline.albedo_files import read_albedo
+        from render.albedo_map import DiffuseAlbedoMap
+        flash_camera = camera if labels_png else flash_photo_camera(scene, "--albedo")
+        albedo, floors, albedo_faces = read_albedo(albedo_exr, scene, flash_camera, tables)
+        brdf = DiffuseAlbedoMap(brdf, albedo, floors, flash_camera, albedo_faces)
     seed = int(getattr(args, "seed", None) or 0)
     report = {"brdf": str(Path(paths[0]).resolve()) if len(paths) == 1 else
               [str(Path(p).resolve()) for p in paths], "spp": spp, "seed": seed, "renders": []}
     if labels_png:
         report["labels"] = str(Path(labels_png).resolve())
+    if albedo_exr:
+        report["albedo"] = str(Path(albedo_exr).resolve())
     # Render and load every reference first, write afterwards: bad input found part-way (an
     # unreadable envmap or photo) then leaves no output file behind.
     results = []

@@ -138,7 +138,8 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
     from render import (MaterialMap, TabulatedBRDF, render_scene, write_comparison, write_exr,
                         write_preview)
     rows = []
-    brdf = table if isinstance(table, MaterialMap) else TabulatedBRDF(table)
+    from render.albedo_map import DiffuseAlbedoMap
+    brdf = table if isinstance(table, (MaterialMap, DiffuseAlbedoMap)) else TabulatedBRDF(table)
     for photo, image, mask in render_scene(scene, brdf, spp=spp, photos=references,
                                            geometry=geometry):
         write_exr(out_dir / f"{photo.stem}.exr", image)
@@ -188,26 +189,30 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
     from pipeline.cmd_extract import write_extraction
     from pipeline.cmd_segment import materials_option, segment_scene, write_labels
     from pipeline.report import write_report
-    from pipeline.run_materials import label_section, material_entries, run_materials
+    from pipeline.run_materials import (label_section, material_entries, run_albedo_map,
+                                        run_materials)
     from render.scene_render import SceneGeometry
     from slice_extract import ExtractOptions
     from slice_extract.extract import bin_samples, collect_samples
 
     materials = materials_option(getattr(args, "materials", None))
     export = getattr(args, "export", False)
-    stages, notes = _Stages(total=6 + 2 * len(methods) + 2 * export), []
+    albedo_map = bool(getattr(args, "albedo_map", False))
+    stages, notes = _Stages(total=6 + 2 * len(methods) + 2 * export + albedo_map), []
     fitted = stages.run("load model", load_methods or _load_methods, methods, model_path,
                         not args.no_anchor)
     options = ExtractOptions()
     samples = stages.run("extract", collect_samples, scene, options)
     segmentation, faces = stages.run("segment", segment_scene, samples, materials)
     title = f"flashbrdf run {Path(args.scene_dir).name}"
+    with_albedo = (run_albedo_map(stages, out, samples, segmentation, faces, scene, notes)
+                   if albedo_map else None)
     if segmentation.k > 1:
         ctx = SimpleNamespace(
             scene=scene, scene_dir=args.scene_dir, out=out, stages=stages, options=options,
             methods=methods, model_path=model_path, spp=spp, notes=notes, title=title,
             load_methods=lambda: fitted, geometry=lambda: SceneGeometry(scene), loaded=loaded,
-            final_out=Path(args.out))
+            final_out=Path(args.out), with_albedo=with_albedo or (lambda brdf: brdf))
         return stages, run_materials(ctx, samples, segmentation, faces)
     result = stages.run("extract", bin_samples, samples)
     rho = write_extraction(out / "slice.csv", args.scene_dir, result, options,
@@ -244,8 +249,12 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
         elif geometry.convex:
             notes.append("Convex mesh: no shadow rays were cast.")
         for name in methods:
+            brdf = predictions[name]["table"]
+            if with_albedo is not None:
+                from render import TabulatedBRDF
+                brdf = with_albedo(TabulatedBRDF(brdf))
             rows += stages.run(f"render+compare {name}", _render_and_compare, scene, geometry, name,
-                               predictions[name]["table"], spp, out / name, references, loaded)
+                               brdf, spp, out / name, references, loaded)
         if exported is not None:
             label, table = exported[:2]
             rows += stages.run(f"render+compare {label}", _render_and_compare, scene, geometry,

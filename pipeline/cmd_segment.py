@@ -91,11 +91,8 @@ def material_map_inputs(scene, labels_png, count):
     with LABELS.png (+ LABELS.faces.npy when present); InputError for a wrong size, an unused
     label, a label count that is not `count`, or a faces file that does not fit the mesh."""
     from slice_extract.segment import check_labels
-    flash = scene.photos_with_role("flash")
-    if not flash:
-        raise InputError(f"{scene.json_path}: photos", "--labels needs the flash photo's camera: "
-                                                       "no photo has role 'flash'")
-    camera = flash[0].camera
+    from pipeline.cmd_render import flash_photo_camera
+    camera = flash_photo_camera(scene, "--labels")
     labels = read_labels(labels_png, camera.shape)
     check_labels(labels, camera.shape, labels_png, count)
     faces = None
@@ -122,14 +119,23 @@ def segment(args):
     materials = materials_option(getattr(args, "materials", None))
     if Path(args.out).suffix.lower() != ".png":
         raise InputError("--out", f"the label image must be a .png, got {args.out}")
+    albedo_out = getattr(args, "albedo", None)
+    if albedo_out:
+        from pipeline.albedo_files import albedo_sidecars, check_albedo_out
+        check_albedo_out(albedo_out)
     scene = capture.load_scene(args.scene_dir)
     check_outputs(inputs=[args.scene_dir, *scene.input_files()],
-                  outputs=[args.out, faces_path(args.out), Path(args.out).with_suffix(".json")])
+                  outputs=[args.out, faces_path(args.out), Path(args.out).with_suffix(".json"),
+                           *([albedo_out, *albedo_sidecars(albedo_out)] if albedo_out else [])])
     started = time.perf_counter()
     samples = collect_samples(scene, ExtractOptions())
     traced = time.perf_counter()
     segmentation, faces = segment_scene(samples, materials)
     done = time.perf_counter()
+    if albedo_out:  # computed before anything is written: a failure leaves no file
+        from pipeline.albedo_files import albedo_for_scene, write_albedo
+        albedo, albedo_faces = albedo_for_scene(samples, segmentation.labels, faces)
+        write_albedo(albedo_out, albedo, albedo_faces)
     write_labels(args.out, segmentation, faces,
                  {"seconds": {"samples": round(traced - started, 3),
                               "segment": round(done - traced, 3)}})

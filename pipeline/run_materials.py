@@ -77,8 +77,8 @@ def run_materials(ctx, samples, segmentation, faces):
         geometry = stages.run("ray cast", ctx.geometry)
         camera = ctx.scene.photos_with_role("flash")[0].camera
         for name in ctx.methods:
-            materials = MaterialMap([TabulatedBRDF(tables[name][k][0]) for k in sorted(rhos)],
-                                    labels, camera, faces)
+            materials = ctx.with_albedo(MaterialMap(
+                [TabulatedBRDF(tables[name][k][0]) for k in sorted(rhos)], labels, camera, faces))
             rows += stages.run(f"render+compare {name}", _render_and_compare, ctx.scene, geometry,
                                name, materials, ctx.spp, out / name, references, ctx.loaded)
     else:
@@ -112,6 +112,27 @@ def run_materials(ctx, samples, segmentation, faces):
     return stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                       warnings=warnings, notes=ctx.notes, title=ctx.title, extra=extra,
                       sections=sections)
+
+
+def run_albedo_map(stages, out, samples, segmentation, faces, scene, notes):
+    """`run --albedo-map`: estimate and write OUT_DIR/albedo.exr (+ .json, .faces.npy); returns
+    a function that puts the map on a BRDF (a model or a MaterialMap) for rendering."""
+    from pipeline.albedo_files import albedo_for_scene, write_albedo
+    from render.albedo_map import DiffuseAlbedoMap
+    result, albedo_faces = stages.run("albedo map", albedo_for_scene, samples,
+                                      segmentation.labels, faces)
+    from render.images import write_preview
+    write_albedo(out / "albedo.exr", result, albedo_faces)
+    (out / "figures").mkdir(parents=True, exist_ok=True)
+    write_preview(out / "figures" / "albedo.png", result.albedo, exposure=1.0)  # albedo 1 = white
+    notes.append("Rendered with the per-pixel diffuse albedo map `albedo.exr` (--albedo-map): "
+                 "rho = T_k + A/pi - f_k; "
+                 f"{100 * result.trusted[segmentation.labels > 0].mean():.0f}% of the object's "
+                 "pixels measured it, the rest took their neighbourhood's.\n\n"
+                 "![albedo map](figures/albedo.png)")
+    camera = scene.photos_with_role("flash")[0].camera
+    return lambda brdf: DiffuseAlbedoMap(brdf, result.albedo, result.floors, camera,
+                                         albedo_faces)
 
 
 def _theta_d0(table):

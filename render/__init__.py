@@ -13,6 +13,8 @@ Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
   render_point_light(points, normals, view, brdf, light_position, intensity_rgb, occluded=None)
   render_directional_light(points, normals, view, brdf, direction, irradiance_rgb, occluded=None)
   render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=None, ...) -> (P, 3)
+  DiffuseAlbedoMap(base, albedo (H, W, 3), floors (K, 3), camera, faces=None): a per-point
+      diffuse albedo on a model or MaterialMap (rho = T_k + A/pi - f_k), for render_scene
   render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geometry=None)
       -> iterator of (photo, image (H, W, 3) float32 in photo units, mask (H, W))
   render_sphere(table, envmap_path, size=128, spp=64, seed=0, ...) -> (size, size, 3) float32
@@ -21,6 +23,7 @@ Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
   write_exr(path, rgb), read_image(path), read_mask(path, shape=None), write_preview(path, rgb)
 """
 
+from render.albedo_map import DiffuseAlbedoMap
 from render.brdf_models import GGX, BRDFModel, Lambert, TabulatedBRDF
 from render.compare import compare_images, write_comparison, write_delta_e_png
 from render.envmap import EnvMap, read_envmap_pixels
@@ -30,7 +33,7 @@ from render.scene_render import (MaterialMap, SceneGeometry, render_scene, rende
                                  sphere_view)
 
 __all__ = [
-    "BRDFModel", "EnvMap", "GGX", "Lambert", "SceneGeometry", "TabulatedBRDF", "compare_images",
+    "BRDFModel", "DiffuseAlbedoMap", "EnvMap", "GGX", "Lambert", "SceneGeometry", "TabulatedBRDF", "compare_images",
     "read_envmap_pixels", "read_image", "read_mask", "render_directional_light", "render_envmap",
     "MaterialMap", "render_point_light", "render_scene", "render_sphere", "sphere_view", "tonemap",
     "write_comparison", "write_delta_e_png", "write_exr", "write_preview",

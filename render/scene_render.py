@@ -8,6 +8,7 @@ every lighting seen from that camera. Shadow rays go through Embree only for non
 import numpy as np
 
 from brdf.errors import InputError
+from render.albedo_map import DiffuseAlbedoMap
 from render.envmap import EnvMap
 from render.integrator import render_directional_light, render_envmap, render_point_light
 
@@ -91,7 +92,11 @@ def render_surface(surface, camera, light, brdf, spp=64, seed=0, occluded=None, 
                    progress=None, where="light"):
     """Pixel-model values (N, 3) of a capture.Surface under one capture.Light (unscaled).
 
-    brdf: a render.brdf_models model, or a MaterialMap (each material rendered with its own)."""
+    brdf: a render.brdf_models model, or a MaterialMap (each material rendered with its own),
+    or a render.albedo_map.DiffuseAlbedoMap (either, with a per-point diffuse albedo)."""
+    if isinstance(brdf, DiffuseAlbedoMap):
+        return brdf.render(surface, camera, lambda model: render_surface(
+            surface, camera, light, model, spp, seed, occluded, envmaps, progress, where))
     if isinstance(brdf, MaterialMap):
         labels = brdf.point_labels(surface, camera)
         values = np.zeros((len(labels), 3))

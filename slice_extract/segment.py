@@ -150,8 +150,11 @@ def material_features(rho, theta_h):
     return np.column_stack([chroma, brightness]), ~lobe[bins]
 
 
-def _merge_components(means, covariances, weights, separation, min_fraction):
-    """Groups of mixture components that are one material: list of index lists."""
+def _merge_components(means, covariances, weights, separation, min_fraction, margins=None):
+    """Groups of mixture components that are one material: list of index lists.
+
+    margins: a dict that receives "separations_merged" (the distances of the pairs merged as
+    one material) and "separation_kept" (the closest pair kept apart, None if one is left)."""
     groups = [[i] for i in range(len(weights))]
     mu = [m.copy() for m in means]
     cov = [c.copy() for c in covariances]
@@ -172,7 +175,11 @@ def _merge_components(means, covariances, weights, separation, min_fraction):
         else:
             d, x, y = min(pairs)
             if d >= separation:
+                if margins is not None:
+                    margins["separation_kept"] = round(d, 3)
                 break
+            if margins is not None:
+                margins.setdefault("separations_merged", []).append(round(d, 3))
         total = w[x] + w[y]
         m = (w[x] * mu[x] + w[y] * mu[y]) / total
         c = (w[x] * (cov[x] + np.outer(mu[x] - m, mu[x] - m))
@@ -218,12 +225,13 @@ def _refine(log_rho, bins, labels, k, options):
     return labels, k
 
 
-def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_common=3):
+def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_common=3,
+                        margins=None):
     """Materials whose slices agree are one material: merge every pair whose ln-rho slices
     differ by less than options.alike (median over the theta_h bins both observe, with at least
     min_count samples each, of the mean |difference| over channels). A material seen at grazing
     angles only (or only in the highlight) then joins the one it continues. Returns
-    (labels 0..k'-1, k')."""
+    (labels 0..k'-1, k'). margins: a dict whose "alike_gaps" list receives every pair's gap."""
     raw = np.stack([_binned_median(log_rho[labels == j], bins[labels == j],
                                    min_count=min_count) for j in range(k)])
     parent = list(range(k))
@@ -239,6 +247,8 @@ def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_com
             if common.sum() < min_common:
                 continue
             gap = np.median(np.abs(raw[a][common] - raw[b][common]).mean(axis=1))
+            if margins is not None:
+                margins.setdefault("alike_gaps", []).append(round(float(gap), 4))
             if gap < options.alike:
                 parent[root(b)] = root(a)
     roots = np.array([root(j) for j in range(k)])
@@ -267,14 +277,32 @@ def cluster_samples(rho, theta_h, options=None):
 
 def _assign_all(rho, theta_h, pick, labels, k):
     """Labels (N,) of every sample: the material (of the k found on samples `pick`, labelled
-    `labels`) whose slice explains it best."""
+    `labels`) whose slice explains it best (_residuals' criterion, first material on a tie).
+
+    Why column by column in float32: this is the one pass over all (12 million) pixels, and
+    numpy's reductions over a length-3 axis and (N, 3) gathers cost more than the arithmetic."""
     log_rho, _, floor = _log_rho(rho[pick])
     slices = _slices(log_rho, _bins(theta_h[pick]), labels, k).astype(np.float32)
+    columns = [[np.ascontiguousarray(slices[j, :, c]) for c in range(3)] for j in range(k)]
+    offset = np.float32(floor / 3)
     out = np.empty(len(rho), np.int64)
     for start in range(0, len(rho), 1 << 20):  # in chunks: bounded memory at 12 megapixels
         part = slice(start, start + (1 << 20))
-        log_part, _, _ = _log_rho(rho[part].astype(np.float32), floor)
-        out[part] = _residuals(log_part, _bins(theta_h[part]), slices).argmin(axis=1)
+        bins = _bins(theta_h[part])
+        logs = [np.log(np.maximum(rho[part, c], 0).astype(np.float32) + offset) for c in range(3)]
+        best, best_residual = np.zeros(len(bins), np.int64), None
+        for j in range(k):
+            residual = np.abs(logs[0] - columns[j][0].take(bins))
+            residual += np.abs(logs[1] - columns[j][1].take(bins))
+            residual += np.abs(logs[2] - columns[j][2].take(bins))
+            np.minimum(residual / np.float32(3), np.float32(1), out=residual)
+            if best_residual is None:
+                best_residual = residual
+                continue
+            better = residual < best_residual
+            best[better] = j
+            np.minimum(best_residual, residual, out=best_residual)
+        out[part] = best
     return out
 
 
@@ -299,8 +327,9 @@ def _cluster(rho, theta_h, options):
         models.append(gm)
         bic.append(float(gm.bic(x[fit])))
     best = models[int(np.argmin(bic))]
+    margins = criterion.setdefault("margins", {})
     groups = _merge_components(best.means_, best.covariances_, best.weights_,
-                               options.separation, options.min_fraction)
+                               options.separation, options.min_fraction, margins)
     criterion.update(bic={k + 1: b for k, b in enumerate(bic)}, bic_k=best.n_components,
                      merged_k=len(groups))
     if len(groups) == 1:
@@ -315,7 +344,8 @@ def _cluster(rho, theta_h, options):
     k = len(groups)
     for _ in range(options.max_materials):  # refine, merge look-alikes, until nothing merges
         labels, k = _refine(log_rho, bins, labels, k, options)
-        labels, merged = _merge_alike_slices(log_rho, bins, labels, k, options)
+        labels, merged = _merge_alike_slices(log_rho, bins, labels, k, options,
+                                             margins=margins)
         if merged == k:
             break
         k = merged
@@ -333,6 +363,7 @@ def _cluster(rho, theta_h, options):
         ratio[np.argmax(counts)] = 0.0  # the largest material is the reference
         ratios = {int(j): float(r) for j, r in enumerate(ratio)}
         worst = int(np.argmax(ratio))
+        margins.setdefault("worst_own_vs_one_slice", []).append(round(float(ratio[worst]), 4))
         if ratio[worst] <= options.explained:
             break
         residual[:, worst] = np.inf
@@ -360,13 +391,27 @@ def clean_label_image(labels, object_mask, min_area_fraction):
     Connected patches smaller than min_area_fraction of the object (at least 4 pixels) are
     cleared, then every object pixel takes the label of the nearest labelled pixel. Labels are
     renumbered 1..K by decreasing area. Returns (H, W) uint16.
+    Works on the object's bounding box only (the rest stays 0): the same result, less image.
     """
+    object_mask = np.asarray(object_mask, bool)
+    out = np.zeros(object_mask.shape, np.uint16)
+    rows, cols = np.flatnonzero(object_mask.any(axis=1)), np.flatnonzero(object_mask.any(axis=0))
+    if not len(rows):
+        return out
+    box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+    out[box] = _clean_labels(np.asarray(labels)[box], object_mask[box], min_area_fraction,
+                             int(object_mask.sum()))
+    return out
+
+
+def _clean_labels(labels, object_mask, min_area_fraction, object_pixels):
+    """clean_label_image on a crop holding the whole object."""
     import cv2
     labels = labels.astype(np.int32)
-    min_area = max(4, int(min_area_fraction * max(int(object_mask.sum()), 1)))
+    min_area = max(4, int(min_area_fraction * max(object_pixels, 1)))
     for k in range(1, int(labels.max()) + 1):
         count, comp, stats, _ = cv2.connectedComponentsWithStats(
-            (labels == k).astype(np.uint8), connectivity=8)
+            (labels == k).view(np.uint8), connectivity=8)
         if count <= 2:  # absent, or one patch: nothing to clear
             continue
         area = stats[:, cv2.CC_STAT_AREA]
@@ -380,10 +425,11 @@ def clean_label_image(labels, object_mask, min_area_fraction):
         return np.where(object_mask, 1, 0).astype(np.uint16)
     # nearest labelled pixel of every pixel: OpenCV's labelled distance transform numbers the
     # labelled (zero) pixels in row-major order; 4x faster than scipy's exact one at 12 MP
-    unlabelled = (labels == 0).astype(np.uint8)
+    unlabelled = (labels == 0).view(np.uint8)
     _, nearest = cv2.distanceTransformWithLabels(unlabelled, cv2.DIST_L2, 5,
                                                  labelType=cv2.DIST_LABEL_PIXEL)
-    filled = np.where(object_mask, labels[unlabelled == 0][nearest - 1], 0)
+    filled = labels[labels > 0].take(nearest - 1)
+    filled[~object_mask] = 0
     area = np.bincount(filled.ravel(), minlength=int(filled.max()) + 1)
     order = [k for k in np.argsort(-area, kind="stable") if k > 0 and area[k] > 0]
     renumber = np.zeros(len(area), np.uint16)

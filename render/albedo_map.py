@@ -1,0 +1,72 @@
+"""A BRDF with a per-point diffuse albedo (texture) on top: rho = T_k + A(x)/pi - f_k.
+
+T_k is the BRDF of the point's material k (a model, or a MaterialMap's k-th), f_k (3,) 1/sr its
+diffuse floor and A(x) (3,) the point's diffuse albedo (slice_extract.albedo). The renderer is
+linear in the BRDF, so the textured render is the BRDF's render plus the render of a constant
+BRDF of 1/sr (Lambert with albedo pi) times delta(x) = A(x)/pi - f_k per point: one extra render
+whatever the number of materials, and the BRDF's own importance sampling is kept.
+"""
+
+import numpy as np
+
+from brdf.errors import InputError
+from render.brdf_models import Lambert
+
+
+def _camera_key(camera):
+    from render.scene_render import _camera_key as key
+    return key(camera)
+
+
+def table_floor(table):
+    """A MERL table's diffuse floor (3,) 1/sr: per channel, the minimum over theta_h of its
+    theta_d = 0 row (mean over phi_d), over bins with data."""
+    table = np.asarray(table, float)
+    row = table[:, 0]                       # (90, 3) for 2D, (90, 180, 3) for 3D
+    if row.ndim == 2:
+        row = row[:, None, :]
+    with np.errstate(invalid="ignore"):
+        valid = np.isfinite(row) & (row >= 0)
+        mean = np.where(valid, row, 0.0).sum(axis=1) / np.maximum(valid.sum(axis=1), 1)
+    has = valid.any(axis=1).all(axis=1)
+    return mean[has].min(axis=0) if has.any() else np.zeros(3)
+
+
+class DiffuseAlbedoMap:
+    """A BRDF `base` (a render.brdf_models model or a MaterialMap) with a diffuse albedo map.
+
+    albedo (H, W, 3) in `camera`'s pixel grid (the flash photo's); floors (K, 3) 1/sr, f_k of
+    material k; faces (F, 3) or None: an albedo per mesh face, for views from other cameras.
+    A point whose albedo is 0 in all channels (off the map) keeps the base BRDF.
+    """
+
+    def __init__(self, base, albedo, floors, camera, faces=None, where="--albedo"):
+        self.base, self.albedo, self.camera = base, np.asarray(albedo, np.float32), camera
+        self.floors = np.atleast_2d(np.asarray(floors, float))
+        self.faces = None if faces is None else np.asarray(faces, float)
+        self.where = where
+
+    def point_delta(self, surface, camera):
+        """(N, 3) delta = A/pi - f_k at the points of a capture.Surface seen from `camera`."""
+        from render.scene_render import MaterialMap
+        if _camera_key(camera) == _camera_key(self.camera):
+            albedo = self.albedo[surface.rows, surface.cols].astype(float)
+        elif self.faces is not None and surface.face is not None:
+            albedo = self.faces[surface.face]
+        else:
+            raise InputError(self.where, "a reference photo from another camera needs an albedo "
+                                         "per face (ALBEDO.faces.npy, written for mesh geometry)")
+        labels = (self.base.point_labels(surface, camera) if isinstance(self.base, MaterialMap)
+                  else np.ones(len(albedo), np.int64))
+        floors = self.floors[np.clip(labels, 1, len(self.floors)) - 1]
+        known = np.any(albedo > 0, axis=1)
+        return np.where(known[:, None], albedo / np.pi - floors, 0.0)
+
+    def render(self, surface, camera, render_with):
+        """Values (N, 3) of the points: render_with(model) renders the surface with a model."""
+        values = render_with(self.base)
+        delta = self.point_delta(surface, camera)
+        if not np.any(delta):
+            return values
+        unit = render_with(Lambert(np.pi))   # rho = 1 / sr
+        return np.maximum(values + unit * delta, 0.0)
