@@ -17,6 +17,7 @@ from infer.gp import loo_bin_variance
 from infer.common import (AnchoredSpace, InferenceMethod, LinearSpace, anchor_log_correction,
                           anchor_to_slice, check_slice, clip_to_range, scatter_valid,
                           stream_combination, valid_flat_3d, valid_mask_2d)
+from infer.row_blend import ROW_BLEND_DEG, RowBlendSpace, blend_toward_row
 
 
 def _model_class():
@@ -62,15 +63,17 @@ class DSGPLVMMethod(InferenceMethod):
     latent "backprojection" (the paper, Eq. 9) or "optimise" (ablation without back-constraints at
     test time: x* maximises the 1D GP's predictive density of the observed slice bins).
     anchor: False (the paper) or True, our addition: the prediction is corrected along theta_h so
-    its theta_d = 0 row passes through the observed slice (infer.common.anchor_to_slice). The 3D
-    prediction takes the correction computed on the 2D prediction, so both views agree.
+    its theta_d = 0 row passes through the observed slice (infer.common.anchor_to_slice), then
+    blended toward the observed row's flat extension near theta_d = 0 over row_blend_deg degrees
+    (infer.row_blend; 0 switches the blend off). The 3D prediction takes the correction computed on
+    the 2D prediction, so both views agree.
     """
     name = "dsgplvm"
     representation = "absolute"
 
     def __init__(self, q=None, beta=50.0, feature_space="lab", views=("1d", "2d"), seed=0,
                  latent="backprojection", model=None, anchor=False, representation="absolute",
-                 calibration=1.0, **model_kw):
+                 calibration=1.0, row_blend_deg=ROW_BLEND_DEG, **model_kw):
         if representation != "absolute":
             raise ValueError("DSGPLVMMethod is the absolute representation; see infer.dsgplvm_method")
         self.q, self.beta, self.feature_space = q, beta, feature_space
@@ -79,6 +82,7 @@ class DSGPLVMMethod(InferenceMethod):
             raise ValueError(f"latent must be 'backprojection' or 'optimise', not {latent!r}")
         self.latent = latent
         self.anchor = bool(anchor)
+        self.row_blend_deg = float(row_blend_deg)
         self.calibration = calibration
         self.model = model  # an already fitted DSGPLVM (e.g. loaded from a file); fit never changes it
 
@@ -91,7 +95,8 @@ class DSGPLVMMethod(InferenceMethod):
         return {"representation": self.representation,
                 "q": self.q, "beta": self.beta, "feature_space": self.feature_space,
                 "views": list(self.views), "seed": self.seed, "latent": self.latent,
-                "anchor": self.anchor, "calibration": self.calibration, **self.model_kw}
+                "anchor": self.anchor, "row_blend_deg": self.row_blend_deg,
+                "calibration": self.calibration, **self.model_kw}
 
     def view_features(self, training, features_2d=None):
         """{view: (N, D_v) features}; features_2d: table_features of the 2D tables if at hand."""
@@ -149,7 +154,8 @@ class DSGPLVMMethod(InferenceMethod):
     def predict(self, flash_slice, view="2d"):
         table, variance = super().predict(flash_slice, view)
         if self.anchor and view == "2d":  # 3D: anchored in combination()
-            table = anchor_to_slice(table, check_slice(flash_slice))
+            rho = check_slice(flash_slice)
+            table = blend_toward_row(anchor_to_slice(table, rho), rho, self.row_blend_deg)
         return table, variance
 
     def _predict_2d(self, rho):
@@ -198,6 +204,7 @@ class DSGPLVMMethod(InferenceMethod):
         if self.anchor:
             log_c = anchor_log_correction(self._predict_2d(rho)[0][:, 0], rho)
             space = space if log_c is None else AnchoredSpace(space, log_c)
+            space = RowBlendSpace(space, rho, self.row_blend_deg)
         return np.asarray(weights, float), space, var
 
 
