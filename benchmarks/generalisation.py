@@ -246,8 +246,14 @@ def main(argv=None):
     p.add_argument("--methods", default=",".join(METHODS))
     p.add_argument("--merl-quick", action="store_true")
     p.add_argument("--ball", metavar="MODEL")
+    p.add_argument("--fold-runs", default=None, metavar="K,K",
+                   help="compute only these folds (default all): split one run over processes")
+    p.add_argument("--merge", nargs="+", metavar="JSON",
+                   help="combine the JSON of such parts (same seed and folds) into one result")
     p.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     args = p.parse_args(argv)
+    if args.merge:
+        return merge_parts(args.merge, Path(args.out))
     merl_set = TrainingSet.from_merl_dir(args.merl_dir)
     test = TrainingSet.from_merl_dir(args.test_dir)
     result = {"command": "PYTHONPATH=$PWD nice -n 10 python benchmarks/generalisation.py "
@@ -268,7 +274,11 @@ def main(argv=None):
         order = np.random.default_rng(args.seed).permutation(len(test))
         folds = np.array_split(order, args.folds)
         records, fit_s = [], {}
+        runs = range(args.folds) if args.fold_runs is None else \
+            [int(k) for k in args.fold_runs.split(",")]
         for k, fold in enumerate(folds):
+            if k not in runs:
+                continue
             rest = np.sort(np.concatenate([f for j, f in enumerate(folds) if j != k]))
             both = TrainingSet(list(merl_set.names) + [test.names[i] for i in rest],
                                np.concatenate([merl_set.slices, test.slices[rest]]),
@@ -276,7 +286,7 @@ def main(argv=None):
             fitted, seconds, _ = fit_all(both, args.seed, methods)
             score(fitted, test, np.sort(fold), records)
             for name, s in seconds.items():
-                fit_s[name] = fit_s.get(name, 0.0) + s / len(folds)
+                fit_s[name] = fit_s.get(name, 0.0) + s / len(runs)
             print(f"fold {k}", json.dumps(summarise(records)["dsgplvm"]), flush=True)
         result["settings"]["merl+test-folds"] = {
             "what": f"{args.folds} seeded folds of the test tables: each fold predicted by methods "
@@ -298,6 +308,38 @@ def main(argv=None):
         result["ball"] = ball(args.ball, args.merl_dir)
         print("ball", json.dumps(result["ball"]), flush=True)
         write_results(out, result)
+    print(markdown(result))
+    return 0
+
+
+def merge_parts(paths, out):
+    """One result from the JSON of runs that each did part of the work (--fold-runs, --settings):
+    records of a setting are pooled, fit seconds averaged over the parts, extras kept."""
+    parts = [json.loads(Path(p).read_text()) for p in paths]
+    result = {"command": " ; ".join(p["command"] for p in parts), "train": parts[0]["train"],
+              "test": parts[0]["test"], "settings": {}}
+    for part in parts:
+        for key in ("merl_quick", "ball", "ball_model"):
+            if key in part:
+                result[key] = part[key]
+        for setting, block in part["settings"].items():
+            into = result["settings"].setdefault(setting, {
+                "what": block["what"], "records": [], "materials": block["materials"],
+                "fit_seconds": {}, "parts": 0})
+            into["records"] += block["records"]
+            into["parts"] += 1
+            for name, sec in block["fit_seconds"].items():
+                into["fit_seconds"][name] = into["fit_seconds"].get(name, 0.0) + sec
+            if "params" in block:
+                into["params"] = block["params"]
+    for block in result["settings"].values():
+        n_parts = block.pop("parts")
+        block["fit_seconds"] = {k: v / n_parts for k, v in block["fit_seconds"].items()}
+        block["summary"] = summarise(block["records"])
+        block["check"] = band_check(block["summary"])
+    add_methods_panel(result)
+    out.mkdir(parents=True, exist_ok=True)
+    write_results(out, result)
     print(markdown(result))
     return 0
 
