@@ -17,12 +17,20 @@ a seeded 80/20 split of the training tables, never the test tables), including t
 variance calibration κ. Also reported: the share of held-out (θh, θd > 0, channel) bins inside the
 central 90% interval of the default method, the novelty warnings, and prediction / fit times.
 "dsgplvm-relative" is the relative representation (infer.relative), scored beside the default.
+--methods picks a subset (the default "dsgplvm" and the baselines are always needed for the ratios).
+
+So that the three accuracy checks of issue 11 come from one run, the same run can also do
+- --merl-quick: the MERL protocol of `flashbrdf evaluate --quick` (experiment 0, 2D only) on
+  --merl-dir (experiments.evaluate.run_evaluation), every method's six 2D Table 1 errors;
+- --ball MODEL: benchmarks/diligent_ball.py with that model (the shipped default; needs
+  ../shared/data/real), every method's ΔE-log over the 95 other lights.
 Writes OUT/generalisation.{json,md}.
 """
 
 import argparse
 import json
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -32,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from brdf import merl, metrics  # noqa: E402
 from infer import TrainingSet, make_method, novelty_warning  # noqa: E402
 from infer.adapter import standardised_residuals  # noqa: E402
-from experiments.evaluate import PAPER_FIXED  # noqa: E402
+from experiments.evaluate import PAPER_FIXED, run_evaluation  # noqa: E402
 from infer.model_selection import tune_baselines  # noqa: E402
 
 BANDS_DEG = ((0, 30), (30, 60), (60, 75), (75, 90))
@@ -59,13 +67,13 @@ def interval_hits(method, rho, true, coverage=0.9):
     return int((z <= norm.ppf(0.5 + coverage / 2)).sum()), int(z.size)
 
 
-def fit_all(training, seed):
+def fit_all(training, seed, methods=METHODS):
     """{method: fitted estimator}, {method: fit seconds}, hyperparameters as `flashbrdf train`."""
     t0 = time.perf_counter()
     params = tune_baselines(training, seed=seed)
     tune_s = time.perf_counter() - t0
     fitted, seconds = {}, {}
-    for name in METHODS:
+    for name in methods:
         if name == "dsgplvm":
             kw = params["dsgplvm"] | {"anchor": True, "seed": seed}
         elif name == "dsgplvm-paper":
@@ -127,7 +135,8 @@ def markdown(result):
                   "| method | 2D LAB-log mean / median | " + " | ".join(
                       f"θd {a}–{b}°" for a, b in BANDS_DEG) + " | predict ms |",
                   "|---|---|" + "---|" * len(BANDS_DEG) + "---|"]
-        for name in METHODS:
+        present = [m for m in METHODS if m in s]
+        for name in present:
             r = s[name]
             lines.append(f"| {name} | {r['lab_log_mean']:.2f} / {r['lab_log_median']:.2f} | "
                          + " | ".join(f"{v:.2f}" for v in r["bands_mean"])
@@ -141,13 +150,79 @@ def markdown(result):
                   f"- Novelty warnings: {d['warned']} of {d['materials']} materials.",
                   "- Fit seconds: " + ", ".join(f"{k} {v:.0f}" for k, v in
                                                   block["fit_seconds"].items()), ""]
-        lines += ["| material | " + " | ".join(METHODS) + " |",
-                  "|---|" + "---|" * len(METHODS)]
+        lines += ["| material | " + " | ".join(present) + " |",
+                  "|---|" + "---|" * len(present)]
         for mat in block["materials"]:
             row = {r["method"]: r["lab_log"] for r in block["records"] if r["material"] == mat}
-            lines.append(f"| {mat} | " + " | ".join(f"{row[m]:.2f}" for m in METHODS) + " |")
+            lines.append(f"| {mat} | " + " | ".join(f"{row[m]:.2f}" for m in present) + " |")
         lines.append("")
+    lines += checks_markdown(result)
     return "\n".join(lines)
+
+
+def band_check(summary):
+    """Issue 11's RGL checks for one setting: {ratio_mean, ratio_median (to the best baseline by
+    mean), band_ratios (dsgplvm over the best baseline of each θd band)}."""
+    d = summary["dsgplvm"]
+    best = min(BASELINES, key=lambda m: summary[m]["lab_log_mean"])
+    best_band = np.min([summary[m]["bands_mean"] for m in BASELINES], axis=0)
+    return {"best": best, "ratio_mean": d["lab_log_mean"] / summary[best]["lab_log_mean"],
+            "ratio_median": d["lab_log_median"] / summary[best]["lab_log_median"],
+            "band_ratios": (np.array(d["bands_mean"]) / best_band).tolist()}
+
+
+def merl_quick(merl_dir, seed):
+    """The MERL protocol of `flashbrdf evaluate --quick` (experiment 0), 2D only: {method:
+    {metric: {mean, median}}} with metric each of Table 1's six."""
+    with tempfile.TemporaryDirectory() as folder:
+        result = run_evaluation(merl_dir, folder, quick=True, experiments_3d=0, seed=seed,
+                                command="flashbrdf evaluate --quick (experiment 0, 2D)")
+    return {m: {k: {"mean": v["mean"], "median": v["median"]} for k, v in errs.items()}
+            for m, errs in result["summary"]["2d"].items()}
+
+
+def ball(model, merl_dir):
+    """benchmarks/diligent_ball.py with `model`: {method: ΔE-log mean over the 95 lights}."""
+    from benchmarks import diligent_ball
+    from benchmarks._real_common import RESULTS
+    with tempfile.TemporaryDirectory() as work:
+        try:
+            rc = diligent_ball.main(["--model", str(model), "--merl-dir", str(merl_dir),
+                                     "--work", work])
+        except SystemExit as stop:          # a stage failed (e.g. no ../shared/data/real)
+            print(f"ball: {stop}", flush=True)
+            return {}
+    if rc:
+        return {}
+    result = json.loads((RESULTS / "diligent_ball.json").read_text())
+    return {m: info["delta_e_log_mean"]["mean"] for m, info in result["methods"].items()}
+
+
+def checks_markdown(result):
+    """The side-by-side block of issue 11's numbers, from this one run."""
+    lines = ["## Issue 11's checks, side by side (this run)", ""]
+    for setting, block in result["settings"].items():
+        c = block["check"]
+        lines.append(f"- RGL {setting}: dsgplvm / {c['best']} mean {c['ratio_mean']:.2f}×, median "
+                     f"{c['ratio_median']:.2f}× (target ≤ 0.90×); θd bands over the best baseline "
+                     "of each band " + " / ".join(f"{v:.2f}×" for v in c["band_ratios"])
+                     + " (target ≤ 1.10×).")
+    q = result.get("merl_quick")
+    if q:
+        metrics_ = ("lab_lin", "lab_root", "lab_log")
+        lines += ["", "MERL (NBRDF proxy) protocol, `evaluate --quick` (experiment 0, 20 test "
+                  "tables), 2D mean / median:", "",
+                  "| method | " + " | ".join(metrics_) + " |", "|---|" + "---|" * len(metrics_)]
+        for m, errs in q.items():
+            lines.append(f"| {m} | " + " | ".join(
+                f"{errs[k]['mean']:.2f} / {errs[k]['median']:.2f}" for k in metrics_) + " |")
+    b = result.get("ball")
+    if b:
+        lines += ["", "DiLiGenT ball (benchmarks/diligent_ball.py, model " + result["ball_model"]
+                  + "), ΔE-log mean over 95 lights: "
+                  + ", ".join(f"{m} {v:.2f}" for m, v in b.items()) + "."]
+    lines.append("")
+    return lines
 
 
 def add_methods_panel(result):
@@ -169,16 +244,26 @@ def main(argv=None):
     p.add_argument("--folds", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--settings", default="merl-only,merl+test-folds")
+    p.add_argument("--methods", default=",".join(METHODS))
+    p.add_argument("--merl-quick", action="store_true")
+    p.add_argument("--ball", metavar="MODEL")
+    p.add_argument("--fold-runs", default=None, metavar="K,K",
+                   help="compute only these folds (default all): split one run over processes")
+    p.add_argument("--merge", nargs="+", metavar="JSON",
+                   help="combine the JSON of such parts (same seed and folds) into one result")
     p.add_argument("--out", default=str(Path(__file__).resolve().parent / "results"))
     args = p.parse_args(argv)
+    if args.merge:
+        return merge_parts(args.merge, Path(args.out))
     merl_set = TrainingSet.from_merl_dir(args.merl_dir)
     test = TrainingSet.from_merl_dir(args.test_dir)
     result = {"command": "PYTHONPATH=$PWD nice -n 10 python benchmarks/generalisation.py "
                          + " ".join(sys.argv[1:] if argv is None else argv),
               "train": "MERL (NBRDF proxy)", "test": "RGL (NBRDF proxy)", "settings": {}}
     wanted = args.settings.split(",")
+    methods = [m for m in METHODS if m in args.methods.split(",") + ["dsgplvm", *BASELINES]]
     if "merl-only" in wanted:
-        fitted, seconds, params = fit_all(merl_set, args.seed)
+        fitted, seconds, params = fit_all(merl_set, args.seed, methods)
         records = []
         score(fitted, test, range(len(test)), records)
         result["settings"]["merl-only"] = {
@@ -190,28 +275,79 @@ def main(argv=None):
         order = np.random.default_rng(args.seed).permutation(len(test))
         folds = np.array_split(order, args.folds)
         records, fit_s = [], {}
+        runs = range(args.folds) if args.fold_runs is None else \
+            [int(k) for k in args.fold_runs.split(",")]
         for k, fold in enumerate(folds):
+            if k not in runs:
+                continue
             rest = np.sort(np.concatenate([f for j, f in enumerate(folds) if j != k]))
             both = TrainingSet(list(merl_set.names) + [test.names[i] for i in rest],
                                np.concatenate([merl_set.slices, test.slices[rest]]),
                                np.concatenate([merl_set.tables_2d, test.tables_2d[rest]]))
-            fitted, seconds, _ = fit_all(both, args.seed)
+            fitted, seconds, _ = fit_all(both, args.seed, methods)
             score(fitted, test, np.sort(fold), records)
             for name, s in seconds.items():
-                fit_s[name] = fit_s.get(name, 0.0) + s / len(folds)
+                fit_s[name] = fit_s.get(name, 0.0) + s / len(runs)
             print(f"fold {k}", json.dumps(summarise(records)["dsgplvm"]), flush=True)
         result["settings"]["merl+test-folds"] = {
             "what": f"{args.folds} seeded folds of the test tables: each fold predicted by methods "
                     f"trained on MERL plus the other folds (never on the fold itself).",
             "fit_seconds": fit_s, "records": records, "materials": list(test.names),
             "summary": summarise(records)}
+    for block in result["settings"].values():
+        block["check"] = band_check(block["summary"])
     add_methods_panel(result)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "generalisation.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
-    (out / "generalisation.md").write_text(markdown(result) + "\n")
+    write_results(out, result)                 # the RGL tables survive a failure below
+    if args.merl_quick:
+        result["merl_quick"] = merl_quick(args.merl_dir, args.seed)
+        print("merl quick", json.dumps(result["merl_quick"].get("dsgplvm")), flush=True)
+        write_results(out, result)
+    if args.ball:
+        result["ball_model"] = args.ball
+        result["ball"] = ball(args.ball, args.merl_dir)
+        print("ball", json.dumps(result["ball"]), flush=True)
+        write_results(out, result)
     print(markdown(result))
     return 0
+
+
+def merge_parts(paths, out):
+    """One result from the JSON of runs that each did part of the work (--fold-runs, --settings):
+    records of a setting are pooled, fit seconds averaged over the parts, extras kept."""
+    parts = [json.loads(Path(p).read_text()) for p in paths]
+    result = {"command": " ; ".join(p["command"] for p in parts), "train": parts[0]["train"],
+              "test": parts[0]["test"], "settings": {}}
+    for part in parts:
+        for key in ("merl_quick", "ball", "ball_model"):
+            if key in part:
+                result[key] = part[key]
+        for setting, block in part["settings"].items():
+            into = result["settings"].setdefault(setting, {
+                "what": block["what"], "records": [], "materials": block["materials"],
+                "fit_seconds": {}, "parts": 0})
+            into["records"] += block["records"]
+            into["parts"] += 1
+            for name, sec in block["fit_seconds"].items():
+                into["fit_seconds"][name] = into["fit_seconds"].get(name, 0.0) + sec
+            if "params" in block:
+                into["params"] = block["params"]
+    for block in result["settings"].values():
+        n_parts = block.pop("parts")
+        block["fit_seconds"] = {k: v / n_parts for k, v in block["fit_seconds"].items()}
+        block["summary"] = summarise(block["records"])
+        block["check"] = band_check(block["summary"])
+    add_methods_panel(result)
+    out.mkdir(parents=True, exist_ok=True)
+    write_results(out, result)
+    print(markdown(result))
+    return 0
+
+
+def write_results(out, result):
+    (out / "generalisation.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
+    (out / "generalisation.md").write_text(markdown(result) + "\n")
 
 
 if __name__ == "__main__":

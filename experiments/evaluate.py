@@ -33,7 +33,7 @@ from experiments.report import PAPER_TABLE1, summarise_errors, write_markdown, w
 PAPER = "dsgplvm-paper"                          # the paper's DS-GPLVM, scored from the same fits
 PAPER_FIXED = {"feature_space": "lab", "anchor": False}
 METHOD_ORDER = ("chandraker", "ashikhmin", "noll", "pca", "oracle", "dsgplvm", PAPER)
-PREDICTION_ONLY = ("anchor", "latent")           # switches that need no refit
+PREDICTION_ONLY = ("anchor", "latent", "row_blend_deg")  # switches that need no refit
 ORACLE_GRID = {"ridge": [1e-6, 1e-2, 1.0]}
 QUICK_DS_GRID = {"q": [None], "beta": [50.0], "feature_space": ["lab", "rgb"],
                  "max_cycles": [10]}  # smoke run: short ADM

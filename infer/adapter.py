@@ -20,6 +20,7 @@ from infer.gp import loo_bin_variance
 from brdf.bins import scatter_valid, valid_flat_3d, valid_mask_2d
 from infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
 from infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_combination
+from infer.row_blend import ROW_BLEND_DEG, RowBlendSpace, blend_toward_row
 from infer.slices import check_slice
 
 
@@ -61,8 +62,10 @@ class DSGPLVMMethod(InferenceMethod):
     latent "backprojection" (the paper, Eq. 9) or "optimise" (ablation without back-constraints at
     test time: x* maximises the 1D GP's predictive density of the observed slice bins).
     anchor: False (the paper) or True, our addition: the prediction is corrected along theta_h so
-    its theta_d = 0 row passes through the observed slice (infer.anchoring.anchor_to_slice). The 3D
-    prediction takes the correction computed on the 2D prediction, so both views agree.
+    its theta_d = 0 row passes through the observed slice (infer.anchoring.anchor_to_slice), then
+    blended toward the observed row's flat extension near theta_d = 0 over row_blend_deg degrees
+    (infer.row_blend; 0 switches the blend off). The 3D prediction takes the correction computed on
+    the 2D prediction, so both views agree.
     A DSGPLVM trained before (read from a model file) is used through `from_model`, not `fit`.
     """
     name = "dsgplvm"
@@ -70,7 +73,7 @@ class DSGPLVMMethod(InferenceMethod):
 
     def __init__(self, q=None, beta=50.0, feature_space="lab", views=("1d", "2d"), seed=0,
                  latent="backprojection", anchor=False, representation="absolute",
-                 calibration=1.0, **model_kw):
+                 calibration=1.0, row_blend_deg=ROW_BLEND_DEG, **model_kw):
         if representation != "absolute":
             raise ValueError("DSGPLVMMethod is the absolute representation; see infer.dsgplvm_method")
         if latent not in ("backprojection", "optimise"):
@@ -78,6 +81,7 @@ class DSGPLVMMethod(InferenceMethod):
         self.q, self.beta, self.feature_space = q, beta, feature_space
         self.views, self.seed, self.latent = views, seed, latent
         self.anchor, self.representation, self.calibration = anchor, representation, calibration
+        self.row_blend_deg = row_blend_deg
         self.model_kw = model_kw
 
     @property
@@ -155,7 +159,8 @@ class DSGPLVMMethod(InferenceMethod):
     def predict(self, flash_slice, view="2d"):
         table, variance = super().predict(flash_slice, view)
         if self.anchor and view == "2d":  # 3D: anchored in combination()
-            table = anchor_to_slice(table, check_slice(flash_slice))
+            rho = check_slice(flash_slice)
+            table = blend_toward_row(anchor_to_slice(table, rho), rho, self.row_blend_deg)
         return table, variance
 
     def _predict_2d(self, rho):
@@ -204,6 +209,7 @@ class DSGPLVMMethod(InferenceMethod):
         if self.anchor:
             log_c = anchor_log_correction(self._predict_2d(rho)[0][:, 0], rho)
             space = space if log_c is None else AnchoredSpace(space, log_c)
+            space = RowBlendSpace(space, rho, self.row_blend_deg)
         return np.asarray(weights, float), space, var
 
 

@@ -48,7 +48,8 @@ def _parser():
                         "several folders)")
     s.add_argument("--no-anchor", action="store_true",
                    help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
-                        "theta_h to pass through the observed slice, carried over theta_d")
+                        "theta_h to pass through the observed slice, carried over theta_d, and "
+                        "blended toward the observed row near theta_d = 0")
     s.add_argument("--view", default="auto", choices=["auto", "2d", "3d"],
                    help="predict 2D (copied across phi_d) or 3D; auto: 3D when training tables "
                         "are at hand")
@@ -149,7 +150,8 @@ def _add_run_options(s):
                         "with it (textured materials)")
     s.add_argument("--no-anchor", action="store_true",
                    help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
-                        "theta_h to pass through the observed slice, carried over theta_d")
+                        "theta_h to pass through the observed slice, carried over theta_d, and "
+                        "blended toward the observed row near theta_d = 0")
     s.add_argument("--export", action="store_true",
                    help="also export the default method's BRDF (flashbrdf export) into OUT_DIR/export "
                         "and render its Principled fit beside the tabulated BRDF")
