@@ -110,11 +110,15 @@ def read_model(path, merl_dir=None):
     if training.valid_3d is None and merl_dir is not None:
         found = merl.list_merl_dirs(merl_dir)
         missing = [n for n in names if n not in found]
-        if missing:
+        if len(missing) == len(names):
             where = merl_dir if isinstance(merl_dir, (str, os.PathLike)) else ", ".join(
                 map(str, merl_dir))
-            raise InputError(where, f"lacks training tables of the model: {', '.join(missing[:5])}")
-        training.paths = [found[n] for n in names]
+            raise InputError(where, f"holds none of the model's training tables "
+                                    f"(e.g. {', '.join(missing[:3])})")
+        # A model trained on several folders (e.g. MERL + a user's own tables) read with only
+        # some of them: the absent tables stand in by their stored 2D tables copied across phi_d
+        # (TrainingSet.table_3d_valid), and the caller warns (TrainingSet.missing_3d).
+        training.paths = [found.get(n) for n in names]
     return training, params, blob
 
 

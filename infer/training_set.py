@@ -68,6 +68,13 @@ class TrainingSet:
                            None if self.paths is None else [self.paths[i] for i in index],
                            None if self.valid_3d is None else self.valid_3d[index])
 
+    @property
+    def missing_3d(self):
+        """Names of the materials whose 3D table is not at hand (their 2D table stands in)."""
+        if self.valid_3d is not None or self.paths is None:
+            return []
+        return [n for n, p in zip(self.names, self.paths) if p is None]
+
     def has_3d(self):
         return self.valid_3d is not None or self.paths is not None
 
@@ -78,4 +85,7 @@ class TrainingSet:
         if self.paths is None:
             raise InputError("--merl-dir", "3D prediction needs the training tables: give --merl-dir "
                              "or train with --views 1d,2d,3d")
+        if self.paths[i] is None:  # its 3D table was not found: the 2D table across phi_d
+            ih, jd, _ = valid_bins_3d()
+            return np.nan_to_num(np.asarray(self.tables_2d[i][ih, jd], dtype=dtype))
         return merl.read_merl_bins(self.paths[i], valid_flat_3d(), dtype)

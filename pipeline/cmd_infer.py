@@ -80,6 +80,12 @@ def infer(args):
     elif view == "3d" and not has_3d:
         raise InputError("--merl-dir", "a 3D prediction from a model without stored 3D data needs "
                          "--merl-dir")
+    training = getattr(method, "training_", None)
+    missing = training.missing_3d if view == "3d" and training is not None else []
+    if missing:
+        print(f"warning: {len(missing)} of the model's training tables are not in --merl-dir "
+              f"(e.g. {', '.join(missing[:3])}); their share of the 3D prediction is their 2D "
+              f"table copied across phi_d", file=sys.stderr)
     t1 = time.perf_counter()
     table, variance = method.predict(rho, view=view)
     t2 = time.perf_counter()
@@ -96,6 +102,7 @@ def infer(args):
               "slice": str(args.slice), "view": view,
               "predicted": "3D table" if view == "3d" else "2D table copied across phi_d",
               "observed_theta_h_bins": int(np.isfinite(rho).all(axis=1).sum()),
+              "training_tables_2d_only": missing,
               "params": method.fitted_params(),
               "timings": {"load_s": t1 - t0, "predict_s": t2 - t1, "write_s": t3 - t2,
                           "total_s": t3 - t0},

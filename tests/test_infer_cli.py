@@ -142,3 +142,34 @@ def test_anchored_3d_carries_the_2d_correction_over_theta_d_and_phi_d(trained):
     blended = load_method(model, "dsgplvm", merl_dir=folder, anchor=1)
     b2, b3 = blended.predict(rho, "2d")[0], blended.predict(rho, "3d")[0]
     np.testing.assert_allclose(np.nanmean(b3[:, 0], axis=1), b2[:, 0], rtol=2e-4)
+
+
+def test_infer_3d_with_one_of_two_training_folders(merl_proxy, trained, tmp_path, capsys):
+    """A model trained on two folders, read with only the first: the absent tables stand in by
+    their 2D tables copied across φd. Made φd-constant on purpose, so the stand-in is exact and
+    the two 3D predictions must agree: rtol 1e-5 for float32 rows, atol 1e-6 1/sr for the file
+    round trip's rounding, far below the metrics' 1e-3 1/sr log offset."""
+    folder, _, slice_csv = trained
+    flat = tmp_path / "flat"
+    flat.mkdir()
+    for p in merl_proxy("pink-felt", "chrome"):
+        merl.write_merl(flat / p.name, views.table_3d_from_2d(views.table_2d(merl.read_merl(p))))
+    model = tmp_path / "model2.npz"
+    assert main(["train", "--merl-dir", str(folder), "--merl-dir", str(flat), "--out", str(model)]) == 0
+    both, one = tmp_path / "both.binary", tmp_path / "one.binary"
+    common = ["infer", "--model", str(model), "--slice", str(slice_csv), "--method", "pca"]
+    assert main(common + ["--merl-dir", str(folder), "--merl-dir", str(flat), "--out", str(both)]) == 0
+    capsys.readouterr()
+    assert main(common + ["--merl-dir", str(folder), "--out", str(one)]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "2 of the model's training tables" in err[0]
+    assert json.loads(one.with_suffix(".json").read_text())["training_tables_2d_only"] == \
+        ["chrome", "pink-felt"]
+    ok = merl.merl_valid_mask()
+    np.testing.assert_allclose(merl.read_merl(one)[ok], merl.read_merl(both)[ok], rtol=1e-5,
+                               atol=1e-6)
+    # a folder holding none of the model's tables is still refused
+    empty = tmp_path / "other"
+    empty.mkdir()
+    shutil.copy(merl_proxy("black-obsidian"), empty / "black-obsidian.binary")
+    assert main(common + ["--merl-dir", str(empty), "--out", str(tmp_path / "x.binary")]) == 2
