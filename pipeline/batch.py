@@ -15,7 +15,9 @@ once on another worker (dask_engine.ALLOWED_FAILURES); then the capture is recor
 input in one capture (InputError) is recorded as failed at once, since a retry would fail the same.
 
 Each worker process reads the model once (cached on path, size and mtime) and keeps it for its
-next captures. What `run` prints goes to OUT_DIR/logs/<subfolder>.log, not to the terminal; the
+next captures. A local cluster has at most one worker per capture to run, and shares the cores
+out between its workers (dask_engine); the largest captures are submitted with the highest
+priority, so that the last one to finish is a small one. What `run` prints goes to OUT_DIR/logs/<subfolder>.log, not to the terminal; the
 terminal shows one progress bar over captures. OUT_DIR/summary.csv and summary.md give one row per
 capture. Exit 0 when all succeeded, 1 when any failed, 2 when CAPTURES_DIR holds no capture.
 """
@@ -187,8 +189,10 @@ def run_capture(scene_dir, out_dir, options):
     worker = f"{socket.gethostname()}:{os.getpid()}"
     staging = out_dir / f".{name}.partial-{uuid.uuid4().hex[:8]}"
     start = time.perf_counter()
-    with _output_to(out_dir / LOG_DIR / f"{name}.log") as log, dask_engine.single_threaded():
-        print(f"--- {time.strftime('%Y-%m-%d %H:%M:%S')} {name}: started on {worker}", file=log)
+    with _output_to(out_dir / LOG_DIR / f"{name}.log") as log, \
+            dask_engine.worker_threads() as threads:
+        print(f"--- {time.strftime('%Y-%m-%d %H:%M:%S')} {name}: started on {worker}, "
+              f"{threads} thread(s)", file=log)
         try:
             run(argparse.Namespace(scene_dir=str(scene_dir), out=str(staging), **options),
                 load_methods=cached_load_methods)
@@ -265,15 +269,22 @@ def write_summary(out_dir, rows, header_lines=()):
     write_text(Path(out_dir) / "summary.md", "\n".join(lines) + "\n")
 
 
+def capture_bytes(capture_dir):
+    """Bytes of the files in a capture folder (int): its photos dominate, and a capture's run
+    time grows with its pixels and photos, so this orders the captures largest first."""
+    return sum(p.stat().st_size for p in Path(capture_dir).rglob("*") if p.is_file())
+
+
 def _run_tasks(client, todo, out_dir, options):
-    """Submit one task per capture; -> {name: row} as they finish, with a progress bar."""
+    """Submit one task per capture, the largest first (a large one started last would leave
+    the other workers idle at the end); -> {name: row} as they finish, with a progress bar."""
     from distributed import as_completed
     from tqdm import tqdm
     token = uuid.uuid4().hex[:8]
     # Absolute paths (not resolved: a symlinked capture keeps its name): workers elsewhere see
     # the same shared filesystem, not our working directory.
     futures = {client.submit(run_capture, str(c.absolute()), str(Path(out_dir).absolute()),
-                             options, retries=1, pure=False,
+                             options, retries=1, pure=False, priority=capture_bytes(c),
                              key=f"batch-{c.name}-{token}"): c.name for c in todo}
     rows = {}
     total = len(futures)
@@ -327,7 +338,11 @@ def batch(args):
             todo.append(c)
     if todo:
         try:
-            with dask_engine.dask_client(args.workers, args.scheduler) as client:
+            # Never more local workers than captures to run: a spare worker would cost its
+            # start-up and hold cores the busy ones' render threads can use.
+            workers = None if args.scheduler else min(args.workers or os.cpu_count() or 1,
+                                                      len(todo))
+            with dask_engine.dask_client(workers, args.scheduler) as client:
                 n_workers = len(client.scheduler_info().get("workers", {}))
                 rows |= _run_tasks(client, todo, out, options)
         finally:
