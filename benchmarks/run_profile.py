@@ -83,7 +83,7 @@ def import_times(text, top=12):
     rows = []
     for line in text.splitlines():
         m = re.match(r"import time:\s+(\d+) \|\s+(\d+) \| (\s*)(\S+)", line)
-        if m and len(m.group(3)) == 1:  # one space: imported by the program itself
+        if m and not m.group(3):  # not indented: imported by the program itself
             rows.append((m.group(4), int(m.group(2)) / 1e6))
     total = sum(s for _, s in rows)
     rows.sort(key=lambda r: -r[1])

@@ -43,7 +43,7 @@ from pipeline import dask_engine
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
-SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "worker")
+SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "cpu_seconds", "worker")
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor")
 
 
@@ -158,10 +158,12 @@ def _output_to(log_file):
             sys.stdout.local.file = sys.stderr.local.file = None
 
 
-def _row_from_report(name, report, seconds, worker):
-    """The summary row of one finished capture from its report.json (dict)."""
+def _row_from_report(name, report, seconds, cpu_seconds, worker):
+    """The summary row of one finished capture from its report.json (dict). seconds: wall;
+    cpu_seconds: the worker process's CPU time (user + system) over the capture, which a loaded
+    machine does not inflate as it does the wall time."""
     row = {"capture": name, "status": "ok", "reason": "", "seconds": round(seconds, 3),
-           "worker": worker, "delta_e_log": {}}
+           "cpu_seconds": round(cpu_seconds, 3), "worker": worker, "delta_e_log": {}}
     for method, s in report.get("summary", {}).items():
         row["delta_e_log"][method] = s.get("delta_e_log_mean", {}).get("mean")
     for r in report.get("references", []):
@@ -173,7 +175,8 @@ def failed_row(name, reason, seconds=None, worker=""):
     """The summary row of a failed capture; `reason` is cut to its first line."""
     lines = str(reason).strip().splitlines()
     return {"capture": name, "status": "failed", "reason": lines[0] if lines else "failed",
-            "seconds": None if seconds is None else round(seconds, 3), "worker": worker,
+            "seconds": None if seconds is None else round(seconds, 3), "cpu_seconds": None,
+            "worker": worker,
             "delta_e_log": {}}
 
 
@@ -188,7 +191,7 @@ def run_capture(scene_dir, out_dir, options):
     out_dir = Path(out_dir)
     worker = f"{socket.gethostname()}:{os.getpid()}"
     staging = out_dir / f".{name}.partial-{uuid.uuid4().hex[:8]}"
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     with _output_to(out_dir / LOG_DIR / f"{name}.log") as log, \
             dask_engine.worker_threads() as threads:
         print(f"--- {time.strftime('%Y-%m-%d %H:%M:%S')} {name}: started on {worker}, "
@@ -198,7 +201,8 @@ def run_capture(scene_dir, out_dir, options):
                 load_methods=cached_load_methods)
             seconds = time.perf_counter() - start
             report = json.loads((staging / "report.json").read_text())
-            row = _row_from_report(name, report, seconds, worker)
+            row = _row_from_report(name, report, seconds, time.process_time() - cpu_start,
+                                   worker)
             write_text(staging / MARKER, json.dumps(row, indent=1) + "\n")
             _publish(staging, out_dir / name)
         except InputError as err:
@@ -209,7 +213,7 @@ def run_capture(scene_dir, out_dir, options):
             shutil.rmtree(staging, ignore_errors=True)
             traceback.print_exc(file=log)
             raise
-        print(f"done in {seconds:.1f} s", file=log)
+        print(f"done in {seconds:.1f} s ({row['cpu_seconds']:.1f} s of CPU)", file=log)
     return row
 
 
@@ -255,7 +259,7 @@ def write_summary(out_dir, rows, header_lines=()):
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(list(SUMMARY_FIELDS) + [f"delta_e_log {c}" for c in columns])
     for r in rows:
-        writer.writerow([r[f] if r[f] is not None else "" for f in SUMMARY_FIELDS]
+        writer.writerow([r.get(f) if r.get(f) is not None else "" for f in SUMMARY_FIELDS]
                         + [repr(r["delta_e_log"][c]) if r["delta_e_log"].get(c) is not None
                            else "" for c in columns])
     write_text(Path(out_dir) / "summary.csv", buffer.getvalue())
@@ -263,7 +267,7 @@ def write_summary(out_dir, rows, header_lines=()):
     lines = ["# flashbrdf batch summary", "", *header_lines, "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
-        cells = [_cell(r[f]).replace("|", "\\|") for f in SUMMARY_FIELDS]
+        cells = [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_FIELDS]
         cells += [_cell(r["delta_e_log"].get(c)) for c in columns]
         lines.append("| " + " | ".join(cells) + " |")
     write_text(Path(out_dir) / "summary.md", "\n".join(lines) + "\n")

@@ -101,6 +101,10 @@ def test_two_workers_equal_sequential_runs(two_workers, sequential):
             assert float(rows[name][column]) == pytest.approx(want[key], abs=1e-9)
         assert rows[name]["status"] == "ok" and rows[name]["reason"] == ""
         assert float(rows[name]["seconds"]) > 0 and rows[name]["worker"]
+        # CPU time of a worker over its capture: at most its threads (+1 for Dask's own) busy
+        # for the whole wall time
+        assert 0 < float(rows[name]["cpu_seconds"]) <= (
+            (threads_per_worker(2) + 1) * float(rows[name]["seconds"]))
         slice_report = json.loads((out / name / "slice.json").read_text())
         assert slice_report["slice_csv"] == str((out / name / "slice.csv").resolve())
     assert not [p for p in out.iterdir() if p.name.startswith(".")]
