@@ -206,12 +206,15 @@ def write_cluster_plot(c, path):
     model = sorted((int(w), s) for w, s in c["model"]["predicted_speedup"].items())
     fig, ax = plt.subplots(figsize=(5.5, 4))
     top = max(s for _, s in model)
-    ax.plot([1, model[-1][0]], [1, model[-1][0]], ":", color="grey", label="ideal (W×)")
+    ax.plot([w for w, _ in model], [w for w, _ in model], ":", color="grey", label="ideal (W×)")
     ax.plot([w for w, _ in model], [s for _, s in model], "--", color="tab:blue",
             label=f"cluster model: {c['model']['start_s']} s + ⌈{c['captures']}/W⌉ × "
                   f"{c['model']['per_capture_s']} s (CPU)")
     ax.plot([w for w, _ in measured], [s for _, s in measured], "o-", color="tab:red",
-            label=f"measured, this {c['cores']}-core host")
+            label=f"measured, this {c['cores']}-core host (shared)")
+    for w, speedup in measured:
+        ax.annotate(f"load {c['workers'][str(w)]['load_before'][0]:.0f}", (w, speedup),
+                    textcoords="offset points", xytext=(4, -12), fontsize=7, color="tab:red")
     ax.axhline(c["cores"], color="tab:red", lw=0.8, alpha=0.5)
     ax.text(1.05, c["cores"] * 1.03, f"{c['cores']} cores: the ceiling here", color="tab:red",
             fontsize=8)
