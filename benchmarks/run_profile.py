@@ -21,13 +21,14 @@ import json
 import os
 import pstats
 import re
-import resource
 import shutil
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
+
+from batch_speed import _children_cpu, _load  # the load average and CPU seconds, as there
 
 REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results"
@@ -60,15 +61,6 @@ with threadpool_limits(1):
         seconds.append([time.process_time() - c0, time.perf_counter() - w0])
 print(json.dumps(seconds), file=sys.__stdout__)
 """
-
-
-def _load():
-    return [round(x, 2) for x in os.getloadavg()]
-
-
-def _children_cpu():
-    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return usage.ru_utime + usage.ru_stime
 
 
 def stage_table(text):
