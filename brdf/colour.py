@@ -2,8 +2,8 @@
 
 CIELAB here is colour-science's `RGB_to_XYZ` (linear sRGB, no decoding, no adaptation) followed by
 `XYZ_to_Lab` with the D65 white at Y = 1, as the contract fixes. The same arithmetic is done with
-the matrix taken once from colour-science, because the 3D tables have 4.4 M bins and the metrics
-run over hundreds of them; tests check it against colour-science itself.
+colour-science's matrix and white written out (SRGB_TO_XYZ, D65_WHITE_XYZ), because the 3D tables
+have 4.4 M bins and the metrics run over hundreds of them; tests check it against colour-science.
 """
 
 import functools
@@ -15,14 +15,18 @@ FEATURE_OFFSET = 1e-3  # 1/sr; see rho_to_features
 _DELTA = 6.0 / 29.0
 
 
+# colour-science's sRGB RGB->XYZ matrix (the IEC 61966-2-1 one, as its RGB_COLOURSPACES["sRGB"]
+# gives it) and its D65 white XYZ (Y = 1), written out: importing colour-science for them cost
+# every `run` ~0.6 s of CPU. A test checks they equal colour-science's to the last bit.
+SRGB_TO_XYZ = np.array([[0.4124, 0.3576, 0.1805],
+                        [0.2126, 0.7152, 0.0722],
+                        [0.0193, 0.1192, 0.9505]], dtype=np.float64)
+D65_WHITE_XYZ = np.array([0.9504559270516716, 1.0, 1.0890577507598784], dtype=np.float64)
+
+
 @functools.lru_cache(maxsize=1)
 def _srgb_matrices():
-    import colour  # imported lazily: it is slow to import and only its constants are needed
-
-    rgb_to_xyz = np.array(colour.RGB_COLOURSPACES["sRGB"].matrix_RGB_to_XYZ, dtype=np.float64)
-    white_xy = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
-    white = np.array(colour.xy_to_XYZ(white_xy), dtype=np.float64)
-    return rgb_to_xyz, np.linalg.inv(rgb_to_xyz), white
+    return SRGB_TO_XYZ, np.linalg.inv(SRGB_TO_XYZ), D65_WHITE_XYZ
 
 
 def srgb_encode(linear):

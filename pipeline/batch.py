@@ -15,7 +15,9 @@ once on another worker (dask_engine.ALLOWED_FAILURES); then the capture is recor
 input in one capture (InputError) is recorded as failed at once, since a retry would fail the same.
 
 Each worker process reads the model once (cached on path, size and mtime) and keeps it for its
-next captures. What `run` prints goes to OUT_DIR/logs/<subfolder>.log, not to the terminal; the
+next captures. A local cluster has at most one worker per capture to run, and shares the cores
+out between its workers (dask_engine); the largest captures are submitted with the highest
+priority, so that the last one to finish is a small one. What `run` prints goes to OUT_DIR/logs/<subfolder>.log, not to the terminal; the
 terminal shows one progress bar over captures. OUT_DIR/summary.csv and summary.md give one row per
 capture. Exit 0 when all succeeded, 1 when any failed, 2 when CAPTURES_DIR holds no capture.
 """
@@ -41,7 +43,7 @@ from pipeline import dask_engine
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
-SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "worker")
+SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "cpu_seconds", "worker")
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map")
 
 
@@ -156,10 +158,12 @@ def _output_to(log_file):
             sys.stdout.local.file = sys.stderr.local.file = None
 
 
-def _row_from_report(name, report, seconds, worker):
-    """The summary row of one finished capture from its report.json (dict)."""
+def _row_from_report(name, report, seconds, cpu_seconds, worker):
+    """The summary row of one finished capture from its report.json (dict). seconds: wall;
+    cpu_seconds: the worker process's CPU time (user + system) over the capture, which a loaded
+    machine does not inflate as it does the wall time."""
     row = {"capture": name, "status": "ok", "reason": "", "seconds": round(seconds, 3),
-           "worker": worker, "delta_e_log": {}}
+           "cpu_seconds": round(cpu_seconds, 3), "worker": worker, "delta_e_log": {}}
     for method, s in report.get("summary", {}).items():
         row["delta_e_log"][method] = s.get("delta_e_log_mean", {}).get("mean")
     for r in report.get("references", []):
@@ -171,7 +175,8 @@ def failed_row(name, reason, seconds=None, worker=""):
     """The summary row of a failed capture; `reason` is cut to its first line."""
     lines = str(reason).strip().splitlines()
     return {"capture": name, "status": "failed", "reason": lines[0] if lines else "failed",
-            "seconds": None if seconds is None else round(seconds, 3), "worker": worker,
+            "seconds": None if seconds is None else round(seconds, 3), "cpu_seconds": None,
+            "worker": worker,
             "delta_e_log": {}}
 
 
@@ -187,15 +192,18 @@ def run_capture(scene_dir, out_dir, options):
     out_dir = Path(out_dir)
     worker = f"{socket.gethostname()}:{os.getpid()}"
     staging = out_dir / f".{name}.partial-{uuid.uuid4().hex[:8]}"
-    start = time.perf_counter()
-    with _output_to(out_dir / LOG_DIR / f"{name}.log") as log, dask_engine.single_threaded():
-        print(f"--- {time.strftime('%Y-%m-%d %H:%M:%S')} {name}: started on {worker}", file=log)
+    start, cpu_start = time.perf_counter(), time.process_time()
+    with _output_to(out_dir / LOG_DIR / f"{name}.log") as log, \
+            dask_engine.worker_threads() as threads:
+        print(f"--- {time.strftime('%Y-%m-%d %H:%M:%S')} {name}: started on {worker}, "
+              f"{threads} thread(s)", file=log)
         try:
             run(argparse.Namespace(scene_dir=str(scene_dir), out=str(staging), **options),
                 load_methods=cached_load_methods)
             seconds = time.perf_counter() - start
             report = json.loads((staging / "report.json").read_text())
-            row = _row_from_report(name, report, seconds, worker)
+            row = _row_from_report(name, report, seconds, time.process_time() - cpu_start,
+                                   worker)
             write_text(staging / MARKER, json.dumps(row, indent=1) + "\n")
             _publish(staging, out_dir / name)
         except InputError as err:
@@ -206,7 +214,7 @@ def run_capture(scene_dir, out_dir, options):
             shutil.rmtree(staging, ignore_errors=True)
             traceback.print_exc(file=log)
             raise
-        print(f"done in {seconds:.1f} s", file=log)
+        print(f"done in {seconds:.1f} s ({row['cpu_seconds']:.1f} s of CPU)", file=log)
     return row
 
 
@@ -252,7 +260,7 @@ def write_summary(out_dir, rows, header_lines=()):
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(list(SUMMARY_FIELDS) + [f"delta_e_log {c}" for c in columns])
     for r in rows:
-        writer.writerow([r[f] if r[f] is not None else "" for f in SUMMARY_FIELDS]
+        writer.writerow([r.get(f) if r.get(f) is not None else "" for f in SUMMARY_FIELDS]
                         + [repr(r["delta_e_log"][c]) if r["delta_e_log"].get(c) is not None
                            else "" for c in columns])
     write_text(Path(out_dir) / "summary.csv", buffer.getvalue())
@@ -260,21 +268,28 @@ def write_summary(out_dir, rows, header_lines=()):
     lines = ["# flashbrdf batch summary", "", *header_lines, "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
-        cells = [_cell(r[f]).replace("|", "\\|") for f in SUMMARY_FIELDS]
+        cells = [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_FIELDS]
         cells += [_cell(r["delta_e_log"].get(c)) for c in columns]
         lines.append("| " + " | ".join(cells) + " |")
     write_text(Path(out_dir) / "summary.md", "\n".join(lines) + "\n")
 
 
+def capture_bytes(capture_dir):
+    """Bytes of the files in a capture folder (int): its photos dominate, and a capture's run
+    time grows with its pixels and photos, so this orders the captures largest first."""
+    return sum(p.stat().st_size for p in Path(capture_dir).rglob("*") if p.is_file())
+
+
 def _run_tasks(client, todo, out_dir, options):
-    """Submit one task per capture; -> {name: row} as they finish, with a progress bar."""
+    """Submit one task per capture, the largest first (a large one started last would leave
+    the other workers idle at the end); -> {name: row} as they finish, with a progress bar."""
     from distributed import as_completed
     from tqdm import tqdm
     token = uuid.uuid4().hex[:8]
     # Absolute paths (not resolved: a symlinked capture keeps its name): workers elsewhere see
     # the same shared filesystem, not our working directory.
     futures = {client.submit(run_capture, str(c.absolute()), str(Path(out_dir).absolute()),
-                             options, retries=1, pure=False,
+                             options, retries=1, pure=False, priority=capture_bytes(c),
                              key=f"batch-{c.name}-{token}"): c.name for c in todo}
     rows = {}
     total = len(futures)
@@ -330,7 +345,11 @@ def batch(args):
             todo.append(c)
     if todo:
         try:
-            with dask_engine.dask_client(args.workers, args.scheduler) as client:
+            # Never more local workers than captures to run: a spare worker would cost its
+            # start-up and hold cores the busy ones' render threads can use.
+            workers = None if args.scheduler else min(args.workers or os.cpu_count() or 1,
+                                                      len(todo))
+            with dask_engine.dask_client(workers, args.scheduler) as client:
                 n_workers = len(client.scheduler_info().get("workers", {}))
                 rows |= _run_tasks(client, todo, out, options)
         finally:

@@ -1,10 +1,11 @@
 """The Dask engine behind `batch` and `evaluate --workers/--scheduler`: one place that opens a client.
 
-Locally it is a `LocalCluster` of worker processes, one thread each; on a cluster it is the address
-of a running `dask scheduler`. Worker processes get their BLAS/OpenMP pools limited to one thread
-(N workers on N cores then do not oversubscribe them): Dask's nanny already sets OMP/MKL/OPENBLAS
-to 1 for the processes it spawns, and we add FLASHBRDF_THREADS (infer's own 3D thread pool). Tasks
-also call `single_threaded()`, which covers workers started by hand on other machines.
+Locally it is a `LocalCluster` of worker processes, one Dask thread each; on a cluster it is the
+address of a running `dask scheduler`. The cores are shared out: each of N local workers gets
+cores // N threads (at least 1) for its BLAS/OpenMP pools and for FLASHBRDF_THREADS (the renderer's
+and infer's own thread pools), so N workers on N cores do not oversubscribe them, and a batch of one
+capture on one worker still renders on every core as `run` does. Tasks run inside
+`worker_threads()`, which applies that limit, and 1 on workers started by hand on other machines.
 """
 
 import contextlib
@@ -14,8 +15,8 @@ import warnings
 
 from brdf.errors import InputError
 
-WORKER_ENV = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-              "FLASHBRDF_THREADS": "1"}
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
+                    "FLASHBRDF_THREADS")
 # A task whose worker dies is retried once, on another worker, then marked failed (KilledWorker).
 # Dask's default is 3; this holds for the local cluster. A running scheduler keeps its own setting
 # (DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES=1 when it is started gives the same rule).
@@ -28,7 +29,8 @@ def add_engine_options(parser, what, default):
     happens without either."""
     parser.add_argument("--workers", type=int, metavar="N",
                         help=f"run {what} as tasks on a local Dask cluster of N worker processes "
-                             f"(one thread each); without --workers and --scheduler: {default}")
+                             f"(the cores shared out between them); without --workers and --scheduler: "
+                             f"{default}")
     parser.add_argument("--scheduler", metavar="ADDRESS",
                         help=f"run {what} on the running Dask scheduler at ADDRESS "
                              "(tcp://HOST:PORT) instead of a local cluster")
@@ -44,10 +46,22 @@ def check_engine_options(args):
                                       "not both")
 
 
+def threads_per_worker(workers, cores=None):
+    """Threads (int >= 1) each of `workers` worker processes on one machine of `cores` cores
+    (default: this one's) may use: the cores shared out, at least one each."""
+    return max(1, (cores or os.cpu_count() or 1) // max(1, workers))
+
+
+def worker_env(threads):
+    """{variable: value} limiting BLAS/OpenMP pools and FLASHBRDF_THREADS to `threads`."""
+    return {name: str(threads) for name in THREAD_VARIABLES}
+
+
 @contextlib.contextmanager
 def dask_client(workers=None, scheduler=None):
     """Yield a `distributed.Client`: to `scheduler` if given, else to a new LocalCluster of
-    `workers` processes (default: the number of cores), closed on exit."""
+    `workers` processes (default: the number of cores), each limited to
+    threads_per_worker(workers) BLAS and render threads, closed on exit."""
     import dask
     from distributed import Client, LocalCluster
     if scheduler:
@@ -64,17 +78,23 @@ def dask_client(workers=None, scheduler=None):
     # Dask's nanny also sets MALLOC_TRIM_THRESHOLD_=65536 in its workers; that fixes glibc's
     # mmap threshold, so every large numpy temporary is a fresh mmap: the renderer ran 2x slower
     # (10.7 s against 5.9 s on the sample capture). Keep the BLAS limits, drop that one.
+    # The thread limits go in before the worker process starts: OpenBLAS sizes its pool when
+    # numpy is imported.
+    workers = workers or os.cpu_count() or 1
+    env = worker_env(threads_per_worker(workers))
     spawn_env = {k: v for k, v in dask.config.get("distributed.nanny.pre-spawn-environ").items()
-                 if k != "MALLOC_TRIM_THRESHOLD_"}
+                 if k != "MALLOC_TRIM_THRESHOLD_"} | env
+    # Dask's statistical profiler samples the task thread's stack every 10 ms: ~1 s of CPU in a
+    # capture's ~11 (measured in a 1-worker cluster, 3 captures), for a profile nobody reads.
     with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
-                          "distributed.nanny.pre-spawn-environ": spawn_env}), \
+                          "distributed.nanny.pre-spawn-environ": spawn_env,
+                          "distributed.worker.profile.enabled": False}), \
             warnings.catch_warnings():
         # The scheduler's HTTP endpoint moves to a free port when 8787 is taken (another
         # cluster on this host): not worth a warning on the user's terminal.
         warnings.filterwarnings("ignore", message="Port .* is already in use")
-        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1,
-                               processes=True, dashboard_address=None,
-                               silence_logs=logging.CRITICAL, env=dict(WORKER_ENV))
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.CRITICAL, env=env)
     try:
         client = Client(cluster)
         try:
@@ -94,15 +114,17 @@ def _close(thing):
 
 
 @contextlib.contextmanager
-def single_threaded():
-    """Limit BLAS/OpenMP pools (and infer's FLASHBRDF_THREADS) to one thread in this process
-    while a task runs."""
+def worker_threads():
+    """Inside the block, BLAS/OpenMP pools and FLASHBRDF_THREADS are limited to this worker's
+    share of the cores: $FLASHBRDF_THREADS as dask_client set it for a local worker, else 1 (a
+    worker started by hand, which may share its machine with others)."""
     from threadpoolctl import threadpool_limits
     before = os.environ.get("FLASHBRDF_THREADS")
-    os.environ["FLASHBRDF_THREADS"] = "1"
+    threads = max(1, int(before or 1))
+    os.environ["FLASHBRDF_THREADS"] = str(threads)
     try:
-        with threadpool_limits(limits=1):
-            yield
+        with threadpool_limits(limits=threads):
+            yield threads
     finally:
         if before is None:
             os.environ.pop("FLASHBRDF_THREADS", None)

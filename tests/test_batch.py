@@ -22,9 +22,9 @@ import pytest
 from distributed import Client, LocalCluster
 from distributed.diagnostics.plugin import WorkerPlugin
 
-from pipeline.batch import MARKER
+from pipeline.batch import MARKER, capture_bytes
 from pipeline.cli import main
-from pipeline.dask_engine import ALLOWED_FAILURES
+from pipeline.dask_engine import ALLOWED_FAILURES, threads_per_worker
 from pipeline.sample_capture import make_sample_capture
 
 MATERIALS = {"a": "red-specular-plastic", "b": "gold-paint"}
@@ -65,8 +65,9 @@ def scheduler():
 
 @pytest.fixture(scope="module")
 def two_workers(captures, tmp_path_factory):
+    """--workers 3 on 2 captures: a local cluster of 2 workers (never more than captures)."""
     out = tmp_path_factory.mktemp("batch") / "out"
-    code = main(["batch", str(captures), "--out", str(out), "--workers", "2", *RUN_OPTIONS])
+    code = main(["batch", str(captures), "--out", str(out), "--workers", "3", *RUN_OPTIONS])
     return code, out
 
 
@@ -100,11 +101,34 @@ def test_two_workers_equal_sequential_runs(two_workers, sequential):
             assert float(rows[name][column]) == pytest.approx(want[key], abs=1e-9)
         assert rows[name]["status"] == "ok" and rows[name]["reason"] == ""
         assert float(rows[name]["seconds"]) > 0 and rows[name]["worker"]
+        # CPU time of a worker over its capture: at most its threads (+1 for Dask's own) busy
+        # for the whole wall time
+        assert 0 < float(rows[name]["cpu_seconds"]) <= (
+            (threads_per_worker(2) + 1) * float(rows[name]["seconds"]))
         slice_report = json.loads((out / name / "slice.json").read_text())
         assert slice_report["slice_csv"] == str((out / name / "slice.csv").resolve())
     assert not [p for p in out.iterdir() if p.name.startswith(".")]
     md = (out / "summary.md").read_text()
     assert "2 ok (0 skipped as complete), 0 failed" in md and md.count("| ok |") == 2
+    assert "a local cluster of 2 worker process(es)" in md
+    # each of the 2 local workers renders on its share of this machine's cores
+    threads = threads_per_worker(2)
+    for name in MATERIALS:
+        assert f", {threads} thread(s)" in (out / "logs" / f"{name}.log").read_text()
+
+
+def test_cores_are_shared_out_between_local_workers():
+    assert [threads_per_worker(w, cores=2) for w in (1, 2, 3, 4)] == [2, 1, 1, 1]
+    assert [threads_per_worker(w, cores=8) for w in (1, 2, 3, 8)] == [8, 4, 2, 1]
+
+
+def test_capture_size_counts_every_file(tmp_path):
+    small, large = tmp_path / "small", tmp_path / "large"
+    for folder, size in ((small, 10), (large, 1000)):
+        (folder / "sub").mkdir(parents=True)
+        (folder / "scene.json").write_text("{}")
+        (folder / "sub" / "photo.exr").write_bytes(b"x" * size)
+    assert capture_bytes(large) - capture_bytes(small) == 990
 
 
 def test_resume_force_and_one_worker(two_workers, sequential, scheduler, captures):

@@ -4,8 +4,8 @@ import colour
 import numpy as np
 import pytest
 
-from brdf.colour import (FEATURE_OFFSET, features_to_rho, lab_to_linear_rgb, linear_rgb_to_lab,
-                         rho_to_features)
+from brdf.colour import (D65_WHITE_XYZ, FEATURE_OFFSET, SRGB_TO_XYZ, features_to_rho,
+                         lab_to_linear_rgb, linear_rgb_to_lab, rho_to_features)
 from brdf.errors import InputError
 from brdf.metrics import brdf_error, brdf_errors, delta_e_log, summarise
 from brdf.views import read_slice_csv, write_slice_csv
@@ -20,6 +20,15 @@ def test_lab_matches_colour_science():
     np.testing.assert_allclose(linear_rgb_to_lab(rgb), reference, atol=1e-9)
     # colour-science's sRGB matrix is rounded to 4 digits, so white lands 0.008 off neutral.
     np.testing.assert_allclose(linear_rgb_to_lab([1.0, 1.0, 1.0]), [100, 0, 0], atol=1e-2)
+
+
+def test_written_out_constants_are_colour_sciences():
+    # written out so that `run` need not import colour-science: they must be its values, bit
+    # for bit (a newer colour-science with other constants makes this fail, not drift)
+    matrix = np.array(colour.RGB_COLOURSPACES["sRGB"].matrix_RGB_to_XYZ, dtype=np.float64)
+    white = colour.xy_to_XYZ(colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"])
+    assert np.array_equal(SRGB_TO_XYZ, matrix)
+    assert np.array_equal(D65_WHITE_XYZ, np.asarray(white, dtype=np.float64))
 
 
 def test_lab_inverse():
