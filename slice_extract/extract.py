@@ -23,7 +23,8 @@ import numpy as np
 
 from brdf.angles import merl_bin_index
 from brdf.errors import InputError
-from brdf.merl import N_THETA_H, theta_h_centres
+from brdf.merl import N_THETA_H
+from brdf.views import slice_coverage
 from slice_extract.binning import robust_bins
 from slice_extract.samples import REASONS, light_setup, photo_samples
 
@@ -310,15 +311,12 @@ def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin
                 "miss": sum(p["usable"] - p["on_surface"] for p in per_photo)}
     rejected.update({k: sum(p[k] for p in per_photo) for k in REASONS})
     rejected["outlier"] = int(np.count_nonzero(~inlier & ~censored))
-    filled = np.flatnonzero(n > 0)
     used = theta_h[inlier]
-    centres = np.degrees(theta_h_centres())
+    filled = slice_coverage(n > 0)
     coverage = {
         "theta_h_deg_observed": [float(np.degrees(used.min())), float(np.degrees(used.max()))],
-        "bins_filled": int(len(filled)),
-        "first_bin": int(filled[0]), "last_bin": int(filled[-1]),
-        "theta_h_deg_filled": [float(centres[filled[0]]), float(centres[filled[-1]])],
-        "empty_bins": [int(i) for i in np.flatnonzero(n == 0)],
+        **{k: filled[k] for k in ("bins_filled", "first_bin", "last_bin", "theta_h_deg_filled",
+                                  "empty_bins")},
         "clipped_per_bin": {int(i): int(bin_clipped[i]) for i in np.flatnonzero(bin_clipped)},
         "pixels_total": int(total_pixels), "pixels_used": int(inlier.sum()),
     }
