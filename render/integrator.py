@@ -18,8 +18,10 @@ import concurrent.futures
 import os
 
 import numpy as np
+from tqdm import tqdm
 
 from brdf.frame import Frame
+from render.envmap import EnvMap
 
 # Pixel-samples per work item: keeps each thread's temporaries around 100-200 MB.
 SAMPLES_PER_CHUNK = 1 << 17
@@ -113,7 +115,6 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
     strategies = tuple(strategies)
     if strategies == ("envmap",) and getattr(envmap, "compensate", False):
         # Compensated sampling skips the map's dim part, which only BRDF samples may cover.
-        from render.envmap import EnvMap
         envmap = EnvMap(envmap.pixels, envmap.world_from_envmap, 1.0, compensate=False)
     if "envmap" in strategies and not getattr(envmap, "can_sample", True):
         strategies = tuple(x for x in strategies if x != "envmap") or ("brdf",)
@@ -136,7 +137,6 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
     threads = threads or _default_threads()
     bar = None
     if progress:
-        from tqdm import tqdm
         bar = tqdm(total=n_points, desc=progress, unit="px", disable=None, leave=False)
     try:
         if threads == 1 or len(starts) == 1:
