@@ -21,6 +21,7 @@ import numpy as np
 
 from brdf.errors import InputError
 from brdf.rusinkiewicz import half_diff_thetas
+from capture import occluded
 
 REASONS = ("silhouette", "backfacing", "grazing", "theta_d", "shadowed")
 
@@ -147,7 +148,6 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
     if not near.all():
         idx, theta_h, theta_d, cens_now = idx[near], theta_h[near], theta_d[near], cens_now[near]
     if intersector is not None and len(idx):
-        from capture import occluded
         blocked = occluded(intersector, np.take(points, idx, axis=0), np.take(wi, idx, axis=0),
                            None if r2 is None else np.sqrt(np.take(r2, idx)))
         drop(blocked, "shadowed")
