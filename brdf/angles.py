@@ -1,92 +1,17 @@
-"""Rusinkiewicz half/difference angles for isotropic BRDFs, vectorised.
+"""Rusinkiewicz angles and MERL's bin indices of them.
 
-Frames:
-- the *local* (shading) frame has the surface normal along +z;
-- the *half-vector* frame is the local frame rotated by -phi_h about z, then by -theta_h about y,
-  so that h lies along +z (Rusinkiewicz 1998). The difference vector d is omega_i in that frame:
-  d = (sin theta_d cos phi_d, sin theta_d sin phi_d, cos theta_d).
-
-In the half-vector frame, its x axis is t = cos(theta_h) p - sin(theta_h) n and its y axis is
-b = n x p, where p is the unit tangential part of h. At theta_h = 0, p is undefined; any tangent
-gives the same BRDF value for an isotropic material, so a fixed tangent is used (no NaN).
-
-All angles are radians; direction arrays are (..., 3) unit vectors pointing away from the surface.
+The conversions between direction pairs and (theta_h, theta_d, phi_d) live in brdf.rusinkiewicz
+(re-exported here, where callers have always found them); this module maps those angles to MERL's
+(90, 90, 180) bins: merl_bin_index (MERL's own clamped indices), merl_bin_coordinates (continuous,
+for interpolation) and merl_flat_index_local (the render hot path: local directions straight to
+flat bins). All angles are radians.
 """
 
 import numpy as np
 
 from brdf.merl import N_PHI_D, N_THETA_D, N_THETA_H, theta_h_bin_coordinate
-
-_TINY = 1e-12
-
-
-def _dot(a, b):
-    return np.einsum("...i,...i->...", a, b)
-
-
-def _normalise(v):
-    return v / np.maximum(np.linalg.norm(v, axis=-1, keepdims=True), _TINY)
-
-
-def _any_tangent(n):
-    """A unit vector perpendicular to each n, (..., 3); (1, 0, 0) for n = +z (Duff et al. 2017)."""
-    sign = np.where(n[..., 2] >= 0, 1.0, -1.0)
-    a = -1.0 / (sign + n[..., 2])
-    b = n[..., 0] * n[..., 1] * a
-    return np.stack([1 + sign * n[..., 0] ** 2 * a, sign * b, -sign * n[..., 0]], axis=-1)
-
-
-def half_diff_from_world(wi, wo, normal, fold=True):
-    """(theta_h, theta_d, phi_d) of direction pairs about a normal, in any common frame.
-
-    wi, wo, normal: (..., 3) unit vectors (broadcastable). Returns three (...) arrays in radians.
-    phi_d is in [0, pi) when `fold` (reciprocity: phi_d and phi_d + pi swap wi and wo, which an
-    isotropic, reciprocal BRDF cannot tell apart), else in (-pi, pi].
-    """
-    wi, wo, n = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (wi, wo, normal)))
-    h = _normalise(wi + wo)
-    cos_h = _dot(h, n)
-    tangential = h - cos_h[..., None] * n
-    sin_h = np.linalg.norm(tangential, axis=-1)
-    p = np.where((sin_h > _TINY)[..., None], tangential / np.maximum(sin_h, _TINY)[..., None],
-                 _any_tangent(n))
-    theta_h = np.arctan2(sin_h, cos_h)
-    t = np.cos(theta_h)[..., None] * p - np.sin(theta_h)[..., None] * n
-    b = np.cross(n, p)
-    # atan2 forms keep full precision near 0 where arccos would lose half the digits.
-    theta_d = np.arctan2(np.linalg.norm(np.cross(wi, h), axis=-1), _dot(wi, h))
-    phi_d = np.arctan2(_dot(wi, b), _dot(wi, t))
-    if fold:
-        phi_d = np.mod(phi_d, np.pi)
-    return theta_h, theta_d, phi_d
-
-
-def half_diff_from_local(wi, wo, fold=True):
-    """(theta_h, theta_d, phi_d) of local-frame (normal = +z) directions; see half_diff_from_world."""
-    return half_diff_from_world(wi, wo, np.array([0.0, 0.0, 1.0]), fold=fold)
-
-
-def phi_h_from_local(wi, wo):
-    """Azimuth of the half vector in the local frame, radians (...); 0 where theta_h = 0."""
-    h = np.asarray(wi, dtype=np.float64) + np.asarray(wo, dtype=np.float64)
-    return np.arctan2(h[..., 1], h[..., 0])
-
-
-def local_from_half_diff(theta_h, theta_d, phi_d, phi_h=0.0):
-    """Local-frame (wi, wo), each (..., 3), from Rusinkiewicz angles (radians, broadcastable)."""
-    theta_h, theta_d, phi_d, phi_h = np.broadcast_arrays(
-        *(np.asarray(a, dtype=np.float64) for a in (theta_h, theta_d, phi_d, phi_h)))
-    d = np.stack([np.sin(theta_d) * np.cos(phi_d), np.sin(theta_d) * np.sin(phi_d),
-                  np.cos(theta_d)], axis=-1)
-    # wi = Rz(phi_h) Ry(theta_h) d
-    ct, st = np.cos(theta_h), np.sin(theta_h)
-    x = d[..., 0] * ct + d[..., 2] * st
-    z = -d[..., 0] * st + d[..., 2] * ct
-    cp, sp = np.cos(phi_h), np.sin(phi_h)
-    wi = np.stack([x * cp - d[..., 1] * sp, x * sp + d[..., 1] * cp, z], axis=-1)
-    h = np.stack([st * cp, st * sp, ct], axis=-1)
-    wo = 2 * _dot(wi, h)[..., None] * h - wi
-    return wi, wo
+from brdf.rusinkiewicz import (cos_in_out, half_diff_from_local, half_diff_from_world,  # noqa: F401
+                               half_diff_thetas, local_from_half_diff, phi_h_from_local)
 
 
 def merl_bin_index(theta_h, theta_d, phi_d):
@@ -112,3 +37,36 @@ def merl_bin_coordinates(theta_h, theta_d, phi_d):
     u_d = np.degrees(np.asarray(theta_d, dtype=np.float64)) - 0.5
     u_p = np.mod(np.degrees(np.asarray(phi_d, dtype=np.float64)), 180.0) - 0.5
     return (np.clip(u_h, 0, N_THETA_H - 1), np.clip(u_d, 0, N_THETA_D - 1), u_p)
+
+
+def merl_flat_index_local(wi, wo, three_d=True):
+    """Flat MERL bin index (...) of local-frame pairs: ((i * 90) + j) * 180 + k, or i * 90 + j.
+
+    Hot-path copy of merl_bin_index(*half_diff_from_local(wi, wo)) for rendering: the same
+    half-vector frame, phi_d folded into [0, pi), fixed tangent at theta_h = 0, and MERL's clamped
+    indexing, in fewer array passes (tests/test_render_brdf.py checks they agree; at theta_d = 0
+    exactly phi_d is undefined and the bin may differ, see brdf.rusinkiewicz).
+    """
+    # np.clip and np.mod are several times slower than minimum/maximum/where here.
+    h = wi + wo
+    h = h / np.maximum(np.sqrt(np.einsum("...k,...k->...", h, h)), 1e-300)[..., None]
+    hx, hy, hz = h[..., 0], h[..., 1], h[..., 2]
+    sin_h = np.sqrt(hx * hx + hy * hy)
+    theta_h = np.arctan2(sin_h, hz)
+    # brdf.merl.theta_h_bin_coordinate, specialised (tests/test_render_brdf.py checks they agree)
+    i = np.minimum(np.sqrt(theta_h * (180.0 / np.pi)) * (90.0 / np.sqrt(90.0)), 89.0)
+    cos_d = np.minimum(np.maximum(np.einsum("...k,...k->...", wi, h), -1.0), 1.0)
+    j = np.minimum(np.arccos(cos_d) * (180.0 / np.pi), 89.0)
+    if not three_d:
+        return i.astype(np.intp) * 90 + j.astype(np.intp)
+    safe = sin_h > 1e-12
+    inv = 1.0 / np.where(safe, sin_h, 1.0)
+    px = np.where(safe, hx * inv, 1.0)
+    py = np.where(safe, hy * inv, 0.0)
+    wx, wy, wz = wi[..., 0], wi[..., 1], wi[..., 2]
+    along_t = hz * (wx * px + wy * py) - sin_h * wz
+    along_b = wy * px - wx * py
+    phi_d = np.arctan2(along_b, along_t)
+    phi_d = np.where(phi_d < 0.0, phi_d + np.pi, phi_d)   # fold into [0, pi)
+    k = np.minimum(phi_d * (180.0 / np.pi), 179.0)
+    return (i.astype(np.intp) * 90 + j.astype(np.intp)) * 180 + k.astype(np.intp)

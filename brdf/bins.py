@@ -12,6 +12,7 @@ import numpy as np
 
 from brdf.merl import (MERL_SHAPE, N_PHI_D, N_THETA_D, N_THETA_H, merl_valid_mask, phi_d_centres,
                        theta_d_centres, theta_h_centres)
+from brdf.rusinkiewicz import cos_in_out
 
 
 @functools.lru_cache(maxsize=1)
@@ -32,17 +33,6 @@ def valid_flat_3d():
 def valid_mask_2d():
     """(90, 90) bool: (θh, θd) bins with at least one valid φd bin."""
     return merl_valid_mask().any(axis=2)
-
-
-def cos_in_out(theta_h, theta_d, phi_d):
-    """cos θi, cos θo of the light/view pair at half/difference angles (any broadcastable shapes).
-
-    With h = Ry(θh)·z and the difference vector d in the half-vector frame, ωi = Ry(θh)·d and
-    ωo = 2(ωi·h)h − ωi, so cos θi = cos θd cos θh − sin θd cos φd sin θh and cos θo the same with +.
-    """
-    a = np.cos(theta_d) * np.cos(theta_h)
-    b = np.sin(theta_d) * np.cos(phi_d) * np.sin(theta_h)
-    return a - b, a + b
 
 
 @functools.lru_cache(maxsize=1)

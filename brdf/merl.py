@@ -16,6 +16,7 @@ import numpy as np
 
 from brdf.atomic import atomic_path
 from brdf.errors import InputError
+from brdf.rusinkiewicz import cos_in_out
 
 N_THETA_H, N_THETA_D, N_PHI_D = 90, 90, 180
 MERL_SHAPE = (N_THETA_H, N_THETA_D, N_PHI_D)
@@ -53,15 +54,9 @@ def phi_d_centres():
 
 @functools.lru_cache(maxsize=1)
 def _valid_mask():
-    # Directions at each bin centre, with phi_h = 0: rotate d about y by theta_h (the inverse of
-    # Rusinkiewicz's frame change), then reflect it about h to get the other direction.
-    th, td, pd = np.meshgrid(theta_h_centres(), theta_d_centres(), phi_d_centres(), indexing="ij")
-    dx, dz = np.sin(td) * np.cos(pd), np.cos(td)  # the y part does not move z
-    wi_z = dz * np.cos(th) - dx * np.sin(th)
-    wi_x = dx * np.cos(th) + dz * np.sin(th)
-    h_x, h_z = np.sin(th), np.cos(th)
-    wo_z = 2 * (wi_x * h_x + wi_z * h_z) * h_z - wi_z
-    mask = (wi_z > 0) & (wo_z > 0)
+    cos_i, cos_o = cos_in_out(*np.meshgrid(theta_h_centres(), theta_d_centres(), phi_d_centres(),
+                                           indexing="ij"))
+    mask = (cos_i > 0) & (cos_o > 0)
     mask.setflags(write=False)
     return mask
 

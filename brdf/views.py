@@ -16,7 +16,7 @@ import numpy as np
 
 from brdf.atomic import write_text
 from brdf.errors import InputError
-from brdf.merl import N_THETA_H, merl_valid_mask, theta_h_centres
+from brdf.merl import N_THETA_H, merl_valid_mask, theta_h_centres, theta_h_from_bin_coordinate
 
 SLICE_HEADER = ["theta_h_deg", "r", "g", "b", "n"]
 
@@ -47,6 +47,25 @@ def table_3d_from_2d(table_2d):
     table = np.repeat(np.asarray(table_2d, dtype=np.float64)[:, :, None, :], 180, axis=2)
     table[~merl_valid_mask()] = np.nan
     return table
+
+
+def slice_coverage(filled):
+    """Which θh bins of a 1D slice hold data. filled: (90,) bool with at least one True.
+
+    Returns a dict of ints and degrees: bins_filled (count), first_bin, last_bin, empty_bins
+    (list of all empty bin indices, also those outside [first_bin, last_bin]), gaps (empty bins
+    inside that range), theta_h_deg_filled ([centre of first_bin, centre of last_bin]) and
+    theta_h_deg_range ([lower edge of first_bin, upper edge of last_bin])."""
+    filled = np.asarray(filled, dtype=bool)
+    index = np.flatnonzero(filled)
+    first, last = int(index[0]), int(index[-1])
+    centres = np.degrees(theta_h_centres())
+    edges = theta_h_from_bin_coordinate(np.arange(N_THETA_H + 1), 90.0)  # in degrees
+    return {"bins_filled": int(len(index)), "first_bin": first, "last_bin": last,
+            "empty_bins": [int(i) for i in np.flatnonzero(~filled)],
+            "gaps": int((~filled[first:last + 1]).sum()),
+            "theta_h_deg_filled": [float(centres[first]), float(centres[last])],
+            "theta_h_deg_range": [float(edges[first]), float(edges[last + 1])]}
 
 
 def write_slice_csv(path, rho, n, comments=()):

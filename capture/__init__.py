@@ -33,6 +33,7 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   srgb_to_linear(values) -> linear
 """
 
+from brdf.errors import InputError
 from capture.camera import (camera_rays, embree_rays, pixel_box, pixel_rays, project_points,
                             view_directions)
 from capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex, load_mesh,
@@ -46,7 +47,6 @@ from capture.scene import Camera, Geometry, Light, Photo, Scene, load_scene
 def scene_intersector(scene):
     """MeshIntersector for scene.geometry.mesh (InputError if the scene uses a normal map)."""
     if scene.geometry.mesh is None:
-        from brdf.errors import InputError
         raise InputError(f"{scene.json_path}: geometry", "has no mesh (it is a normal map)")
     mesh, has_normals = load_mesh(scene.geometry.mesh)
     return MeshIntersector(mesh, use_vertex_normals=has_normals)

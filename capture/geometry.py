@@ -16,8 +16,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from embreex import rtcore_scene
+from embreex.mesh_construction import TriangleMesh
 
 from brdf.errors import InputError
+from capture.camera import embree_rays, pixel_box
+from capture.scene import Scene
 
 _CHUNK = 1 << 21  # rays per Embree call: bounds temporary memory to ~100 MB
 _SHADOW_OFFSET = 1e-4  # x bounding-box diagonal
@@ -59,6 +63,7 @@ def load_mesh(path):
 
     Returns (mesh, has_vertex_normals). InputError if missing, unreadable or without faces.
     """
+    # trimesh costs 1.4 s to import (python -X importtime, 2 cores), paid only by mesh scenes
     import trimesh
     path = Path(path)
     if not path.is_file():
@@ -98,8 +103,6 @@ class MeshIntersector:
     """
 
     def __init__(self, mesh, use_vertex_normals=None):
-        from embreex import rtcore_scene
-        from embreex.mesh_construction import TriangleMesh
         self.mesh = mesh
         if use_vertex_normals is None:
             use_vertex_normals = "vertex_normals" in mesh._cache.cache
@@ -138,9 +141,8 @@ def _as_intersector(target):
     """MeshIntersector from a MeshIntersector, a trimesh.Trimesh or a capture.Scene."""
     if isinstance(target, MeshIntersector):
         return target
-    from capture.scene import Scene
     if isinstance(target, Scene):
-        from capture import scene_intersector
+        from capture import scene_intersector  # capture/__init__ imports this module
         return scene_intersector(target)
     return MeshIntersector(target)
 
@@ -253,7 +255,6 @@ def surface_from_mesh(target, camera, pixel_mask=None):
     Returns a Surface holding only the pixels whose ray hits. Only pixels inside the projection
     of the mesh's bounding box are traced (capture.pixel_box): the others cannot hit.
     """
-    from capture.camera import pixel_box
     mi = _as_intersector(target)
     r0, r1, c0, c1 = pixel_box(camera, mi.mesh.bounds)
     if pixel_mask is None:
@@ -270,7 +271,6 @@ def surface_at_pixels(target, camera, rows, cols, dtype=np.float64):
     that hit. Points are float64 world; normals and view directions are `dtype` (extraction
     asks for float32: ~1e-7 rad, far finer than any theta_h bin).
     """
-    from capture.camera import embree_rays
     mi = _as_intersector(target)
     rows, cols = np.asarray(rows), np.asarray(cols)
     origins, directions = embree_rays(camera, rows, cols, mi.centre)

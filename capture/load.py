@@ -13,6 +13,7 @@ import numpy as np
 
 from brdf.errors import InputError
 from capture.photo import load_brackets, load_photo
+from capture.scene import Scene, load_scene
 
 
 @dataclass(frozen=True, eq=False)
@@ -62,7 +63,6 @@ def load_flash_images(scene):
     scene: capture.Scene or a scene folder. Returns a list of FlashImage. InputError when the
     scene has no flash photo.
     """
-    from capture.scene import Scene, load_scene
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     flashes = scene.photos_with_role("flash")

@@ -6,18 +6,20 @@ view directions are the reversed pixel rays.
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from brdf.errors import DECODE_ERRORS, InputError
+from capture.camera import pixel_rays
 from capture.geometry import Surface
+from capture.photo import read_float_image
+from capture.scene import Scene
 
 
 def load_normal_map(geometry, camera):
     """Read geometry.normal_map ((H, W, 3) camera-frame unit normals, .npy or .exr) and
     geometry.mask (PNG, nonzero = object). Returns (normals_camera (H, W, 3) float64 unit,
     mask (H, W) bool); pixels with a zero or non-finite normal are dropped from the mask."""
-    import cv2
-    from capture.photo import read_float_image
     path = Path(geometry.normal_map)
     if not path.is_file():
         raise InputError(path, "normal map not found")
@@ -61,8 +63,6 @@ def surface_from_normal_map(geometry, camera=None, pixel_mask=None):
     reversed pixel rays (exact for orthographic cameras; for a pinhole, the direction toward the
     camera centre from any point on the pixel's ray).
     """
-    from capture.camera import pixel_rays
-    from capture.scene import Scene
     if isinstance(geometry, Scene):
         camera = camera or geometry.camera
         geometry = geometry.geometry

@@ -18,7 +18,9 @@ channel < 0 for float images (a float image has no code floor, so one dark chann
 
 from pathlib import Path
 
+import cv2
 import numpy as np
+import OpenImageIO as oiio
 
 from brdf.errors import InputError
 
@@ -50,7 +52,6 @@ def _to_rgb(img, path):
 def read_float_image(path):
     """Read an image through OpenImageIO as float32 (H, W, 3) RGB (channels R, G, B by name when
     present). InputError naming the file when missing or unreadable."""
-    import OpenImageIO as oiio
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
@@ -126,7 +127,6 @@ def _float_masks(rgb, saturation):
 
 
 def _read_cv(path, encoding):
-    import cv2
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise InputError(path, "cannot read image (corrupt or unsupported)")
@@ -163,7 +163,7 @@ def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=
         raise InputError(path, "file not found")
     ext = path.suffix.lower()
     if ext in RAW_EXTENSIONS:
-        from capture.raw import load_raw
+        from capture.raw import load_raw  # capture.raw imports this module
         rgb, usable, clipped = load_raw(path)
     elif ext in CV_EXTENSIONS:
         rgb, usable, clipped = _read_cv(path, encoding)
@@ -195,7 +195,6 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
     paths = [Path(p) for p, _ in brackets]
     times = np.array([t for _, t in brackets], dtype=np.float32)
     if all(p.suffix.lower() in CV_EXTENSIONS for p in paths):
-        import cv2
         raw = [cv2.imread(str(p), cv2.IMREAD_UNCHANGED) if p.is_file() else None for p in paths]
         for p, img in zip(paths, raw):
             if img is None:
@@ -222,7 +221,6 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
 
 
 def _merge_debevec(paths, images, times, shape):
-    import cv2
     for p, img in zip(paths, images):
         if img.ndim != 3 or img.shape[2] != 3:
             raise InputError(p, "8-bit brackets must be 3-channel colour images")

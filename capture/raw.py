@@ -9,7 +9,9 @@ clipped by LibRaw at 0 or 65535 are unusable too. The mask follows the same orie
 LibRaw applies to the image.
 """
 
+import cv2
 import numpy as np
+import rawpy
 
 from brdf.errors import InputError
 from capture.photo import SATURATION_FRACTION
@@ -18,7 +20,6 @@ _DEMOSAIC_REACH = 2  # sensels: AHD interpolation reads a 5x5 neighbourhood
 
 
 def _dilate(mask, reach):
-    import cv2
     kernel = np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)
     return cv2.dilate(mask.astype(np.uint8), kernel).astype(bool)
 
@@ -37,7 +38,6 @@ def _apply_flip(mask, flip):
 def load_raw(path):
     """Decode a RAW file. Returns rgb (H, W, 3) float32 linear sRGB primaries, scaled so that the
     white level maps to 1 before white balance, usable (H, W) bool, clipped (H, W) bool."""
-    import rawpy
     try:
         raw = rawpy.imread(str(path))
     except (rawpy.LibRawError, OSError, ValueError) as err:
@@ -65,7 +65,6 @@ def _to_output(sensel_mask, flip, shape):
     """A sensel mask, dilated over the demosaic reach, in the output image's orientation."""
     mask = _apply_flip(_dilate(sensel_mask, _DEMOSAIC_REACH), flip)
     if mask.shape != shape[:2]:  # LibRaw cropped or padded differently: resize nearest
-        import cv2
         mask = cv2.resize(mask.astype(np.uint8), (shape[1], shape[0]),
                           interpolation=cv2.INTER_NEAREST).astype(bool)
     return mask

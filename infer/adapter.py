@@ -18,6 +18,7 @@ from brdf import colour
 from infer.dsgplvm import DSGPLVM
 from infer.gp import loo_bin_variance
 from brdf.bins import scatter_valid, valid_flat_3d, valid_mask_2d
+from brdf.merl import N_THETA_D, N_THETA_H
 from infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
 from infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_combination
 from infer.row_blend import ROW_BLEND_DEG, RowBlendSpace, blend_toward_row
@@ -146,7 +147,7 @@ class DSGPLVMMethod(InferenceMethod):
         keep = self.model_.view_data_["2d"].keep
         shape = np.full(len(keep), np.nan)
         shape[keep] = 1.0 if self.bin_variance_ is None else self.bin_variance_
-        return (self.calibration * float(gp_variance) * shape).reshape(90, 90, 3)
+        return (self.calibration * float(gp_variance) * shape).reshape(N_THETA_H, N_THETA_D, 3)
 
     def _weights(self, feats, view):
         if self.latent == "backprojection":
@@ -174,7 +175,8 @@ class DSGPLVMMethod(InferenceMethod):
             # folded weights sum to 1; centred rows sum to 0, so w @ centred = GP mean (centred)
             mean[data.keep] = data.mean[data.keep] + data.scale * (w @ data.data)
             var = np.full(len(data.keep), v)
-        mean = clip_to_range(np.asarray(mean, float), *self.range_2d_).reshape(90, 90, 3)
+        mean = clip_to_range(np.asarray(mean, float), *self.range_2d_)
+        mean = mean.reshape(N_THETA_H, N_THETA_D, 3)
         table = colour.features_to_rho(np.nan_to_num(mean), space=self.feature_space)
         invalid = ~valid_mask_2d() | ~np.isfinite(mean).all(axis=-1)
         table[invalid] = np.nan

@@ -88,8 +88,8 @@ def read_model(path, merl_dir=None):
         names = [str(n) for n in np.atleast_1d(z["names"])]
         slices, tables_2d = z["slices"], np.asarray(z["tables_2d"], np.float64)
         n = len(names)
-        for key, array, shape in (("slices", slices, (n, 90, 3)),
-                                  ("tables_2d", tables_2d, (n, 90, 90, 3))):
+        for key, array, shape in (("slices", slices, (n, merl.N_THETA_H, 3)),
+                                  ("tables_2d", tables_2d, (n,) + merl.MERL_SHAPE[:2] + (3,))):
             if n == 0 or array.shape != shape or not np.issubdtype(array.dtype, np.floating):
                 raise InputError(path, f"damaged model: {key} has shape {array.shape} "
                                        f"({array.dtype}), expected {shape} floats")

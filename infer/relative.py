@@ -24,6 +24,7 @@ import numpy as np
 
 from brdf import merl
 from brdf.bins import scatter_valid, valid_bins_3d, valid_mask_2d
+from brdf.merl import N_THETA_D, N_THETA_H
 from infer.estimator import InferenceMethod, clip_to_range
 from infer.slices import check_slice, fill_slice
 from infer.dsgplvm import DSGPLVM
@@ -168,7 +169,7 @@ class RelativeDSGPLVMMethod(InferenceMethod):
         ratio = np.full((3, len(data.keep)), np.nan)
         ratio[:, data.keep] = data.mean[data.keep] + data.scale * (w @ data.data)
         ratio = clip_to_range(ratio, *self.ratio_range_)
-        ratio = np.moveaxis(ratio.reshape(3, 90, 90), 0, -1)
+        ratio = np.moveaxis(ratio.reshape(3, N_THETA_H, N_THETA_D), 0, -1)
         table = from_ratio(ratio, filled, levels)
         table[~valid_mask_2d()] = np.nan
         variance = self.bin_variance(var)
@@ -183,7 +184,7 @@ class RelativeDSGPLVMMethod(InferenceMethod):
         shape = np.full(len(data.keep), np.nan)
         shape[data.keep] = self.bin_variance_
         v = self.calibration * np.asarray(gp_variance)[:, None] * shape[None] * data.scale ** 2
-        return np.moveaxis(v.reshape(3, 90, 90), 0, -1)
+        return np.moveaxis(v.reshape(3, N_THETA_H, N_THETA_D), 0, -1)
 
     def _predict_3d(self, rho):
         levels, filled, w, var = self._channel_weights(rho)

@@ -2,12 +2,14 @@
 
 import sys
 
+from tqdm import tqdm
+
+from pipeline.diligent import import_diligent as write_scene
+
 
 def import_diligent(args):
     """Write a scene folder from a DiLiGenT object folder; prints where it is. Returns 0."""
-    from tqdm import tqdm
 
-    from pipeline.diligent import import_diligent as write_scene
 
     def progress(iterable):
         return tqdm(iterable, desc="import-diligent", unit="photo", file=sys.stderr,

@@ -11,12 +11,12 @@ from pathlib import Path
 from brdf.errors import InputError
 from brdf.merl import read_merl
 from pipeline.safety import check_outputs, staged_output_dir
+from render.envmap import default_envmaps
 from render.export import FORMATS, MITSUBA_USAGE, export_table, parse_formats
 
 
 def pisa_envmap():
     """Path of ../shared's pisa map, or None when it is not there (the render check is skipped)."""
-    from render.envmap import default_envmaps
     try:
         return default_envmaps()[0]
     except InputError:

@@ -9,14 +9,18 @@ from pathlib import Path
 
 import numpy as np
 
+import capture
 from brdf.atomic import write_text
 from brdf.errors import InputError
+from brdf.merl import N_THETA_H
 from brdf.views import write_slice_csv
+from pipeline.cmd_segment import read_labels
 from pipeline.safety import check_outputs, sidecar_json
+from slice_extract import ExtractOptions, extract_slice
+from slice_extract.extract import collect_samples, extract_material_slices
 
 
 def _options(args):
-    from slice_extract import ExtractOptions
     max_theta_d = getattr(args, "max_theta_d", None)
     min_cos = getattr(args, "min_cos", None)
     if max_theta_d is not None and not 0 < max_theta_d <= 90:
@@ -33,8 +37,6 @@ def _options(args):
 
 
 def extract(args):
-    import capture
-    from slice_extract import extract_slice
     options = _options(args)
     if getattr(args, "labels", None):
         return extract_materials(args, options)
@@ -51,9 +53,6 @@ SPARSE_BINS = 10  # a material slice with fewer filled theta_h bins than this is
 
 def extract_materials(args, options):
     """extract --labels LABELS.png --out DIR: DIR/material_<k>.csv and DIR/coverage.json."""
-    import capture
-    from pipeline.cmd_segment import read_labels
-    from slice_extract.extract import collect_samples, extract_material_slices
     out = Path(args.out)
     if out.suffix.lower() == ".csv" or (out.exists() and not out.is_dir()):
         raise InputError("--out", "with --labels, --out is a folder (material_<k>.csv go in it)")
@@ -94,7 +93,6 @@ def material_coverage(slices, labels):
 
 def write_material_slices(out, scene_dir, slices, options, labels):
     """DIR/material_<k>.csv per material and DIR/coverage.json; returns {k: rho (90, 3)}."""
-    from brdf.merl import N_THETA_H
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     written, rhos = [], {}

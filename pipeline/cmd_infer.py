@@ -10,6 +10,11 @@ import numpy as np
 from brdf import merl, views
 from brdf.atomic import write_text
 from brdf.errors import InputError
+from experiments.evaluate import experiment_predictor, run_evaluation
+from experiments.test_set import run_test_set
+from infer import TrainingSet, load_method, make_method, novelty_warning
+from infer.training import train_model
+from pipeline.dask_engine import check_engine_options, dask_client
 from pipeline.safety import check_outputs, sidecar_json, staged_output_dir
 
 
@@ -23,8 +28,6 @@ def _merl_inputs(merl_dirs):
 def train(args):
     """Train the DS-GPLVM on every MERL table of every --merl-dir folder (infer.training); store
     what the baselines need too."""
-    from infer import TrainingSet
-    from infer.training import train_model
     folders = _merl_dirs(args.merl_dir)
     check_outputs(inputs=_merl_inputs(folders), outputs=[args.out])
     training = TrainingSet.from_merl_dirs(folders, keep_3d="3d" in args.views.split(","))
@@ -57,7 +60,6 @@ def _uncertainty_summary(variance, feature_label):
 
 def infer(args):
     """Predict a full MERL table from a slice; write it and BRDF.json beside it."""
-    from infer import load_method, make_method, novelty_warning
     t0 = time.perf_counter()
     json_path = sidecar_json(args.out)
     check_outputs(inputs=[args.model, args.slice, *_merl_inputs(args.merl_dir)],
@@ -124,7 +126,6 @@ def evaluate(args):
     (experiments.test_set), written all or nothing."""
     folders = _merl_dirs(args.merl_dir)
     if getattr(args, "test_dir", None):
-        from experiments.test_set import run_test_set
         if getattr(args, "render", False):
             raise InputError("--render", "renders the cross-validation protocol's materials; "
                                          "not with --test-dir")
@@ -138,8 +139,6 @@ def evaluate(args):
     if len(folders) != 1:
         raise InputError("--merl-dir", "the cross-validation protocol takes one folder; give "
                                        "--test-dir to train on several")
-    from experiments.evaluate import experiment_predictor, run_evaluation
-    from pipeline.dask_engine import check_engine_options, dask_client
     check_engine_options(args)
     merl_dir = folders[0]
     check_outputs(inputs=_merl_inputs(folders), outputs=[args.out], folders=[args.out])
@@ -153,6 +152,7 @@ def evaluate(args):
         else:
             result = run_evaluation(merl_dir, out, **options)
         if getattr(args, "render", False):
+            # experiments.table2 (renderer, figures) adds 1.7-2.2 s to import (python -X importtime)
             from experiments.table2 import table2
             names, predict = experiment_predictor(merl_dir, result)
             table2(merl_dir, out, predict, names=names)

@@ -11,11 +11,17 @@ import json
 import time
 from pathlib import Path
 
+import cv2
 import numpy as np
 
+import capture
 from brdf.atomic import atomic_path
 from brdf.errors import InputError
+from capture import load_mesh
+from pipeline.cmd_render import flash_photo_camera
 from pipeline.safety import check_outputs
+from slice_extract.extract import ExtractOptions, collect_samples
+from slice_extract.segment import check_labels, face_labels, segment_samples
 
 
 def materials_option(text):
@@ -41,8 +47,6 @@ def faces_path(labels_png):
 
 def segment_scene(samples, materials="auto", options=None):
     """(Segmentation, face labels (F,) int32 or None) of FlashSamples."""
-    from capture import load_mesh
-    from slice_extract.segment import face_labels, segment_samples
     segmentation = segment_samples(samples, materials, options)
     faces = None
     if samples.face_image is not None:
@@ -53,7 +57,6 @@ def segment_scene(samples, materials="auto", options=None):
 
 def write_labels(out, segmentation, faces, extra=None):
     """Write LABELS.png (+ LABELS.faces.npy, LABELS.json), all or none."""
-    import cv2
     out = Path(out)
     report = {"materials": segmentation.k, "criterion": segmentation.criterion,
               "pixels": {str(k): int(np.count_nonzero(segmentation.labels == k))
@@ -73,8 +76,6 @@ def write_labels(out, segmentation, faces, extra=None):
 def read_labels(path, shape):
     """A label image (H, W) int from LABELS.png; InputError if unreadable, not `shape`, or a
     label in 1..K has no pixel."""
-    import cv2
-    from slice_extract.segment import check_labels
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "label image not found")
@@ -90,8 +91,6 @@ def material_map_inputs(scene, labels_png, count):
     """(labels (H, W), face labels (F,) or None, flash camera) for rendering `count` tables
     with LABELS.png (+ LABELS.faces.npy when present); InputError for a wrong size, an unused
     label, a label count that is not `count`, or a faces file that does not fit the mesh."""
-    from slice_extract.segment import check_labels
-    from pipeline.cmd_render import flash_photo_camera
     camera = flash_photo_camera(scene, "--labels")
     labels = read_labels(labels_png, camera.shape)
     check_labels(labels, camera.shape, labels_png, count)
@@ -106,7 +105,6 @@ def material_map_inputs(scene, labels_png, count):
                 len(faces) and (faces.min() < 1 or faces.max() > count)):
             raise InputError(npy, f"must be one label 1..{count} per face (int)")
         if scene.geometry.mesh is not None:
-            from capture import load_mesh
             n_faces = len(load_mesh(scene.geometry.mesh)[0].faces)
             if len(faces) != n_faces:
                 raise InputError(npy, f"has {len(faces)} labels but the mesh has {n_faces} faces")
@@ -114,8 +112,6 @@ def material_map_inputs(scene, labels_png, count):
 
 
 def segment(args):
-    import capture
-    from slice_extract.extract import ExtractOptions, collect_samples
     materials = materials_option(getattr(args, "materials", None))
     if Path(args.out).suffix.lower() != ".png":
         raise InputError("--out", f"the label image must be a .png, got {args.out}")

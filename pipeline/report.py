@@ -28,7 +28,7 @@ from brdf.atomic import write_text
 from brdf.errors import InputError
 from brdf.merl import theta_h_centres
 from brdf.metrics import summarise
-from brdf.views import table_2d
+from brdf.views import slice_coverage, table_2d
 from render import images
 from render.compare import compare_images
 from pipeline import report_figures as figs
@@ -113,18 +113,18 @@ def coverage(theta_h_deg, observed):
     if not seen.any():
         return {"bins_observed": 0, "samples": 0}, [
             "no θh bin was observed: the whole prediction comes from the prior"]
-    edges = merl.theta_h_from_bin_coordinate(np.arange(merl.N_THETA_H + 1), 90.0)  # in degrees
-    first, last = int(np.argmax(seen)), int(len(seen) - 1 - np.argmax(seen[::-1]))
-    info = {"bins_observed": int(seen.sum()), "samples": int(n[seen].sum()),
-            "theta_h_observed_deg": [float(edges[first]), float(edges[last + 1])]}
+    filled = slice_coverage(seen)
+    low, high = filled["theta_h_deg_range"]
+    info = {"bins_observed": filled["bins_filled"], "samples": int(n[seen].sum()),
+            "theta_h_observed_deg": [low, high]}
     warnings = []
-    if last < 89:
-        warnings.append(f"θh above {edges[last + 1]:.0f}° not observed: the prediction there comes "
+    if filled["last_bin"] < merl.N_THETA_H - 1:
+        warnings.append(f"θh above {high:.0f}° not observed: the prediction there comes "
                         "from the prior")
-    if first > 0:
-        warnings.append(f"θh below {edges[first]:.2g}° not observed (the specular peak): the peak "
+    if filled["first_bin"] > 0:
+        warnings.append(f"θh below {low:.2g}° not observed (the specular peak): the peak "
                         "height comes from the prior")
-    gaps = int((~seen[first:last + 1]).sum())
+    gaps = filled["gaps"]
     if gaps:
         warnings.append(f"{gaps} θh bins inside the observed range are empty: interpolated by the "
                         "method")

@@ -11,34 +11,12 @@ wi points toward the light, wo toward the viewer; all vectors are unit (..., 3).
 
 import numpy as np
 
+from brdf.angles import half_diff_from_local, merl_flat_index_local
+from brdf.frame import Frame
+from brdf.lookup import evaluate_table
 from brdf.merl import N_THETA_H, theta_h_bin_coordinate, theta_h_from_bin_coordinate
 
 INV_PI = 1.0 / np.pi
-
-
-def shading_frame(normal):
-    """Orthonormal tangent, bitangent (..., 3) for unit normals (..., 3) (Duff et al. 2017:
-    branchless, no singularity)."""
-    n = np.asarray(normal, dtype=np.float64)
-    nx, ny, nz = n[..., 0], n[..., 1], n[..., 2]
-    sign = np.where(nz >= 0.0, 1.0, -1.0)
-    a = -1.0 / (sign + nz)
-    b = nx * ny * a
-    tangent = np.stack([1.0 + sign * nx * nx * a, sign * b, -sign * nx], axis=-1)
-    bitangent = np.stack([b, sign + ny * ny * a, -ny], axis=-1)
-    return tangent, bitangent
-
-
-def to_local(v, tangent, bitangent, normal):
-    """World vectors (..., 3) -> local frame coordinates (..., 3)."""
-    return np.stack([np.einsum("...k,...k->...", v, tangent),
-                     np.einsum("...k,...k->...", v, bitangent),
-                     np.einsum("...k,...k->...", v, normal)], axis=-1)
-
-
-def to_world(v, tangent, bitangent, normal):
-    """Local frame coordinates (..., 3) -> world vectors (..., 3)."""
-    return (v[..., 0:1] * tangent + v[..., 1:2] * bitangent + v[..., 2:3] * normal)
 
 
 def sample_cosine(u):
@@ -66,8 +44,8 @@ class BRDFModel:
     """Base class: the world-space wrapper around the local-frame interface."""
 
     def evaluate(self, wi, wo, normal):
-        t, b = shading_frame(normal)
-        return self.evaluate_local(to_local(wi, t, b, normal), to_local(wo, t, b, normal))
+        frame = Frame.from_normal(normal)
+        return self.evaluate_local(frame.to_local(wi), frame.to_local(wo))
 
 
 class Lambert(BRDFModel):
@@ -164,37 +142,6 @@ class GGX(HalfVectorMixture):
         return self.cosine_fraction * cos_pdf + (1.0 - self.cosine_fraction) * spec_pdf
 
 
-def merl_flat_index_local(wi, wo, three_d=True):
-    """Flat MERL bin index (...) of local-frame pairs: ((i * 90) + j) * 180 + k, or i * 90 + j.
-
-    The Rusinkiewicz angles of brdf.angles (same half-vector frame, phi_d folded into [0, pi),
-    fixed tangent at theta_h = 0) with MERL's clamped indexing, in fewer array passes.
-    """
-    # np.clip and np.mod are several times slower than minimum/maximum/where here.
-    h = wi + wo
-    h = h / np.maximum(np.sqrt(np.einsum("...k,...k->...", h, h)), 1e-300)[..., None]
-    hx, hy, hz = h[..., 0], h[..., 1], h[..., 2]
-    sin_h = np.sqrt(hx * hx + hy * hy)
-    theta_h = np.arctan2(sin_h, hz)
-    # brdf.merl.theta_h_bin_coordinate, specialised (tests/test_render_brdf.py checks they agree)
-    i = np.minimum(np.sqrt(theta_h * (180.0 / np.pi)) * (90.0 / np.sqrt(90.0)), 89.0)
-    cos_d = np.minimum(np.maximum(np.einsum("...k,...k->...", wi, h), -1.0), 1.0)
-    j = np.minimum(np.arccos(cos_d) * (180.0 / np.pi), 89.0)
-    if not three_d:
-        return i.astype(np.intp) * 90 + j.astype(np.intp)
-    safe = sin_h > 1e-12
-    inv = 1.0 / np.where(safe, sin_h, 1.0)
-    px = np.where(safe, hx * inv, 1.0)
-    py = np.where(safe, hy * inv, 0.0)
-    wx, wy, wz = wi[..., 0], wi[..., 1], wi[..., 2]
-    along_t = hz * (wx * px + wy * py) - sin_h * wz
-    along_b = wy * px - wx * py
-    phi_d = np.arctan2(along_b, along_t)
-    phi_d = np.where(phi_d < 0.0, phi_d + np.pi, phi_d)   # fold into [0, pi)
-    k = np.minimum(phi_d * (180.0 / np.pi), 179.0)
-    return (i.astype(np.intp) * 90 + j.astype(np.intp)) * 180 + k.astype(np.intp)
-
-
 def _theta_h_edges():
     """MERL theta_h bin edges (91,) in radians: (pi/2) (i/90)^2."""
     return theta_h_from_bin_coordinate(np.arange(N_THETA_H + 1))
@@ -281,8 +228,6 @@ class TabulatedBRDF(HalfVectorMixture):
         wi, wo = np.broadcast_arrays(wi, wo)
         above = (wi[..., 2] > 0) & (wo[..., 2] > 0)
         if self.interpolate:
-            from brdf.angles import half_diff_from_local
-            from brdf.lookup import evaluate_table
             theta_h, theta_d, phi_d = half_diff_from_local(wi, wo)
             value = evaluate_table(self.table, theta_h, theta_d, phi_d, interpolate=True)
             value = np.where(np.isfinite(value) & (value > 0), value, 0.0)

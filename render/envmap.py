@@ -47,6 +47,8 @@ def default_envmaps():
 
 def read_envmap_pixels(path):
     """Read a lat-long map -> (H, W, 3) float32 linear RGB. InputError if unreadable or not 2:1."""
+    # capture (cv2, Embree, OpenImageIO) adds 0.2-0.8 s to `import render` (python -X importtime,
+    # 2 loaded cores) for commands that never read a picture (export, infer); so it loads here
     from capture import read_float_image
     path = os.fspath(path)
     pixels = read_float_image(path)

@@ -24,6 +24,8 @@ from brdf.principled import MITSUBA_LUMINANCE, PARAMETER_NAMES, eta_from_specula
     tabulate_principled
 from brdf.principled_fit import FIT_OFFSET, fit_principled
 from brdf.views import table_2d
+from render.compare import compare_images
+from render.scene_render import render_sphere, sphere_view
 
 FORMATS = ("mitsuba", "principled", "gltf")
 FILES = {"mitsuba": ("mitsuba_tabulated.xml", "mitsuba_principled.xml"),
@@ -149,8 +151,6 @@ def fit_quality(table, params, envmap=None, size=RENDER_SIZE, spp=RENDER_SPP, se
     lat-long map's path; None skips it) rendered with the tabulated fit and with the table by the
     same sampler and seed (common random numbers), so it measures the fit, not the noise.
     """
-    from render.compare import compare_images
-    from render.scene_render import render_sphere, sphere_view
     fitted_table = tabulate_principled(params)
     out = {"lab_log_2d": brdf_error(table_2d(fitted_table), table_2d(table), "log", "lab"),
            "render": None}

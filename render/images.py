@@ -6,6 +6,7 @@ Every writer is atomic (brdf.atomic.atomic_path): no partial file is ever left b
 import os
 
 import numpy as np
+import OpenImageIO as oiio
 
 from brdf.atomic import atomic_path
 from brdf.colour import srgb_encode
@@ -14,7 +15,6 @@ from brdf.errors import InputError
 
 def write_exr(path, rgb):
     """Write (H, W, 3) linear RGB as a float32 OpenEXR file."""
-    import OpenImageIO as oiio
     rgb = np.ascontiguousarray(np.asarray(rgb, dtype=np.float32))
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise ValueError(f"write_exr needs (H, W, 3), got {rgb.shape}")
@@ -37,7 +37,7 @@ def read_image(path):
     capture's reader: channels by name, grey repeated to RGB, alpha dropped, an EXR data window
     placed in its display window (NaN outside). InputError when missing or unreadable.
     """
-    from capture import read_float_image
+    from capture import read_float_image  # on first use: see render.envmap.read_envmap_pixels
     return read_float_image(path)
 
 
@@ -62,7 +62,6 @@ def tonemap(rgb, exposure=None):
 
 def write_png(path, rgb8):
     """Write (H, W, 3) or (H, W, 4) uint8 as PNG, atomically."""
-    import OpenImageIO as oiio
     rgb8 = np.ascontiguousarray(rgb8, dtype=np.uint8)
     with atomic_path(path) as tmp:
         spec = oiio.ImageSpec(rgb8.shape[1], rgb8.shape[0], rgb8.shape[2], oiio.UINT8)
@@ -83,7 +82,6 @@ def write_preview(path, rgb, exposure=None):
 def read_mask(path, shape=None):
     """A PNG (or any image) mask -> (H, W) bool, nonzero = True. InputError if unreadable or
     (with `shape`) of the wrong size."""
-    import OpenImageIO as oiio
     path = os.fspath(path)
     if not os.path.isfile(path):
         raise InputError(path, "no such mask file")

@@ -18,8 +18,10 @@ import concurrent.futures
 import os
 
 import numpy as np
+from tqdm import tqdm
 
-from render.brdf_models import shading_frame, to_local, to_world
+from brdf.frame import Frame
+from render.envmap import EnvMap
 
 # Pixel-samples per work item: keeps each thread's temporaries around 100-200 MB.
 SAMPLES_PER_CHUNK = 1 << 17
@@ -54,8 +56,8 @@ def render_directional_light(points, normals, view, brdf, direction, irradiance_
 
 
 def _direct(points, normals, view, brdf, wi, irradiance, distance, occluded):
-    t, b = shading_frame(normals)
-    wi_l, wo_l = to_local(wi, t, b, normals), to_local(view, t, b, normals)
+    frame = Frame.from_normal(normals)
+    wi_l, wo_l = frame.to_local(wi), frame.to_local(view)
     cos_i = np.maximum(wi_l[:, 2], 0.0)
     value = brdf.evaluate_local(wi_l, wo_l) * (irradiance * cos_i[:, None])
     if occluded is not None:
@@ -113,7 +115,6 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
     strategies = tuple(strategies)
     if strategies == ("envmap",) and getattr(envmap, "compensate", False):
         # Compensated sampling skips the map's dim part, which only BRDF samples may cover.
-        from render.envmap import EnvMap
         envmap = EnvMap(envmap.pixels, envmap.world_from_envmap, 1.0, compensate=False)
     if "envmap" in strategies and not getattr(envmap, "can_sample", True):
         strategies = tuple(x for x in strategies if x != "envmap") or ("brdf",)
@@ -136,7 +137,6 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
     threads = threads or _default_threads()
     bar = None
     if progress:
-        from tqdm import tqdm
         bar = tqdm(total=n_points, desc=progress, unit="px", disable=None, leave=False)
     try:
         if threads == 1 or len(starts) == 1:
@@ -171,9 +171,10 @@ def _envmap_chunk(points, normals, view, brdf, envmap, u, occluded, heuristic, s
     fancy indexing of (Pc, S) ones.
     """
     pc, s = u.shape[:2]
-    t, b = shading_frame(normals)
-    wo_l = np.repeat(to_local(view, t, b, normals), s, axis=0)        # (Pc*S, 3)
-    frame = tuple(np.repeat(x, s, axis=0) for x in (t, b, normals))
+    frame = Frame.from_normal(normals)
+    wo_l = np.repeat(frame.to_local(view), s, axis=0)                 # (Pc*S, 3)
+    frames = Frame(*(np.repeat(x, s, axis=0) for x in (frame.tangent, frame.bitangent,
+                                                       frame.normal)))    # one per sample
     pixel = np.repeat(np.arange(pc), s)
     u = u.reshape(pc * s, -1)
     both = "envmap" in strategies and "brdf" in strategies
@@ -182,12 +183,12 @@ def _envmap_chunk(points, normals, view, brdf, envmap, u, occluded, heuristic, s
         uk = u[:, 2 * k:2 * k + 2]
         if strategy == "envmap":
             wi_w, pdf_env = envmap.sample(uk)
-            wi_l = to_local(wi_w, *frame)
+            wi_l = frames.to_local(wi_w)
             factor = (_mis_factor(pdf_env, brdf.pdf_local(wi_l, wo_l), heuristic) if both
                       else 1.0 / np.maximum(pdf_env, 1e-300))
         elif strategy == "brdf":
             wi_l, pdf_brdf = brdf.sample_local(wo_l, uk)
-            wi_w = to_world(wi_l, *frame)
+            wi_w = frames.to_world(wi_l)
             factor = (_mis_factor(pdf_brdf, envmap.pdf(wi_w), heuristic) if both
                       else 1.0 / np.maximum(pdf_brdf, 1e-300))
         else:

@@ -24,6 +24,12 @@ import os
 
 import numpy as np
 
+from brdf.merl import read_merl
+from render.brdf_models import TabulatedBRDF
+from render.scene_render import sphere_view
+
+# mitsuba and drjit (the optional [mitsuba] extra) load inside the functions that need them, so
+# this module imports (and says what is missing) without them.
 LIBLLVM19 = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1"
 PLUGIN_NAME = "flashbrdf_tabulated"
 
@@ -68,8 +74,6 @@ def _plugin_class():
     import drjit as dr
     import mitsuba as mi
 
-    from brdf.merl import read_merl
-    from render.brdf_models import TabulatedBRDF
 
     jit = dr.is_jit_v(mi.Float)
 
@@ -200,7 +204,6 @@ def render_sphere_mitsuba(bsdf, envmap_path, size=128, spp=64, seed=0, spp_per_p
     import drjit as dr
     import mitsuba as mi
 
-    from render.scene_render import sphere_view
     scene = mi.load_dict({
         "type": "scene", "integrator": {"type": "path", "max_depth": 2},
         "emitter": {"type": "envmap", "filename": os.fspath(envmap_path),

@@ -19,13 +19,17 @@ Default thresholds:
 import time
 from dataclasses import dataclass, field
 
+import cv2
 import numpy as np
 
+import capture
 from brdf.angles import merl_bin_index
 from brdf.errors import InputError
-from brdf.merl import N_THETA_H, theta_h_centres
+from brdf.merl import N_THETA_H
+from brdf.views import slice_coverage
 from slice_extract.binning import robust_bins
 from slice_extract.samples import REASONS, light_setup, photo_samples
+from slice_extract.segment import check_labels
 
 
 @dataclass(frozen=True)
@@ -81,7 +85,6 @@ class _Clock:
 def _trace(scene, camera, intersector, chunk):
     """capture.Surface batches of the pixels of `camera` that see the object (every pixel that
     can: usability is each photo's business), and the object mask (H, W) bool."""
-    import capture
     mask = np.zeros(camera.shape, dtype=bool)
     if intersector is None:
         surfaces = [capture.surface_from_normal_map(scene.geometry, camera)]
@@ -107,7 +110,6 @@ def silhouette_mask(object_mask, width_px):
     """
     if width_px <= 0:
         return np.zeros_like(object_mask)
-    import cv2
     kernel = np.ones((2 * width_px + 1, 2 * width_px + 1), np.uint8)
     inner = cv2.erode(object_mask.astype(np.uint8), kernel, borderType=cv2.BORDER_REPLICATE)
     return object_mask & ~inner.astype(bool)
@@ -169,7 +171,6 @@ def collect_samples(scene, options=None):
     scene: scene folder path or capture.Scene; options: ExtractOptions. InputError (exit 2) for
     bad input.
     """
-    import capture
     options = options or ExtractOptions()
     clock, start, t0 = _Clock(), time.perf_counter(), time.perf_counter()
     if not isinstance(scene, capture.Scene):
@@ -283,7 +284,6 @@ def extract_material_slices(samples, labels, where="--labels"):
     sample gets None (the caller reports it). InputError for a wrong-sized label image or a
     label in 1..K with no pixel.
     """
-    from slice_extract.segment import check_labels
     labels = np.asarray(labels)
     check_labels(labels, samples.shape, where)
     flash = samples.scene.photos_with_role("flash")
@@ -310,15 +310,12 @@ def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin
                 "miss": sum(p["usable"] - p["on_surface"] for p in per_photo)}
     rejected.update({k: sum(p[k] for p in per_photo) for k in REASONS})
     rejected["outlier"] = int(np.count_nonzero(~inlier & ~censored))
-    filled = np.flatnonzero(n > 0)
     used = theta_h[inlier]
-    centres = np.degrees(theta_h_centres())
+    filled = slice_coverage(n > 0)
     coverage = {
         "theta_h_deg_observed": [float(np.degrees(used.min())), float(np.degrees(used.max()))],
-        "bins_filled": int(len(filled)),
-        "first_bin": int(filled[0]), "last_bin": int(filled[-1]),
-        "theta_h_deg_filled": [float(centres[filled[0]]), float(centres[filled[-1]])],
-        "empty_bins": [int(i) for i in np.flatnonzero(n == 0)],
+        **{k: filled[k] for k in ("bins_filled", "first_bin", "last_bin", "theta_h_deg_filled",
+                                  "empty_bins")},
         "clipped_per_bin": {int(i): int(bin_clipped[i]) for i in np.flatnonzero(bin_clipped)},
         "pixels_total": int(total_pixels), "pixels_used": int(inlier.sum()),
     }

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from brdf.errors import InputError
+from brdf.rusinkiewicz import half_diff_thetas
+from capture import occluded
 
 REASONS = ("silhouette", "backfacing", "grazing", "theta_d", "shadowed")
 
@@ -62,23 +64,6 @@ def light_setup(photo):
     at_view = camera.model == "orthographic" and bool(np.allclose(light.direction, view,
                                                                   atol=1e-12))
     return LightSetup("directional", power, direction=light.direction, at_viewpoint=at_view)
-
-
-def _norm(v):
-    return np.sqrt(np.einsum("ij,ij->i", v, v))
-
-
-def half_diff_thetas(wi, wo, normal):
-    """theta_h, theta_d (N,) radians of unit direction pairs (N, 3) about unit normals (N, 3).
-
-    Same angles as brdf.angles.half_diff_from_world (phi_d is not needed for the slice), in the
-    half-angle form 2 atan2(|a - b|, |a + b|), which keeps full precision near 0 and near pi.
-    """
-    h = wi + wo
-    h /= _norm(h)[:, None].astype(h.dtype)
-    theta_h = 2 * np.arctan2(_norm(h - normal), _norm(h + normal))
-    theta_d = 2 * np.arctan2(_norm(wi - h), _norm(wi + h))
-    return theta_h, theta_d
 
 
 @dataclass(frozen=True, eq=False)
@@ -163,7 +148,6 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
     if not near.all():
         idx, theta_h, theta_d, cens_now = idx[near], theta_h[near], theta_d[near], cens_now[near]
     if intersector is not None and len(idx):
-        from capture import occluded
         blocked = occluded(intersector, np.take(points, idx, axis=0), np.take(wi, idx, axis=0),
                            None if r2 is None else np.sqrt(np.take(r2, idx)))
         drop(blocked, "shadowed")

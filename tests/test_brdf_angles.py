@@ -5,8 +5,10 @@ import pytest
 
 from brdf.angles import (half_diff_from_local, half_diff_from_world, local_from_half_diff,
                          merl_bin_index, phi_h_from_local)
+from brdf.frame import Frame
 from brdf.lookup import evaluate_directions, evaluate_table
-from brdf.merl import phi_d_centres, theta_d_centres, theta_h_centres
+from brdf.merl import merl_valid_mask, phi_d_centres, theta_d_centres, theta_h_centres
+from brdf.rusinkiewicz import cos_in_out
 
 
 def _hemisphere(rng, n, min_cos=0.0):
@@ -110,3 +112,34 @@ def test_lookup_is_reciprocal_and_zero_below_horizon():
         np.testing.assert_allclose(a, b, rtol=1e-9)
     below = wo * [1, 1, -1]
     assert np.all(evaluate_directions(table, wi, below, n) == 0)
+
+
+def test_cos_in_out_is_the_z_of_local_from_half_diff():
+    # brdf.rusinkiewicz.cos_in_out (MERL's valid mask, the baselines' 1/cos terms) is the closed
+    # form of the directions' z components: equal to rounding (1e-12 on unit vectors), any phi_h.
+    rng = np.random.default_rng(3)
+    th, td, pd, ph = rng.uniform(0, [np.pi / 2, np.pi / 2, 2 * np.pi, 2 * np.pi], (5000, 4)).T
+    wi, wo = local_from_half_diff(th, td, pd, ph)
+    cos_i, cos_o = cos_in_out(th, td, pd)
+    assert np.abs(cos_i - wi[:, 2]).max() < 1e-12 and np.abs(cos_o - wo[:, 2]).max() < 1e-12
+
+
+def test_valid_mask_is_both_cosines_positive_at_bin_centres():
+    # 1,096,216 valid bins: the count the MERL format (and brdf.bins) is built around.
+    assert int(merl_valid_mask().sum()) == 1_096_216
+
+
+@pytest.mark.parametrize("normal", [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [0.6, 0.0, 0.8],
+                                    [0.0, 1e-9, -1.0 + 1e-18]])
+def test_frame_is_orthonormal_and_round_trips(normal):
+    # Duff et al.'s frame has no singularity, n = -z included; round trips are exact to 1e-15.
+    rng = np.random.default_rng(4)
+    n = np.asarray(normal) / np.linalg.norm(normal)
+    frame = Frame.from_normal(np.broadcast_to(n, (100, 3)))
+    assert np.abs(np.cross(frame.tangent, frame.bitangent) - n).max() < 1e-14
+    assert np.abs(np.einsum("nk,nk->n", frame.tangent, frame.normal)).max() < 1e-14
+    v = rng.normal(size=(100, 3))
+    assert np.abs(frame.to_world(frame.to_local(v)) - v).max() < 1e-14
+    assert np.abs(frame.to_local(n)[..., 2] - 1.0).max() < 1e-15
+    if normal == [0.0, 0.0, 1.0]:
+        np.testing.assert_array_equal(frame.tangent[0], [1.0, 0.0, 0.0])  # the fixed tangent

@@ -5,7 +5,7 @@ import pytest
 
 from brdf.errors import InputError
 from brdf.merl import MERL_FILE_SIZE, MERL_SCALE, merl_valid_mask, read_merl, write_merl
-from brdf.views import flash_slice, read_slice_csv, table_2d, table_3d_from_2d
+from brdf.views import flash_slice, read_slice_csv, slice_coverage, table_2d, table_3d_from_2d
 from pipeline.cli import main
 
 
@@ -130,3 +130,20 @@ def test_read_merl_bins_equals_read_merl_at_those_bins(blue_acrylic, tmp_path):
     with pytest.raises(InputError, match="bad.binary.*NaN/Inf"):
         read_merl_bins(bad, flat)
     assert bad.read_bytes() == before
+
+
+def test_slice_coverage_by_hand():
+    # bins 3..10 filled but 5, and 40: square-root spacing puts bin i's lower edge at 90 (i/90)^2
+    # degrees and its centre at 90 ((i + 0.5)/90)^2 (extract's slice.json and the run report
+    # both read these numbers).
+    filled = np.zeros(90, bool)
+    filled[3:11] = True
+    filled[5] = False
+    filled[40] = True
+    cov = slice_coverage(filled)
+    assert (cov["bins_filled"], cov["first_bin"], cov["last_bin"], cov["gaps"]) == (8, 3, 40, 30)
+    assert len(cov["empty_bins"]) == 82 and cov["empty_bins"][:4] == [0, 1, 2, 5]
+    np.testing.assert_allclose(cov["theta_h_deg_range"], [90 * (3 / 90) ** 2, 90 * (41 / 90) ** 2],
+                               rtol=1e-12)
+    np.testing.assert_allclose(cov["theta_h_deg_filled"],
+                               [90 * (3.5 / 90) ** 2, 90 * (40.5 / 90) ** 2], rtol=1e-12)

@@ -9,6 +9,7 @@ It reproduces the observed slice exactly at θd bin 0.
 import numpy as np
 
 from brdf.bins import scatter_valid, valid_bins_3d, valid_mask_2d
+from brdf.merl import N_THETA_D
 from infer.estimator import InferenceMethod
 from infer.slices import fill_slice
 
@@ -23,7 +24,7 @@ class Chandraker(InferenceMethod):
         return self
 
     def _predict_2d(self, rho):
-        table = np.repeat(fill_slice(rho)[:, None, :], 90, axis=1)
+        table = np.repeat(fill_slice(rho)[:, None, :], N_THETA_D, axis=1)
         table[~valid_mask_2d()] = np.nan
         return table, None
 

@@ -18,6 +18,7 @@ import numpy as np
 from scipy.optimize import least_squares, nnls
 
 from brdf.bins import valid_bins_3d
+from brdf.merl import N_THETA_H
 from infer.estimator import InferenceMethod, LinearSpace
 
 EPS = 1e-3     # 1/sr, log metric offset
@@ -66,7 +67,7 @@ class Noll(InferenceMethod):
         fitted = np.einsum("i,ijc->jc", weights, np.nan_to_num(self.slices_))
         ok = np.isfinite(rho).all(axis=1)
         log_c = np.log((rho + DELTA) / (fitted + DELTA))
-        idx = np.arange(90)
+        idx = np.arange(N_THETA_H)
         for c in range(3):
             log_c[:, c] = np.interp(idx, idx[ok], log_c[ok, c])
         return np.exp(log_c)

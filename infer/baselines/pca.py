@@ -20,6 +20,7 @@ import functools
 import numpy as np
 
 from brdf.bins import cos_in_out_valid, mean_over_phi_d, valid_bins_3d, valid_mask_2d
+from brdf.merl import N_THETA_D, N_THETA_H
 from infer.estimator import InferenceMethod, LinearSpace
 
 EPS = 1e-3
@@ -85,7 +86,7 @@ class PCA(InferenceMethod):
         self.components_ = centred.T @ self.dual_                        # U (D, k), orthonormal
         # observed bins: θd bin 0 of every θh (all valid), 3 channels each
         flat = np.flatnonzero(valid.ravel())
-        self.slice_rows_ = np.searchsorted(flat, np.arange(90) * 90)     # index of (θh, 0) in n2
+        self.slice_rows_ = np.searchsorted(flat, np.arange(N_THETA_H) * N_THETA_D)     # index of (θh, 0) in n2
         return self
 
     def coefficients(self, rho):
@@ -100,7 +101,7 @@ class PCA(InferenceMethod):
 
     def _table_from_mapped(self, mapped):
         valid = valid_mask_2d()
-        table = np.full((90, 90, 3), np.nan)
+        table = np.full((N_THETA_H, N_THETA_D, 3), np.nan)
         table[valid] = from_mapped(mapped.reshape(-1, 3), self.ref_, self.w_)
         return table
 
@@ -114,7 +115,7 @@ class PCA(InferenceMethod):
         return a + (1.0 - a.sum()) / len(a)
 
     def reference_2d(self):
-        ref = np.full((90, 90, 3), np.nan)
+        ref = np.full((N_THETA_H, N_THETA_D, 3), np.nan)
         ref[valid_mask_2d()] = self.ref_
         return ref
 
