@@ -28,7 +28,8 @@ from infer.baselines.ashikhmin import _geometry
 from infer.baselines.pca import cosine_weights
 from infer.model_selection import DS_FIXED, DS_GRID, PCA_GRID, errors_2d, lab_log, select
 from experiments.eval3d import RowsView, build_cache, evaluate_3d
-from experiments.report import PAPER_TABLE1, summarise_errors, write_markdown, write_runtime_plot
+from experiments.table1_report import (PAPER_TABLE1, summarise_errors, write_markdown,
+                                       write_runtime_plot)
 
 PAPER = "dsgplvm-paper"                          # the paper's DS-GPLVM, scored from the same fits
 PAPER_FIXED = {"feature_space": "lab", "anchor": False}

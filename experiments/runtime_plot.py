@@ -1,7 +1,7 @@
 """Error against run time, legibly: one point per method and setting, each label in a column beside
 its panel, in the order of the points' errors, pushed apart to at least one line height and tied
 to its point by a leader line. Deterministic, and no two labels can overlap (adjustText is not a
-dependency). Used by `flashbrdf evaluate` (experiments.report.write_runtime_plot) and
+dependency). Used by `flashbrdf evaluate` (experiments.table1_report.write_runtime_plot) and
 benchmarks/error_vs_runtime.py (with an out-of-distribution panel).
 
 A point is {"label", "method", "x" (2D inference ms per slice), "y" (2D LAB-log error),
@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from brdf.atomic import atomic_path  # noqa: E402
-from experiments.report import METHODS  # noqa: E402
+from experiments.table1_report import METHODS  # noqa: E402
 
 FONT_PT = 7.0
 LINE = 1.35          # label pitch in font heights: leaves a gap between neighbouring labels

@@ -30,7 +30,7 @@ from brdf.errors import InputError
 from infer import METHODS, TrainingSet, make_method
 from experiments.evaluate import PAPER, _warm_up, build_method
 from infer.model_file import load_methods
-from experiments.report import summarise_errors
+from experiments.table1_report import summarise_errors
 from infer.training import train_model
 
 THETA_D_BANDS_DEG = ((0, 30), (30, 60), (60, 75), (75, 90))

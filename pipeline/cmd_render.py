@@ -14,9 +14,17 @@ import json
 import time
 from pathlib import Path
 
+import capture
 from brdf.atomic import write_text
 from brdf.errors import InputError
+from brdf.merl import read_merl
+from pipeline.albedo_files import read_albedo
 from pipeline.safety import check_outputs, staged_output_dir
+from render.albedo_map import DiffuseAlbedoMap
+from render.brdf_models import TabulatedBRDF
+from render.compare import write_comparison
+from render.images import read_image, read_mask, write_exr, write_preview
+from render.scene_render import MaterialMap, render_scene
 
 
 def photo_exists(photo):
@@ -45,13 +53,6 @@ def flash_photo_camera(scene, where):
 
 
 def render(args):
-    import capture
-    from brdf.merl import read_merl
-    from render.brdf_models import TabulatedBRDF
-    from render.compare import write_comparison
-    from render.images import write_exr, write_preview
-    from render.scene_render import MaterialMap, render_scene
-
     spp = samples_per_pixel(args)
     scene = capture.load_scene(args.scene_dir)
     check_outputs(inputs=[args.scene_dir, *scene.input_files(), args.brdf,
@@ -67,15 +68,13 @@ def render(args):
                                    "pixels each one covers")
     interpolate = bool(getattr(args, "interpolate", False))
     if labels_png:  # check the labels before reading any table
-        from pipeline.cmd_segment import material_map_inputs
+        from pipeline.cmd_segment import material_map_inputs  # it imports this module: a cycle
         labels, faces, camera = material_map_inputs(scene, labels_png, len(paths))
     tables = [read_merl(p) for p in paths]
     models = [TabulatedBRDF(t, interpolate=interpolate) for t in tables]
     brdf = MaterialMap(models, labels, camera, faces) if labels_png else models[0]
     albedo_exr = getattr(args, "albedo", None)
     if albedo_exr:
-        from pipeline.albedo_files import read_albedo
-        from render.albedo_map import DiffuseAlbedoMap
         flash_camera = camera if labels_png else flash_photo_camera(scene, "--albedo")
         albedo, floors, albedo_faces = read_albedo(albedo_exr, scene, flash_camera, tables)
         brdf = DiffuseAlbedoMap(brdf, albedo, floors, flash_camera, albedo_faces)
@@ -113,9 +112,6 @@ def render(args):
 
 
 def compare(args):
-    from render.compare import write_comparison
-    from render.images import read_image, read_mask
-
     check_outputs(inputs=[args.pred, args.ref, getattr(args, "mask", None)], outputs=[args.out],
                   folders=[args.out])
     pred = read_image(args.pred)

@@ -20,12 +20,30 @@ import json
 import sys
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
+from tqdm import tqdm
 
+import capture
+from brdf import merl, views
 from brdf.atomic import write_text
 from brdf.errors import InputError
+from infer import METHODS, make_method, novelty_warning
+from infer.model_file import check_model_file, load_methods
+from pipeline.cmd_extract import write_extraction
+from pipeline.cmd_render import photo_exists, samples_per_pixel
+from pipeline.cmd_segment import materials_option, segment_scene, write_labels
+from pipeline.report import write_report
+from pipeline.run_export import export_for_report, export_method
 from pipeline.safety import check_outputs, staged_output_dir
+from render import (MaterialMap, TabulatedBRDF, render_scene, write_comparison, write_exr,
+                    write_preview)
+from render.albedo_map import DiffuseAlbedoMap
+from render.envmap import read_envmap_pixels
+from render.scene_render import SceneGeometry
+from slice_extract import ExtractOptions
+from slice_extract.extract import bin_samples, collect_samples
 
 DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "sample_data" / "models" / "merl100_1d2d.npz"
 METHODS_NEEDING_NO_MODEL = ("chandraker",)
@@ -39,7 +57,6 @@ class _Stages:
     """
 
     def __init__(self, total):
-        from tqdm import tqdm
         self.seconds = {}
         self.bar = tqdm(total=total, unit="stage", file=sys.stderr, disable=not sys.stderr.isatty())
 
@@ -62,7 +79,6 @@ class _Stages:
 
 
 def _methods(text):
-    from infer import METHODS, make_method
     names = [m.strip() for m in text.split(",") if m.strip()]
     usable = [m for m in METHODS if not make_method(m).evaluation_only]
     unknown = [m for m in names if m not in usable]
@@ -87,8 +103,6 @@ def _model_path(args, methods):
 
 def _load_methods(names, model_path, anchor):
     """{name: fitted method}, the model file read once for all of them."""
-    from infer import make_method
-    from infer.model_file import load_methods
     if model_path is None:
         return {name: make_method(name).fit(None) for name in names}
     return load_methods(model_path, names, overrides={"dsgplvm": {"anchor": anchor}})
@@ -96,8 +110,6 @@ def _load_methods(names, model_path, anchor):
 
 def _infer(method, method_name, model_path, rho, out_dir):
     """Predict a 2D table (or 3D where the model stores 3D data); write brdf.binary + brdf.json."""
-    from brdf import merl, views
-    from infer import novelty_warning
     start = time.perf_counter()
     view = "3d" if method.training_3d() == "stored" else "2d"
     table, variance = method.predict(rho, view=view)
@@ -122,9 +134,6 @@ def _check_references(references):
 
     Returns {photo index: (rgb, usable)} for the photos that exist (render compares with them).
     """
-    import capture
-    from pipeline.cmd_render import photo_exists
-    from render.envmap import read_envmap_pixels
     loaded = {}
     for photo in references:
         if photo.light is not None and photo.light.type == "envmap":
@@ -135,10 +144,7 @@ def _check_references(references):
 
 
 def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, references, loaded):
-    from render import (MaterialMap, TabulatedBRDF, render_scene, write_comparison, write_exr,
-                        write_preview)
     rows = []
-    from render.albedo_map import DiffuseAlbedoMap
     brdf = table if isinstance(table, (MaterialMap, DiffuseAlbedoMap)) else TabulatedBRDF(table)
     for photo, image, mask in render_scene(scene, brdf, spp=spp, photos=references,
                                            geometry=geometry):
@@ -161,8 +167,6 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
 def run(args, load_methods=None):
     """`flashbrdf run`; load_methods(names, model_path, anchor) -> {name: fitted method} replaces
     the model read (batch passes its per-worker cache)."""
-    import capture
-    from pipeline.cmd_render import samples_per_pixel
 
     methods = _methods(args.methods)
     model_path = _model_path(args, methods)
@@ -171,7 +175,6 @@ def run(args, load_methods=None):
     check_outputs(inputs=[args.scene_dir, *scene.input_files(), model_path], outputs=[args.out],
                   folders=[args.out])
     if model_path is not None:
-        from infer.model_file import check_model_file
         check_model_file(model_path)
     references = scene.photos_with_role("reference")
     loaded = _check_references(references)
@@ -184,16 +187,9 @@ def run(args, load_methods=None):
 def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
                 load_methods=None):
     """The slow part of `run`, into the staged folder `out`: returns (stages, report dict)."""
-    from types import SimpleNamespace
-
-    from pipeline.cmd_extract import write_extraction
-    from pipeline.cmd_segment import materials_option, segment_scene, write_labels
-    from pipeline.report import write_report
+    # run_materials calls back into this module (_infer, _render_and_compare): an import cycle
     from pipeline.run_materials import (label_section, material_entries, run_albedo_map,
                                         run_materials)
-    from render.scene_render import SceneGeometry
-    from slice_extract import ExtractOptions
-    from slice_extract.extract import bin_samples, collect_samples
 
     materials = materials_option(getattr(args, "materials", None))
     export = getattr(args, "export", False)
@@ -233,7 +229,6 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
 
     exported = None
     if export:
-        from pipeline.run_export import export_for_report, export_method
         exported = stages.run("export", export_for_report, out, export_method(methods))
         notes.append(exported[2])
     if two_d:
@@ -251,7 +246,6 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
         for name in methods:
             brdf = predictions[name]["table"]
             if with_albedo is not None:
-                from render import TabulatedBRDF
                 brdf = with_albedo(TabulatedBRDF(brdf))
             rows += stages.run(f"render+compare {name}", _render_and_compare, scene, geometry, name,
                                brdf, spp, out / name, references, loaded)

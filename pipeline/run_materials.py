@@ -9,12 +9,19 @@ A material with no usable sample at all (every pixel rejected) borrows the whole
 slice, and the report says so; a sparse one is inferred with its missing bins imputed.
 """
 
-from pathlib import Path
 
 import numpy as np
 
+from brdf.merl import theta_h_centres
 from pipeline import report_figures as figs
+from pipeline.albedo_files import albedo_for_scene, write_albedo
+from pipeline.cmd_extract import material_coverage, write_extraction, write_material_slices
+from pipeline.cmd_segment import write_labels
 from pipeline.report import _table_2d, _variance_2d, write_report
+from render import MaterialMap, TabulatedBRDF
+from render.albedo_map import DiffuseAlbedoMap
+from render.images import write_preview
+from slice_extract.extract import bin_samples, extract_material_slices
 
 
 def label_section(labels, fig_dir, criterion):
@@ -41,12 +48,7 @@ def run_materials(ctx, samples, segmentation, faces):
     by run's input check), final_out (where `out` will be renamed to)); samples: FlashSamples;
     segmentation: slice_extract.segment.Segmentation; faces: (F,) int32 or None.
     """
-    from brdf.merl import theta_h_centres
-    from pipeline.cmd_extract import material_coverage, write_extraction, write_material_slices
-    from pipeline.cmd_run import _infer, _render_and_compare
-    from pipeline.cmd_segment import write_labels
-    from render import MaterialMap, TabulatedBRDF
-    from slice_extract.extract import bin_samples, extract_material_slices
+    from pipeline.cmd_run import _infer, _render_and_compare  # cmd_run imports this module
 
     stages, out, labels = ctx.stages, ctx.out, segmentation.labels
     slices = stages.run("extract materials", extract_material_slices, samples, labels, "labels")
@@ -117,11 +119,8 @@ def run_materials(ctx, samples, segmentation, faces):
 def run_albedo_map(stages, out, samples, segmentation, faces, scene, notes):
     """`run --albedo-map`: estimate and write OUT_DIR/albedo.exr (+ .json, .faces.npy); returns
     a function that puts the map on a BRDF (a model or a MaterialMap) for rendering."""
-    from pipeline.albedo_files import albedo_for_scene, write_albedo
-    from render.albedo_map import DiffuseAlbedoMap
     result, albedo_faces = stages.run("albedo map", albedo_for_scene, samples,
                                       segmentation.labels, faces)
-    from render.images import write_preview
     write_albedo(out / "albedo.exr", result, albedo_faces)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     write_preview(out / "figures" / "albedo.png", result.albedo, exposure=1.0)  # albedo 1 = white

@@ -9,6 +9,7 @@ import numpy as np
 
 from brdf.errors import InputError
 from render.albedo_map import DiffuseAlbedoMap
+from render.brdf_models import TabulatedBRDF
 from render.envmap import EnvMap
 from render.integrator import render_directional_light, render_envmap, render_point_light
 
@@ -23,7 +24,7 @@ class SceneGeometry:
     """A scene's geometry with cached per-camera primary hits (capture.Surface)."""
 
     def __init__(self, scene):
-        import capture
+        import capture  # lazy: capture costs 0.2-0.8 s on every import of render
         self.scene = scene
         self._surfaces = {}
         if scene.geometry.mesh is not None:
@@ -187,7 +188,6 @@ def render_sphere(table, envmap_path, size=128, spp=64, seed=0, interpolate=Fals
     looking along -z (see sphere_view); no shadowing (a sphere is convex).
     Returns (size, size, 3) float32, 0 off the sphere.
     """
-    from render.brdf_models import TabulatedBRDF
     brdf = table if hasattr(table, "evaluate_local") else TabulatedBRDF(table, interpolate)
     envmap = envmap_path if isinstance(envmap_path, EnvMap) else \
         EnvMap.from_file(envmap_path, world_from_envmap, scale)

@@ -32,7 +32,10 @@ Labels are numbered by decreasing pixel count (1 = the largest material).
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
+from scipy.spatial import cKDTree
+from threadpoolctl import threadpool_limits
 
 from brdf.angles import merl_bin_index
 from brdf.errors import InputError
@@ -308,7 +311,7 @@ def _assign_all(rho, theta_h, pick, labels, k):
 
 def _cluster(rho, theta_h, options):
     """cluster_samples on the samples given, all of them."""
-    from sklearn.mixture import GaussianMixture
+    from sklearn.mixture import GaussianMixture  # lazy: +2.4 s on every import of slice_extract
     n = len(rho)
     criterion = {"samples": int(n)}
     if n < 50:
@@ -406,7 +409,6 @@ def clean_label_image(labels, object_mask, min_area_fraction):
 
 def _clean_labels(labels, object_mask, min_area_fraction, object_pixels):
     """clean_label_image on a crop holding the whole object."""
-    import cv2
     labels = labels.astype(np.int32)
     min_area = max(4, int(min_area_fraction * max(object_pixels, 1)))
     for k in range(1, int(labels.max()) + 1):
@@ -440,7 +442,6 @@ def _clean_labels(labels, object_mask, min_area_fraction, object_pixels):
 def segment_samples(samples, materials="auto", options=None):
     """Segmentation of FlashSamples (slice_extract.extract.collect_samples) of the first flash
     photo; materials: "auto" or an int K >= 1 (then the mixture has K components, unmerged)."""
-    from threadpoolctl import threadpool_limits
     options = options or SegmentOptions()
     with threadpool_limits(1):  # tiny 3x3 algebra: BLAS threads only contend on a busy machine
         return _segment_samples(samples, materials, options)
@@ -468,7 +469,7 @@ def _segment_samples(samples, materials, options):
 
 def _fixed_k(rho, theta_h, k, options):
     """K given by the user: a K-component mixture, refined by K slices, no merging."""
-    from sklearn.mixture import GaussianMixture
+    from sklearn.mixture import GaussianMixture  # lazy: +2.4 s on every import of slice_extract
     n = len(rho)
     if k == 1 or n < 2 * k:
         return np.zeros(n, int), {"samples": int(n), "reason": f"--materials {k}"}
@@ -507,7 +508,6 @@ def face_labels(labels, face_image, faces_centroids):
     """Label per mesh face (F,) int32 from a label image (H, W) and the face each pixel hits
     (H, W) int (-1 none); faces_centroids (F, 3). A seen face takes its pixels' majority label;
     an unseen face the label of the nearest seen face (by centroid)."""
-    from scipy.spatial import cKDTree
     n_faces = len(faces_centroids)
     seen = (face_image >= 0) & (labels > 0)
     k = int(labels.max())
