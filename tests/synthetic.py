@@ -314,3 +314,14 @@ def write_synthetic_scene(folder, mesh, brdf_fn, camera, lights, ambient=0.0, ph
     scene = {"camera": camera, "geometry": {"mesh": mesh_name}, "photos": photos}
     (folder / "scene.json").write_text(json.dumps(scene, indent=1))
     return folder
+
+
+def add_reference_photo(folder, mesh, brdf_fn, camera, light, photons, seed=1, name="ref.exr"):
+    """Render `light` through the pixel model with photon noise (rng `seed`), write it to
+    folder/name and list it in folder/scene.json as a reference photo."""
+    image = add_photon_noise(render(mesh, brdf_fn, camera, light), photons,
+                             np.random.default_rng(seed))
+    write_exr(Path(folder) / name, image)
+    doc = json.loads((Path(folder) / "scene.json").read_text())
+    doc["photos"].append({"file": name, "role": "reference", "light": light})
+    (Path(folder) / "scene.json").write_text(json.dumps(doc))

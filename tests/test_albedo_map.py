@@ -17,9 +17,8 @@ from capture import load_scene
 from pipeline.cli import main
 from slice_extract.albedo import estimate_albedo_map
 from slice_extract.extract import ExtractOptions, collect_samples
-from synthetic import (add_photon_noise, directional_light, ggx_lambert, pinhole_camera,
-                       point_light, region_image, render, sphere_mesh, write_exr,
-                       write_synthetic_scene)
+from synthetic import (add_reference_photo, directional_light, ggx_lambert, pinhole_camera,
+                       point_light, region_image, sphere_mesh, write_exr, write_synthetic_scene)
 
 BASE = np.array([0.35, 0.25, 0.15])       # A0, the mean diffuse albedo
 STRIPES = np.array([0.25, 0.05, 0.15])     # S: the print's amplitude per channel
@@ -50,12 +49,7 @@ def textured(tmp_path_factory):
                                    [point_light([0.03, 0, 0])], photons=PHOTONS)
     direction = np.array([0.42, 0.0, -1.0]) / np.linalg.norm([0.42, 0.0, -1.0])
     light = directional_light(direction)
-    reference = add_photon_noise(render(mesh, brdf, cam, light), PHOTONS,
-                                 np.random.default_rng(1))
-    write_exr(folder / "ref.exr", reference)
-    doc = json.loads((folder / "scene.json").read_text())
-    doc["photos"].append({"file": "ref.exr", "role": "reference", "light": light})
-    (folder / "scene.json").write_text(json.dumps(doc))
+    add_reference_photo(folder, mesh, brdf, cam, light, PHOTONS)
     # the true albedo per pixel: A0 + S x print(hit point); region_image gives 1 + print index
     levels = 64
     index = region_image(mesh, cam, lambda p: np.round(_print(p) * (levels - 1)).astype(int))

@@ -17,9 +17,8 @@ import pytest
 from brdf.merl import read_merl
 from brdf.views import flash_slice, read_slice_csv
 from pipeline.cli import main
-from synthetic import (add_photon_noise, by_region, directional_light, pinhole_camera,
-                       point_light, region_image, render, sphere_mesh, table_brdf, write_exr,
-                       write_synthetic_scene)
+from synthetic import (add_reference_photo, by_region, directional_light, pinhole_camera,
+                       point_light, region_image, sphere_mesh, table_brdf, write_synthetic_scene)
 
 MATERIALS = ("red-specular-plastic", "blue-acrylic")
 PHOTONS = 2000
@@ -38,12 +37,7 @@ def two_materials(merl_proxy, tmp_path_factory):
     folder = write_synthetic_scene(tmp_path_factory.mktemp("two") / "scene", mesh, brdf, cam,
                                    [point_light([0.03, 0, 0])], photons=PHOTONS)
     light = directional_light(np.array([0.25, -0.2, -1.0]) / np.linalg.norm([0.25, -0.2, -1.0]))
-    reference = add_photon_noise(render(mesh, brdf, cam, light), PHOTONS,
-                                 np.random.default_rng(1))
-    write_exr(folder / "ref.exr", reference)
-    doc = json.loads((folder / "scene.json").read_text())
-    doc["photos"].append({"file": "ref.exr", "role": "reference", "light": light})
-    (folder / "scene.json").write_text(json.dumps(doc))
+    add_reference_photo(folder, mesh, brdf, cam, light, PHOTONS)
     truth = region_image(mesh, cam, _region)
     cv2.imwrite(str(folder.parent / "true_labels.png"), truth.astype(np.uint16))
     return {"scene": folder, "tables": tables, "paths": paths, "truth": truth,
