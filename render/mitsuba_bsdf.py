@@ -188,6 +188,7 @@ def _plugin_class():
         def to_string(self):
             return f"FlashbrdfTabulated[filename={self.filename!r}]"
 
+    FlashbrdfTabulated.merl_index = staticmethod(merl_index)  # for the agreement test
     return FlashbrdfTabulated
 
 
