@@ -232,19 +232,13 @@ def write_cluster_plot(c, path):
     plt.close(fig)
 
 
-def _numbers(value, path=""):
-    if isinstance(value, dict):
-        return {k: v for key, item in value.items() for k, v in _numbers(item, f"{path}/{key}").items()}
-    if isinstance(value, list):
-        return {k: v for i, item in enumerate(value) for k, v in _numbers(item, f"{path}/{i}").items()}
-    return {path: value}
 
 
 def part_table1(work, merl_dir, k, materials, k_3d=0):
     """run_evaluation in this process (k experiments, 3D metrics on k_3d of them), in a loop and
     on a 2-worker local cluster."""
     sys.path.insert(0, str(REPO))
-    from experiments.evaluate import run_evaluation
+    from experiments.evaluate import json_leaves, run_evaluation
     from pipeline.dask_engine import dask_client
     subset = work / "merl"
     subset.mkdir()
@@ -264,7 +258,7 @@ def part_table1(work, merl_dir, k, materials, k_3d=0):
     a, b = (json.loads((work / d / "table1.json").read_text()) for d in ("t1_loop", "t1_dask"))
     worst, choices_equal = 0.0, True
     for key in ("summary", "per_experiment", "ablations", "hyperparameters"):
-        na, nb = _numbers(a[key]), _numbers(b[key])
+        na, nb = json_leaves(a[key]), json_leaves(b[key])
         for path, v in na.items():
             if isinstance(v, float):
                 worst = max(worst, abs(v - nb[path]))

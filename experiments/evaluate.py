@@ -481,3 +481,13 @@ def _write(out_dir, result, records, costs, points, ablations, planned):
         write_runtime_plot(os.path.join(out_dir, "error_vs_runtime.png"), points)
 
 
+def json_leaves(value, path=""):
+    """{"/key/0/...": leaf} of a nested JSON value: compares two runs' numbers path by path
+    (the loop against Dask in tests/test_evaluate_dask.py and benchmarks/batch_speed.py)."""
+    if isinstance(value, dict):
+        return {k: v for key, item in value.items()
+                for k, v in json_leaves(item, f"{path}/{key}").items()}
+    if isinstance(value, list):
+        return {k: v for i, item in enumerate(value)
+                for k, v in json_leaves(item, f"{path}/{i}").items()}
+    return {path: value}

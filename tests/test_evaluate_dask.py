@@ -18,16 +18,10 @@ import pytest
 from distributed import Client, LocalCluster
 
 from experiments import evaluate
+from experiments.evaluate import json_leaves
 from test_infer_cli import QUICK
 
 
-def _numbers(value, path=""):
-    """{path: float} of every number in a nested JSON value, and {path: str} of the rest."""
-    if isinstance(value, dict):
-        return {k: v for key, item in value.items() for k, v in _numbers(item, f"{path}/{key}").items()}
-    if isinstance(value, list):
-        return {k: v for i, item in enumerate(value) for k, v in _numbers(item, f"{path}/{i}").items()}
-    return {path: value}
 
 
 @pytest.mark.slow
@@ -45,7 +39,7 @@ def test_experiments_on_dask_equal_the_loop(merl_proxy, tmp_path, monkeypatch):
     loop, dask = (json.loads((tmp_path / d / "table1.json").read_text()) for d in ("loop", "dask"))
     assert len(loop["per_experiment"]) == 2 and len(loop["ablations"]) >= 5
     for key in ("summary", "per_experiment", "hyperparameters", "ablations", "mean_performing"):
-        want, got = _numbers(loop[key]), _numbers(dask[key])
+        want, got = json_leaves(loop[key]), json_leaves(dask[key])
         assert got.keys() == want.keys(), key
         for path, value in want.items():
             if isinstance(value, float):
