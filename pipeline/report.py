@@ -48,7 +48,7 @@ HOW_TO_READ = """\
   i.e. by the highlights.
 - **Observed vs predicted.** A flash photo measures only the θd = 0 slice ρ(θh) of the BRDF. Every
   value at θd > 0, and every θh bin with no observed pixels, is predicted by the method from what
-  it learned on MERL materials, not measured.
+  it learned from the model's training tables (MERL, plus RGL for the shipped model), not measured.
 """
 
 
