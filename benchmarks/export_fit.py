@@ -76,19 +76,26 @@ def block_means(image, mask, block=4):
     return tiles.mean(axis=(1, 3))[keep]
 
 
-def part_plugin(args):
+def _mitsuba_spheres(args):
+    """(mitsuba_bsdf module, pisa envmap path, sphere mask (size, size), [(name, path)]) for the
+    Mitsuba parts: llvm_ad_rgb registered, one MERL table per --plugin-materials name."""
     import render.mitsuba_bsdf as mbsdf
-    from render.scene_render import render_sphere, sphere_view
     from render.envmap import default_envmaps
+    from render.scene_render import sphere_view
     if not mbsdf.llvm_available():
         raise SystemExit("llvm_ad_rgb unavailable: pip install -e '.[mitsuba]', apt-get install "
                          "libllvm19")
     mbsdf.register("llvm_ad_rgb")
-    pisa = default_envmaps()[0]
-    mask = sphere_view(args.size)[0]
+    materials = [(name, Path(args.merl_dir) / f"{name}.binary")
+                 for name in args.plugin_materials.split(",")]
+    return mbsdf, default_envmaps()[0], sphere_view(args.size)[0], materials
+
+
+def part_plugin(args):
+    from render.scene_render import render_sphere
+    mbsdf, pisa, mask, materials = _mitsuba_spheres(args)
     rows = []
-    for name in args.plugin_materials.split(","):
-        path = Path(args.merl_dir) / f"{name}.binary"
+    for name, path in materials:
         table = read_merl(path)
         images, times = {"mitsuba": [], "ours": []}, {"mitsuba": [], "ours": []}
         for seed in (0, 1):
@@ -122,15 +129,9 @@ def part_noise(args):
     """Per-pixel noise of the plugin against Mitsuba's own BSDFs of a similar look, all through
     Mitsuba's path integrator with the same sampler and spp: the plugin's sampling against
     roughplastic's and principled's (fitted to the same table)."""
-    import render.mitsuba_bsdf as mbsdf
-    from render.scene_render import sphere_view
-    from render.envmap import default_envmaps
-    mbsdf.register("llvm_ad_rgb")
-    pisa = default_envmaps()[0]
-    mask = sphere_view(args.size)[0]
+    mbsdf, pisa, mask, materials = _mitsuba_spheres(args)
     rows = []
-    for name in args.plugin_materials.split(","):
-        path = Path(args.merl_dir) / f"{name}.binary"
+    for name, path in materials:
         p = fit_principled(read_merl(path))["params"]
         bsdfs = {
             "flashbrdf_tabulated": {"type": "flashbrdf_tabulated", "filename": str(path)},
