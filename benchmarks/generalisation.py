@@ -22,8 +22,9 @@ central 90% interval of the default method, the novelty warnings, and prediction
 So that the three accuracy checks of issue 11 come from one run, the same run can also do
 - --merl-quick: the MERL protocol of `flashbrdf evaluate --quick` (experiment 0, 2D only) on
   --merl-dir (experiments.evaluate.run_evaluation), every method's six 2D Table 1 errors;
-- --ball MODEL: benchmarks/diligent_ball.py with that model (the shipped default; needs
-  ../shared/data/real), every method's ΔE-log over the 95 other lights.
+- --ball MODEL [--ball-merl-dir DIR]: benchmarks/diligent_ball.py with that model (the shipped
+  default; needs ../shared/data/real; DIR holds its training tables), every method's ΔE-log over
+  the 95 other lights.
 Writes OUT/generalisation.{json,md}.
 """
 
@@ -247,6 +248,9 @@ def main(argv=None):
     p.add_argument("--methods", default=",".join(METHODS))
     p.add_argument("--merl-quick", action="store_true")
     p.add_argument("--ball", metavar="MODEL")
+    p.add_argument("--ball-merl-dir", metavar="DIR",
+                   help="the ball model's training tables, for its 3D predictions (default: "
+                        "--merl-dir; the shipped model also needs the RGL tables beside them)")
     p.add_argument("--fold-runs", default=None, metavar="K,K",
                    help="compute only these folds (default all): split one run over processes")
     p.add_argument("--merge", nargs="+", metavar="JSON",
@@ -306,7 +310,7 @@ def main(argv=None):
         write_results(out, result)
     if args.ball:
         result["ball_model"] = args.ball
-        result["ball"] = ball(args.ball, args.merl_dir)
+        result["ball"] = ball(args.ball, args.ball_merl_dir or args.merl_dir)
         print("ball", json.dumps(result["ball"]), flush=True)
         write_results(out, result)
     print(markdown(result))

@@ -24,7 +24,7 @@ from brdf.atomic import write_text
 from brdf.errors import InputError
 from brdf.bins import valid_mask_2d
 from infer import TrainingSet, make_method, method_from_model
-from infer.baselines.ashikhmin import _geometry
+from brdf.microfacet import inverse_denominator
 from infer.baselines.pca import cosine_weights
 from infer.model_selection import DS_FIXED, DS_GRID, PCA_GRID, errors_2d, lab_log, select
 from experiments.eval3d import RowsView, build_cache, evaluate_3d
@@ -238,7 +238,7 @@ def _summary(records, key):
 
 def _warm_up():
     """Fill the geometry caches so that timings measure methods, not one-off set-up."""
-    valid_mask_2d(), cosine_weights(), _geometry()
+    valid_mask_2d(), cosine_weights(), inverse_denominator()
 
 
 # ----------------------------------------------------------------------------- as Dask tasks

@@ -22,6 +22,7 @@ from brdf.merl import N_THETA_D, N_THETA_H
 from infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
 from infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_combination
 from infer.row_blend import ROW_BLEND_DEG, RowBlendSpace, blend_toward_row
+from infer.slice_fit import SLICE_FIT_WEIGHT, convex_slice_weights, mixed_weights
 from infer.slices import check_slice
 
 
@@ -67,6 +68,9 @@ class DSGPLVMMethod(InferenceMethod):
     blended toward the observed row's flat extension near theta_d = 0 over row_blend_deg degrees
     (infer.row_blend; 0 switches the blend off). The 3D prediction takes the correction computed on
     the 2D prediction, so both views agree.
+    slice_fit: our addition, applied with anchor=True: the share λ of the prediction's weights over
+    the training tables that comes from a direct convex fit of the training slices to the observed
+    one rather than from the GP (infer.slice_fit; 0: the GP's weights alone, as in the paper).
     A DSGPLVM trained before (read from a model file) is used through `from_model`, not `fit`.
     """
     name = "dsgplvm"
@@ -74,7 +78,8 @@ class DSGPLVMMethod(InferenceMethod):
 
     def __init__(self, q=None, beta=50.0, feature_space="lab", views=("1d", "2d"), seed=0,
                  latent="backprojection", anchor=False, representation="absolute",
-                 calibration=1.0, row_blend_deg=ROW_BLEND_DEG, **model_kw):
+                 calibration=1.0, row_blend_deg=ROW_BLEND_DEG, slice_fit=SLICE_FIT_WEIGHT,
+                 **model_kw):
         if representation != "absolute":
             raise ValueError("DSGPLVMMethod is the absolute representation; see infer.dsgplvm_method")
         if latent not in ("backprojection", "optimise"):
@@ -82,7 +87,7 @@ class DSGPLVMMethod(InferenceMethod):
         self.q, self.beta, self.feature_space = q, beta, feature_space
         self.views, self.seed, self.latent = views, seed, latent
         self.anchor, self.representation, self.calibration = anchor, representation, calibration
-        self.row_blend_deg = row_blend_deg
+        self.row_blend_deg, self.slice_fit = row_blend_deg, slice_fit
         self.model_kw = model_kw
 
     @property
@@ -150,12 +155,20 @@ class DSGPLVMMethod(InferenceMethod):
         return (self.calibration * float(gp_variance) * shape).reshape(N_THETA_H, N_THETA_D, 3)
 
     def _weights(self, feats, view):
+        """(weights (N,) over the training rows, summing to 1; the GP's per-dimension predictive
+        variance in feature units²): the GP's weights, mixed with the slice fit's (slice_fit)."""
         if self.latent == "backprojection":
-            return self.model_.predict_weights(feats, view=view)
-        post = self.model_.posteriors_[view]
-        w, var = post.weights(optimise_latent(self.model_, feats))
-        w = w[0] + (1.0 - w[0].sum()) / w.shape[1]
-        return w, float(var[0]) * self.model_.view_data_[view].scale ** 2
+            w, var = self.model_.predict_weights(feats, view=view)
+        else:
+            post = self.model_.posteriors_[view]
+            w, var = post.weights(optimise_latent(self.model_, feats))
+            w = w[0] + (1.0 - w[0].sum()) / w.shape[1]
+            var = float(var[0]) * self.model_.view_data_[view].scale ** 2
+        if self.anchor and self.slice_fit:   # our addition; anchor=False is the paper's
+            src = self.model_.view_data_[self.model_.source_view]
+            y = (np.asarray(feats, float)[src.keep] - src.mean[src.keep]) / src.scale
+            w = mixed_weights(w, convex_slice_weights(src.data, y), self.slice_fit)
+        return w, var
 
     def predict(self, flash_slice, view="2d"):
         table, variance = super().predict(flash_slice, view)
@@ -166,23 +179,18 @@ class DSGPLVMMethod(InferenceMethod):
 
     def _predict_2d(self, rho):
         feats = slice_features(rho, self.feature_space)
-        if self.latent == "backprojection":
-            mean, var = self.model_.predict(feats, view="2d")
-        else:
-            w, v = self._weights(feats, "2d")
-            data = self.model_.view_data_["2d"]
-            mean = np.full(len(data.keep), np.nan)
-            # folded weights sum to 1; centred rows sum to 0, so w @ centred = GP mean (centred)
-            mean[data.keep] = data.mean[data.keep] + data.scale * (w @ data.data)
-            var = np.full(len(data.keep), v)
+        w, var = self._weights(feats, "2d")
+        data = self.model_.view_data_["2d"]
+        mean = np.full(len(data.keep), np.nan)
+        # the weights sum to 1 and the stored rows are centred: mean + w @ rows is the combination
+        mean[data.keep] = data.mean[data.keep] + data.scale * (w @ data.data)
         mean = clip_to_range(np.asarray(mean, float), *self.range_2d_)
         mean = mean.reshape(N_THETA_H, N_THETA_D, 3)
         table = colour.features_to_rho(np.nan_to_num(mean), space=self.feature_space)
         invalid = ~valid_mask_2d() | ~np.isfinite(mean).all(axis=-1)
         table[invalid] = np.nan
         # the GP's variance is one number per view (isotropic), broadcast over its dimensions
-        var = np.asarray(var, float).ravel()
-        var = self.bin_variance(var[np.isfinite(var)][0] if np.isfinite(var).any() else np.nan)
+        var = self.bin_variance(var if np.isfinite(var) else np.nan)
         # Off the training data the GP's variance saturates at its prior while the error keeps
         # growing: widen the intervals by the squared novelty (distance over the training
         # slices' own 99th-percentile spacing) beyond 1. On RGL (NBRDF proxy), with the shipped

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from infer import PCA, Ashikhmin, Chandraker, Noll, Oracle, TrainingSet
-from infer.baselines.ashikhmin import denominator, schlick
+from brdf.microfacet import denominator
+from infer.baselines.ashikhmin import schlick
 from brdf.bins import cos_in_out_valid, mean_over_phi_d, scatter_valid, valid_bins_3d
 from brdf import merl
 

@@ -120,9 +120,10 @@ def test_anchored_3d_carries_the_2d_correction_over_theta_d_and_phi_d(trained):
     from infer import load_method
     folder, model, slice_csv = trained
     rho, _ = views.read_slice_csv(slice_csv)
-    # the anchoring alone (no observed-row blend, which is tested with the blend below)
-    plain, anchored = (load_method(model, "dsgplvm", merl_dir=folder, anchor=a, row_blend_deg=0)
-                       for a in (0, 1))
+    # the anchoring alone (no observed-row blend, which is tested with the blend below, and no
+    # slice fit, which changes the weights: tests/test_slice_fit.py)
+    plain, anchored = (load_method(model, "dsgplvm", merl_dir=folder, anchor=a, row_blend_deg=0,
+                                   slice_fit=0) for a in (0, 1))
     u2, a2 = plain.predict(rho, "2d")[0], anchored.predict(rho, "2d")[0]
     u3, a3 = plain.predict(rho, "3d")[0], anchored.predict(rho, "3d")[0]
     ok = merl.merl_valid_mask() & (a3[..., 0] > 0)            # unclamped bins

@@ -4,7 +4,9 @@ import numpy as np
 import pytest
 
 from brdf.colour import FEATURE_OFFSET as E
-from brdf.bins import valid_bins_3d
+from brdf.bins import cos_in_out_valid, scatter_valid, valid_bins_3d
+from brdf.microfacet import denominator
+from brdf.views import table_2d, table_3d_from_2d
 from infer.row_blend import RowBlendSpace, blend_toward_row, row_weights
 
 
@@ -49,8 +51,24 @@ def test_the_3d_space_blends_like_the_2d_table():
     space = RowBlendSpace(_Identity(), observed)
     sel = slice(0, 5000)
     got = space.inverse(pred2d[ih[sel], jd[sel]], sel)
-    want = blend_toward_row(pred2d, observed)[ih[sel], jd[sel]]
+    want = blend_toward_row(table_3d_from_2d(pred2d), observed)[ih[sel], jd[sel], kd[sel]]
     np.testing.assert_allclose(got, want, rtol=1e-12)
+
+
+def test_a_microfacet_brdf_is_its_own_row_extension():
+    """ρ = p(θh)/D(θh, θd, φd) (a fixed distribution, no Fresnel): its flash slice extended by the
+    geometry ratio is ρ itself, so blending any prediction toward it with full weight gives ρ."""
+    ih, jd, kd = valid_bins_3d()
+    p = 0.02 + 3.0 * np.exp(-np.arange(90) / 6.0)                  # a lobe over θh, 1/sr
+    rho_valid = (p[ih] / denominator(*cos_in_out_valid()))[:, None] * [1.0, 0.6, 0.3]
+    truth = scatter_valid(rho_valid)
+    flash_slice = np.nanmean(truth[:, 0], axis=1)                   # the φd-mean at θd bin 0
+    # τ = 10⁶ deg: 1 − w ≤ θd²/2τ² = 4·10⁻⁹ at 90°, so the ln 5 error leaves < 7·10⁻⁹ of itself
+    out = blend_toward_row(truth * 5.0, flash_slice, scale_deg=1e6)
+    np.testing.assert_allclose(out[ih, jd, kd], rho_valid, rtol=1e-8)
+    # in 2D the target is the φd-mean of the 3D one: the 2D table of ρ
+    out_2d = blend_toward_row(table_2d(truth) * 5.0, flash_slice, scale_deg=1e6)
+    np.testing.assert_allclose(out_2d, table_2d(truth), rtol=1e-8)
 
 
 class _Identity:

@@ -16,13 +16,12 @@ extrapolation is the model's. r0 (one scalar) is fitted on the training set only
 LAB-log error of the 2D predictions of the training materials from their own slices.
 """
 
-import functools
-
 import numpy as np
 from scipy.optimize import minimize_scalar
 
 from brdf import merl, metrics
-from brdf.bins import cos_in_out_valid, mean_over_phi_d, scatter_valid, valid_bins_3d
+from brdf.bins import scatter_valid, valid_bins_3d
+from brdf.microfacet import geometry_ratio_2d, geometry_ratio_valid
 from infer.estimator import InferenceMethod
 from infer.slices import fill_slice
 
@@ -32,25 +31,11 @@ def schlick(cos_theta_d, r0):
     return r0 + (1.0 - r0) * (1.0 - cos_theta_d) ** 5
 
 
-def denominator(cos_i, cos_o):
-    """The model's shadowing/normalisation denominator 4 (cos θi + cos θo − cos θi cos θo)."""
-    return 4.0 * (cos_i + cos_o - cos_i * cos_o)
-
-
-@functools.lru_cache(maxsize=1)
-def _geometry():
-    """(1/D on valid bins (n_valid,), ⟨1/D⟩ at θd bin 0 per θh (90,), 2D φd-mean of 1/D (90, 90))."""
-    inv_d = 1.0 / denominator(*cos_in_out_valid())
-    inv_d_2d = mean_over_phi_d(inv_d)
-    return inv_d, inv_d_2d[:, 0], inv_d_2d
-
-
 def ratio_2d(r0):
     """ρ_2D(θh, θd) / ρ_slice(θh), (90, 90), NaN where no valid φd."""
-    _, inv_d0, inv_d_2d = _geometry()
     cos_d = np.cos(merl.theta_d_centres())
     fresnel = schlick(cos_d, r0) / schlick(cos_d[0], r0)
-    return inv_d_2d / inv_d0[:, None] * fresnel[None, :]
+    return geometry_ratio_2d() * fresnel[None, :]
 
 
 class Ashikhmin(InferenceMethod):
@@ -88,12 +73,11 @@ class Ashikhmin(InferenceMethod):
         return fill_slice(rho)[:, None, :] * ratio_2d(self.r0_)[:, :, None], None
 
     def predict_valid_3d(self, rho, sel=slice(None)):
-        inv_d, inv_d0, _ = _geometry()
         ih, jd, _ = valid_bins_3d()
-        ih, jd = ih[sel], jd[sel]
+        ih = ih[sel]
         cos_d = np.cos(merl.theta_d_centres())
         fresnel = schlick(cos_d, self.r0_) / schlick(cos_d[0], self.r0_)
-        factor = inv_d[sel] / inv_d0[ih] * fresnel[jd]
+        factor = geometry_ratio_valid()[sel] * fresnel[jd[sel]]
         return fill_slice(rho)[ih] * factor[:, None]
 
     def _predict_3d(self, rho):

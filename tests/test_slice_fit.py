@@ -1,0 +1,76 @@
+"""Slice-fit weights (infer.slice_fit) and their use in the DS-GPLVM's prediction: known mixtures are
+recovered, the weights stay convex off the training hull, and a material that is an exact mixture of
+training materials is predicted exactly when the weights come from the fit alone."""
+
+import numpy as np
+import pytest
+
+from brdf import colour
+from infer import DSGPLVMMethod
+from infer.adapter import table_features
+from infer.slice_fit import convex_slice_weights, mixed_weights
+from tests.test_infer_baselines import ap_material, training_set
+
+
+def test_a_convex_mixture_of_training_rows_is_recovered_with_missing_dimensions():
+    rows = np.random.default_rng(3).normal(size=(12, 40))
+    target = 0.3 * rows[2] + 0.7 * rows[5]
+    target[[0, 7, 19]] = np.nan                                  # unobserved: left out of the fit
+    w = convex_slice_weights(rows, target)
+    # 12 generic rows in 37 observed dimensions: the mixture is the unique exact fit; the
+    # sum-to-one row (weight 1e3) holds Σw = 1 to ~1e-7
+    want = np.zeros(12)
+    want[[2, 5]] = 0.3, 0.7
+    np.testing.assert_allclose(w, want, atol=1e-6)
+
+
+def test_off_the_hull_the_weights_are_the_nearest_convex_point():
+    rows = np.array([[0.0, 0.0], [2.0, 0.0]])
+    w = convex_slice_weights(rows, np.array([0.5, 3.0]))         # projects onto the segment at x = 0.5
+    np.testing.assert_allclose(w, [0.75, 0.25], atol=1e-6)
+    w = convex_slice_weights(rows, np.array([-4.0, 1.0]))        # beyond an end: all on that row
+    np.testing.assert_allclose(w, [1.0, 0.0], atol=1e-6)
+    assert (convex_slice_weights(rows, np.array([np.nan, np.nan])) == 0.5).all()  # nothing seen
+    np.testing.assert_allclose(mixed_weights([1.0, 0.0], [0.0, 1.0], 0.25), [0.75, 0.25])
+
+
+def test_near_duplicate_training_rows_share_the_weight_and_stay_finite():
+    rows = np.random.default_rng(4).normal(size=(6, 30))
+    rows = np.vstack([rows, rows[1] + 1e-12])                    # a near-duplicate of row 1
+    w = convex_slice_weights(rows, rows[1])
+    assert np.isfinite(w).all() and (w >= 0).all() and w.sum() == pytest.approx(1.0, abs=1e-6)
+    assert w[1] + w[6] == pytest.approx(1.0, abs=1e-6)
+
+
+@pytest.fixture(scope="module")
+def materials():
+    rng = np.random.default_rng(11)
+    rows = [ap_material(a, r0, rng.uniform(0.1, 1, 3), diffuse=d)
+            for a, r0, d in [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02),
+                             (0.5, 0.9, 0.5), (0.15, 0.2, 0.05), (0.7, 0.05, 0.8)]]
+    return training_set(rows)
+
+
+def test_a_material_mixed_from_training_materials_is_predicted_exactly_by_the_fit(materials):
+    """A test table whose log-RGB features are 0.4·(material 1) + 0.6·(material 4): with λ = 1 the
+    prediction is that mixture of the training tables, i.e. the truth (anchoring then changes
+    nothing: the θd = 0 row already passes through the slice; the row blend is off)."""
+    feats = table_features(materials.tables_2d, "rgb").reshape(-1, 90, 90, 3)
+    mixed = colour.features_to_rho(0.4 * feats[1] + 0.6 * feats[4], space="rgb")
+    mixed[~np.isfinite(materials.tables_2d[0]).all(-1)] = np.nan
+    flash_slice = mixed[:, 0]
+    method = DSGPLVMMethod(max_cycles=3, anchor=True, feature_space="rgb", slice_fit=1.0,
+                           row_blend_deg=0.0).fit(materials)
+    pred, _ = method.predict(flash_slice, "2d")
+    ok = np.isfinite(mixed).all(-1)
+    # NNLS to ~1e-7 in the weights, times features of O(10): ρ within 1e-5 relative
+    np.testing.assert_allclose(pred[ok], mixed[ok], rtol=1e-5, atol=1e-9)
+    # the GP's weights alone (the paper's prediction) do not find it: the fit is what recovers it
+    gp_only = method.set_params(slice_fit=0.0).predict(flash_slice, "2d")[0]
+    assert np.nanmax(np.abs(np.log((gp_only[ok] + 1e-3) / (mixed[ok] + 1e-3)))) > 0.05
+    # and anchor=False is the paper's prediction: no slice fit there
+    paper = method.set_params(anchor=False, slice_fit=1.0).predict(flash_slice, "2d")[0]
+    np.testing.assert_allclose(paper, DSGPLVMMethod.from_model(
+        method.model_, materials, **(method.get_params() | {"slice_fit": 0.0})).predict(
+        flash_slice, "2d")[0], rtol=1e-12)
+
