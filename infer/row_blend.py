@@ -14,10 +14,11 @@ with e = brdf.colour.FEATURE_OFFSET (the log features' offset) and τ = ROW_BLEN
 bins the slice observes; w = 0 on the others, so missing bins stay the model's guess and a one-bin
 or all-grazing slice changes nothing elsewhere. g(θh, θd, φd) is the microfacet shadowing/
 normalisation ratio (brdf.microfacet.geometry_ratio_valid): the row is extended as a microfacet BRDF
-with an unchanged distribution would be, not flat. g = 1 at θd = 0 and stays within a few percent
-below θd ≈ 30°, so the blend changes little on MERL (NBRDF proxy) 80/20 splits (5.071 flat, 5.070
-with g) or RGL (NBRDF proxy) folds (9.70, 9.71), but a render sees the φd structure: the DiLiGenT
-ball's ΔE-log went from 1.365 to 1.355 (benchmarks/results/slice_fit.md).
+with an unchanged distribution would be, not flat. Its φd-mean is 1 at θd = 0, within 7% up to
+θd = 20° and 16% at 30°, where w has fallen to 0.32, so the blend changes little on MERL (NBRDF
+proxy) 80/20 splits (LAB-log 5.071 flat, 5.070 with g) or RGL (NBRDF proxy) folds (9.70, 9.71); a
+render sees its φd structure: the DiLiGenT ball's ΔE-log went from 1.365 to 1.355
+(benchmarks/slice_fit.py).
 
 τ was chosen on MERL (NBRDF proxy) cross-validation, before looking at RGL (benchmarks/results/
 generalisation.md states the measurements).

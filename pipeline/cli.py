@@ -49,7 +49,8 @@ def _parser():
     s.add_argument("--no-anchor", action="store_true",
                    help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
                         "theta_h to pass through the observed slice, carried over theta_d, and "
-                        "blended toward the observed row near theta_d = 0")
+                        "blended toward the observed row near theta_d = 0, and half of its weights "
+                        "over the training tables come from a direct fit to the slice")
     s.add_argument("--view", default="auto", choices=["auto", "2d", "3d"],
                    help="predict 2D (copied across phi_d) or 3D; auto: 3D when training tables "
                         "are at hand")
@@ -151,7 +152,8 @@ def _add_run_options(s):
     s.add_argument("--no-anchor", action="store_true",
                    help="dsgplvm: keep the paper's prediction as is; by default it is corrected along "
                         "theta_h to pass through the observed slice, carried over theta_d, and "
-                        "blended toward the observed row near theta_d = 0")
+                        "blended toward the observed row near theta_d = 0, and half of its weights "
+                        "over the training tables come from a direct fit to the slice")
     s.add_argument("--export", action="store_true",
                    help="also export the default method's BRDF (flashbrdf export) into OUT_DIR/export "
                         "and render its Principled fit beside the tabulated BRDF")
