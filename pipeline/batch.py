@@ -69,9 +69,13 @@ def completed_row(folder):
 
 
 def _leftovers(out_dir, name):
-    """Hidden staging / replaced folders a batch leaves for capture `name` if it is killed."""
+    """Hidden folders a batch leaves for capture `name` if its worker is killed: the staging
+    folder (`.<name>.partial-<id>`), `run`'s own temporary folder beside it (`run` builds the
+    staging folder as `..<name>.partial-<id>.<random>.part`, see safety.staged_output_dir, so a
+    worker killed mid-run leaves that one) and a replaced output (`.<name>.old-<id>`)."""
     out_dir = Path(out_dir)
-    return [p for pattern in (f".{name}.partial-*", f".{name}.old-*") for p in out_dir.glob(pattern)]
+    patterns = (f".{name}.partial-*", f"..{name}.partial-*", f".{name}.old-*")
+    return [p for pattern in patterns for p in out_dir.glob(pattern)]
 
 
 def _repoint(staging, target):
