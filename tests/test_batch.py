@@ -161,6 +161,43 @@ def test_resume_force_and_one_worker(two_workers, sequential, scheduler, capture
         assert all(got[k] == pytest.approx(want[k], abs=1e-9) for k in want)
 
 
+def test_one_capture_to_run_runs_in_process(two_workers, sequential, captures, tmp_path,
+                                            monkeypatch):
+    """One capture left to run and no --scheduler: the batch runs it in its own process (no
+    cluster to start), with the same files, ΔE, summary row and log; a raising task is retried
+    once, then failed, as Dask's retries=1 would."""
+    out = tmp_path / "out"
+    out.mkdir()
+    shutil.copytree(two_workers[1] / "b", out / "b")  # complete: skipped, so `a` is alone
+    threads = os.environ.get("FLASHBRDF_THREADS")
+    assert main(["batch", str(captures), "--out", str(out), "--workers", "2",
+                 *RUN_OPTIONS]) == 0
+    assert os.environ.get("FLASHBRDF_THREADS") == threads
+    rows = _summary(out)
+    assert rows["a"]["status"] == "ok" and rows["a"]["worker"].endswith(f":{os.getpid()}")
+    assert "skipped" in rows["b"]["reason"]
+    assert _files(out / "a") == sorted(_files(sequential["a"]) + [MARKER])
+    got, want = _delta_e(out / "a"), _delta_e(sequential["a"])
+    assert got.keys() == want.keys() and len(want) == 2
+    assert all(got[k] == pytest.approx(want[k], abs=1e-9) for k in want)
+    assert "the batch's own process" in (out / "summary.md").read_text()
+    # every core, as a one-worker local cluster's worker
+    assert f", {threads_per_worker(1)} thread(s)" in (out / "logs" / "a.log").read_text()
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]
+
+    (out / "a" / MARKER).unlink()
+    attempts = []
+
+    def crash(*args):
+        attempts.append(args)
+        raise RuntimeError("disk on fire")
+
+    monkeypatch.setattr("pipeline.batch.run_capture", crash)
+    assert main(["batch", str(captures), "--out", str(out), *RUN_OPTIONS]) == 1
+    assert len(attempts) == 2
+    assert _summary(out)["a"]["reason"] == "RuntimeError: disk on fire"
+
+
 class KillMidRun(WorkerPlugin):
     """Test-only: kill the worker process (os._exit) when capture `name`'s `run` reaches its
     first render, on every worker and every attempt. `run` has then written the slice, the
