@@ -6,6 +6,8 @@ rewritten from the JSON):
             photos) as N sequential `flashbrdf run` processes (a shell loop), then as
             `flashbrdf batch --workers 2`; speed-up and the largest ΔE difference. Then a batch of
             1 capture against one `run`: the overhead of the cluster.
+- overhead: only that last comparison, repeated (--repeats, default 3; the order of `run` and
+            `batch` alternates), with each pair's load averages and CPU seconds; the medians.
 - cluster:  a simulated cluster on this host, `dask scheduler` plus W `dask worker --nthreads 1`
             processes (W = 1, 2, 4), `flashbrdf batch --scheduler`; speed-up against 1 worker.
 - table1:   a reduced Table 1 protocol (--experiments K, 2D only) in a loop and on
@@ -13,6 +15,7 @@ rewritten from the JSON):
 The machine's load average is recorded before and after each measurement: it is shared.
 
     nice -n 10 python benchmarks/batch_speed.py --part batch --captures 8
+    nice -n 10 python benchmarks/batch_speed.py --part overhead --repeats 3
     nice -n 10 python benchmarks/batch_speed.py --part cluster --captures 8
     nice -n 10 python benchmarks/batch_speed.py --part table1 --merl-dir /work/data/merl \
         --experiments 4 --materials 40
@@ -22,6 +25,7 @@ import argparse
 import json
 import math
 import os
+import statistics
 import resource
 import shutil
 import signal
@@ -123,6 +127,32 @@ def part_batch(work, n):
             "overhead": {"run_s": round(run_s, 1), "batch_of_1_s": round(one_batch_s, 1),
                          "extra_s": round(one_batch_s - run_s, 1)},
             "load_average": load}
+
+
+def part_overhead(work, repeats):
+    """A batch of 1 capture (`--workers 1`) against one `run` of it, `repeats` times, the order
+    alternating (a load that drifts then favours neither); wall and CPU seconds of each."""
+    one = work / "one"
+    _captures(one, 1)
+    pairs = []
+    for i in range(repeats):
+        pair = {"load_before": _load()}
+        cpu = {"run": [], "batch": []}
+        commands = {"run": FLASHBRDF + ["run", str(one / "capture00"), "--out",
+                                        str(work / f"run{i}")],
+                    "batch": FLASHBRDF + ["batch", str(one), "--out", str(work / f"batch{i}"),
+                                          "--workers", "1"]}
+        for name in (("run", "batch") if i % 2 == 0 else ("batch", "run")):
+            pair[f"{name}_s"] = round(_timed(commands[name], cpu=cpu[name]), 2)
+            pair[f"{name}_cpu_s"] = round(cpu[name][0], 2)
+        pair["extra_s"] = round(pair["batch_s"] - pair["run_s"], 2)
+        pair["extra_cpu_s"] = round(pair["batch_cpu_s"] - pair["run_cpu_s"], 2)
+        pair["load_after"] = _load()
+        pairs.append(pair)
+    median = {k: round(statistics.median(p[k] for p in pairs), 2)
+              for k in ("run_s", "batch_s", "extra_s", "run_cpu_s", "batch_cpu_s", "extra_cpu_s")}
+    return {"capture": "a copy of sample_data/capture (256², 2 reference photos), default run "
+                       "options (dsgplvm, 64 spp)", "pairs": pairs, "median": median}
 
 
 # The README's worker set-up: Dask's nanny would set MALLOC_TRIM_THRESHOLD_ in its worker, which
@@ -296,6 +326,22 @@ def write_markdown(result):
                   f"- Overhead: a batch of 1 took {o['batch_of_1_s']} s, one `run` "
                   f"{o['run_s']} s: {o['extra_s']} s more (target ≤ 5 s).",
                   f"- Load average: {b['load_average']}.", ""]
+    for o in (result.get(k) for k in ("overhead", "overhead_earlier")):
+        if not o:
+            continue
+        m = o["median"]
+        lines += ["## Overhead: a batch of 1 capture (`--workers 1`) against one `run`", "",
+                  *([f"- {o['note']}."] if "note" in o else []),
+                  f"- {o['capture']}; {len(o['pairs'])} pairs, the order alternating.",
+                  f"- Median: `run` {m['run_s']} s, batch {m['batch_s']} s: **{m['extra_s']} s "
+                  f"more** (target ≤ 5 s); CPU seconds (all processes) {m['run_cpu_s']} against "
+                  f"{m['batch_cpu_s']}: {m['extra_cpu_s']} s more.", "",
+                  "| pair | run s | batch s | extra s | extra CPU s | load before | load after |",
+                  "|---|---|---|---|---|---|---|"]
+        lines += [f"| {i + 1} | {p['run_s']} | {p['batch_s']} | {p['extra_s']} | "
+                  f"{p['extra_cpu_s']} | {p['load_before']} | {p['load_after']} |"
+                  for i, p in enumerate(o["pairs"])]
+        lines += [""]
     c = result.get("cluster")
     if c:
         lines += [f"## Simulated cluster: `dask scheduler` + W `dask worker --nthreads 1` on this "
@@ -338,9 +384,10 @@ def write_markdown(result):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--part", required=True, choices=["batch", "cluster", "table1", "report"],
+    ap.add_argument("--part", required=True, choices=["batch", "overhead", "cluster", "table1", "report"],
                     help="report: only rewrite batch_speed.md and batch_scaling.png from the JSON")
     ap.add_argument("--captures", type=int, default=8)
+    ap.add_argument("--repeats", type=int, default=3, help="overhead: pairs of run and batch")
     ap.add_argument("--merl-dir", default="/work/data/merl")
     ap.add_argument("--experiments", type=int, default=4)
     ap.add_argument("--materials", type=int, default=100, help="table1: the first M tables")
@@ -357,6 +404,10 @@ def main(argv=None):
             if "batch" in result:  # the earlier measurement stays in the record
                 result["batch_earlier"] = result["batch"]
             result["batch"] = part_batch(work, args.captures)
+        elif args.part == "overhead":
+            if "overhead" in result:  # the earlier measurement stays in the record
+                result["overhead_earlier"] = result["overhead"]
+            result["overhead"] = part_overhead(work, args.repeats)
         elif args.part == "cluster":
             result["cluster"] = part_cluster(work, args.captures)
         elif args.part == "table1":

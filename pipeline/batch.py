@@ -14,6 +14,11 @@ A task that raises is retried once by Dask (retries=1), and a task whose worker 
 once on another worker (dask_engine.ALLOWED_FAILURES); then the capture is recorded as failed. Bad
 input in one capture (InputError) is recorded as failed at once, since a retry would fail the same.
 
+A batch with exactly one capture to run and no --scheduler runs that task in its own process
+(_run_here): a cluster's start and close cost more than the 5 s the issue allows over one `run`.
+`run`'s option checks import every stage, so on a cluster they run as its first task
+(check_run_options), not in the client.
+
 Each worker process reads the model once (cached on path, size and mtime) and keeps it for its
 next captures. A local cluster has at most one worker per capture to run, and shares the cores
 out between its workers (dask_engine); the largest captures are submitted with the highest
@@ -69,9 +74,13 @@ def completed_row(folder):
 
 
 def _leftovers(out_dir, name):
-    """Hidden staging / replaced folders a batch leaves for capture `name` if it is killed."""
+    """Hidden folders a batch leaves for capture `name` if its worker is killed: the staging
+    folder (`.<name>.partial-<id>`), `run`'s own temporary folder beside it (`run` builds the
+    staging folder as `..<name>.partial-<id>.<random>.part`, see safety.staged_output_dir, so a
+    worker killed mid-run leaves that one) and a replaced output (`.<name>.old-<id>`)."""
     out_dir = Path(out_dir)
-    return [p for pattern in (f".{name}.partial-*", f".{name}.old-*") for p in out_dir.glob(pattern)]
+    patterns = (f".{name}.partial-*", f"..{name}.partial-*", f".{name}.old-*")
+    return [p for pattern in patterns for p in out_dir.glob(pattern)]
 
 
 def _repoint(staging, target):
@@ -180,6 +189,24 @@ def failed_row(name, reason, seconds=None, worker=""):
             "delta_e_log": {}}
 
 
+def check_run_options(options, as_text=False):
+    """`run`'s checks of the run options (RUN_OPTIONS dict): method names, the model file (the
+    default one when none is given and a method needs it), --spp. -> the options with the model
+    as an absolute path or None. Bad options raise InputError, or with `as_text` (a Dask task)
+    are returned as its (where, problem) tuple."""
+    from pipeline.cmd_render import samples_per_pixel
+    from pipeline.cmd_run import _methods, _model_path
+    settings = argparse.Namespace(**options)
+    try:
+        model = _model_path(settings, _methods(settings.methods))
+        samples_per_pixel(settings)
+    except InputError as err:
+        if as_text:
+            return err.where, err.problem
+        raise
+    return options | {"model": None if model is None else str(model.resolve())}
+
+
 def run_capture(scene_dir, out_dir, options):
     """The Dask task: `run` one capture into OUT_DIR/<name>/, all or nothing. -> summary row dict.
 
@@ -280,11 +307,29 @@ def capture_bytes(capture_dir):
     return sum(p.stat().st_size for p in Path(capture_dir).rglob("*") if p.is_file())
 
 
+@contextlib.contextmanager
+def _progress(total):
+    """Yield done(name, row), called as each capture finishes: a progress bar over captures on a
+    terminal, else one line per capture on stderr."""
+    from tqdm import tqdm
+    finished = 0
+    with tqdm(total=total, unit="capture", file=sys.stderr,
+              disable=not sys.stderr.isatty()) as bar:
+        def done(name, row):
+            nonlocal finished
+            finished += 1
+            bar.set_postfix_str(f"{name}: {row['status']}")
+            bar.update(1)
+            if bar.disable:
+                print(f"[{finished}/{total}] {name}: {row['status']}", file=sys.stderr,
+                      flush=True)
+        yield done
+
+
 def _run_tasks(client, todo, out_dir, options):
     """Submit one task per capture, the largest first (a large one started last would leave
     the other workers idle at the end); -> {name: row} as they finish, with a progress bar."""
     from distributed import as_completed
-    from tqdm import tqdm
     token = uuid.uuid4().hex[:8]
     # Absolute paths (not resolved: a symlinked capture keeps its name): workers elsewhere see
     # the same shared filesystem, not our working directory.
@@ -292,9 +337,7 @@ def _run_tasks(client, todo, out_dir, options):
                              options, retries=1, pure=False, priority=capture_bytes(c),
                              key=f"batch-{c.name}-{token}"): c.name for c in todo}
     rows = {}
-    total = len(futures)
-    with tqdm(total=total, unit="capture", file=sys.stderr,
-              disable=not sys.stderr.isatty()) as bar:
+    with _progress(len(futures)) as done:
         # On this client's loop: the user (or a test) may hold another client in this process.
         for future in as_completed(futures, loop=client.loop):
             name = futures.pop(future)
@@ -305,36 +348,69 @@ def _run_tasks(client, todo, out_dir, options):
             # Let the worker drop the result: a result still held would be recomputed (the
             # capture run again) if that worker died later.
             future.release()
-            bar.set_postfix_str(f"{name}: {rows[name]['status']}")
-            bar.update(1)
-            if bar.disable:
-                print(f"[{len(rows)}/{total}] {name}: {rows[name]['status']}",
-                      file=sys.stderr, flush=True)
+            done(name, rows[name])
     return rows
 
 
-def batch(args):
-    from pipeline.cmd_render import samples_per_pixel
-    from pipeline.cmd_run import _methods, _model_path
-    captures = find_captures(args.captures_dir)
-    dask_engine.check_engine_options(args)
-    methods = _methods(args.methods)
-    model = _model_path(args, methods)
-    samples_per_pixel(args)
-    out = Path(args.out)
-    if out.exists() and not out.is_dir():
-        raise InputError(out, "exists and is not a folder")
-    _check_outputs(out, args.captures_dir, captures)
-    options = {"model": None if model is None else str(model.resolve()), "methods": args.methods,
-               "spp": args.spp, "no_anchor": args.no_anchor,
-               "materials": getattr(args, "materials", "auto"),
-               "albedo_map": bool(getattr(args, "albedo_map", False))}
+def _run_here(capture, out_dir, options):
+    """A batch of one capture, in this process: the task of _run_tasks, retried once if it
+    raises (as Dask's retries=1), with the threads of a one-worker local cluster (every core);
+    -> {name: row}. A local cluster's start and close cost seconds of CPU (client and worker
+    each import distributed): +12.7 s of wall over one `run` of the sample capture at load ~4,
+    against +0.8 s this way (benchmarks/results/batch_speed.md)."""
+    threads = str(dask_engine.threads_per_worker(1))
+    before = os.environ.get("FLASHBRDF_THREADS")
+    os.environ["FLASHBRDF_THREADS"] = threads  # read by worker_threads, as in a local worker
+    try:
+        with _progress(1) as done:
+            for _ in range(2):
+                try:
+                    row = run_capture(str(capture.absolute()), str(Path(out_dir).absolute()),
+                                      options)
+                    break
+                except Exception as err:  # failed twice: recorded as failed, as on Dask
+                    row = failed_row(capture.name, _reason(err))
+            done(capture.name, row)
+    finally:
+        if before is None:
+            os.environ.pop("FLASHBRDF_THREADS", None)
+        else:
+            os.environ["FLASHBRDF_THREADS"] = before
+    return {capture.name: row}
 
-    start = time.perf_counter()
+
+def _check_options_on(client, options):
+    """check_run_options(options) as a task on `client`'s cluster; InputError raised here if
+    they are bad. InputError does not survive pickling (its constructor takes two arguments),
+    so the task returns it as text."""
+    checked = client.submit(check_run_options, options, pure=False, retries=0,
+                            key=f"batch-options-{uuid.uuid4().hex[:8]}", as_text=True).result()
+    if isinstance(checked, tuple):
+        raise InputError(*checked)
+    return checked
+
+
+def _prepare(out, captures):
+    """Make OUT_DIR, and remove what a batch killed earlier left there for these captures."""
     out.mkdir(parents=True, exist_ok=True)
     for c in captures:
         for leftover in _leftovers(out, c.name):
             shutil.rmtree(leftover, ignore_errors=True)
+
+
+def batch(args):
+    captures = find_captures(args.captures_dir)
+    dask_engine.check_engine_options(args)
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise InputError(out, "exists and is not a folder")
+    _check_outputs(out, args.captures_dir, captures)
+    # Absolute paths (not resolved: a symlinked file keeps its name): workers elsewhere see the
+    # same shared filesystem, not our working directory.
+    options = {"model": None if args.model is None else str(Path(args.model).absolute()),
+               "methods": args.methods, "spp": args.spp, "no_anchor": args.no_anchor,
+               "materials": getattr(args, "materials", "auto"),
+               "albedo_map": bool(getattr(args, "albedo_map", False))}
     rows, todo = {}, []
     for c in captures:
         row = None if args.force else completed_row(out / c.name)
@@ -343,24 +419,37 @@ def batch(args):
             rows[c.name] = row
         else:
             todo.append(c)
-    if todo:
-        try:
+    in_process = len(todo) == 1 and not args.scheduler  # see _run_here
+    if in_process or not todo:
+        options = check_run_options(options)
+    start = time.perf_counter()
+    n_workers = 0
+    try:
+        if in_process:
+            _prepare(out, captures)
+            n_workers = 1
+            rows |= _run_here(todo[0], out, options)
+        elif todo:
             # Never more local workers than captures to run: a spare worker would cost its
             # start-up and hold cores the busy ones' render threads can use.
             workers = None if args.scheduler else min(args.workers or os.cpu_count() or 1,
                                                       len(todo))
             with dask_engine.dask_client(workers, args.scheduler) as client:
+                # run's option checks import every stage (seconds); a worker imports them for
+                # its first capture anyway, so they run there, before any output is written.
+                options = _check_options_on(client, options)
+                _prepare(out, captures)
                 n_workers = len(client.scheduler_info().get("workers", {}))
                 rows |= _run_tasks(client, todo, out, options)
-        finally:
-            for c in todo:  # a killed worker leaves its staging folder
-                for leftover in _leftovers(out, c.name):
-                    shutil.rmtree(leftover, ignore_errors=True)
-    else:
-        n_workers = 0
+    finally:
+        for c in todo:  # a killed worker leaves its staging folders (the cluster is closed now)
+            for leftover in _leftovers(out, c.name):
+                shutil.rmtree(leftover, ignore_errors=True)
     ordered = [rows[c.name] for c in captures]
     failed = [r for r in ordered if r["status"] != "ok"]
-    engine = args.scheduler or f"a local cluster of {n_workers} worker process(es)"
+    engine = args.scheduler or (
+        "the batch's own process (one capture to run: no cluster)" if in_process
+        else f"a local cluster of {n_workers} worker process(es)")
     write_summary(out, ordered, [
         f"- {len(ordered)} capture(s) in `{args.captures_dir}`: {len(ordered) - len(failed)} ok "
         f"({len(captures) - len(todo)} skipped as complete), {len(failed)} failed.",

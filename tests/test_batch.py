@@ -12,8 +12,6 @@ import json
 import os
 import shutil
 import sys
-import threading
-import time
 from pathlib import Path
 
 import cloudpickle
@@ -22,6 +20,7 @@ import pytest
 from distributed import Client, LocalCluster
 from distributed.diagnostics.plugin import WorkerPlugin
 
+import pipeline.cmd_run as cmd_run  # in a worker: the worker's copy, which `run` calls
 from pipeline.batch import MARKER, capture_bytes
 from pipeline.cli import main
 from pipeline.dask_engine import ALLOWED_FAILURES, threads_per_worker
@@ -162,28 +161,72 @@ def test_resume_force_and_one_worker(two_workers, sequential, scheduler, capture
         assert all(got[k] == pytest.approx(want[k], abs=1e-9) for k in want)
 
 
-class KillWhenStaged(WorkerPlugin):
-    """Test-only: kill the worker process (os._exit) once the capture `name`'s staging folder
-    holds a file, i.e. half-way through its `run`; on every worker, every attempt."""
+def test_one_capture_to_run_runs_in_process(two_workers, sequential, captures, tmp_path,
+                                            monkeypatch):
+    """One capture left to run and no --scheduler: the batch runs it in its own process (no
+    cluster to start), with the same files, ΔE, summary row and log; a raising task is retried
+    once, then failed, as Dask's retries=1 would."""
+    out = tmp_path / "out"
+    out.mkdir()
+    shutil.copytree(two_workers[1] / "b", out / "b")  # complete: skipped, so `a` is alone
+    threads = os.environ.get("FLASHBRDF_THREADS")
+    assert main(["batch", str(captures), "--out", str(out), "--workers", "2",
+                 *RUN_OPTIONS]) == 0
+    assert os.environ.get("FLASHBRDF_THREADS") == threads
+    rows = _summary(out)
+    assert rows["a"]["status"] == "ok" and rows["a"]["worker"].endswith(f":{os.getpid()}")
+    assert "skipped" in rows["b"]["reason"]
+    assert _files(out / "a") == sorted(_files(sequential["a"]) + [MARKER])
+    got, want = _delta_e(out / "a"), _delta_e(sequential["a"])
+    assert got.keys() == want.keys() and len(want) == 2
+    assert all(got[k] == pytest.approx(want[k], abs=1e-9) for k in want)
+    assert "the batch's own process" in (out / "summary.md").read_text()
+    # every core, as a one-worker local cluster's worker
+    assert f", {threads_per_worker(1)} thread(s)" in (out / "logs" / "a.log").read_text()
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]
 
-    def __init__(self, name, out):
-        self.name, self.out = name, str(out)
+    (out / "a" / MARKER).unlink()
+    attempts = []
+
+    def crash(*args):
+        attempts.append(args)
+        raise RuntimeError("disk on fire")
+
+    monkeypatch.setattr("pipeline.batch.run_capture", crash)
+    assert main(["batch", str(captures), "--out", str(out), *RUN_OPTIONS]) == 1
+    assert len(attempts) == 2
+    assert _summary(out)["a"]["reason"] == "RuntimeError: disk on fire"
+
+
+class KillMidRun(WorkerPlugin):
+    """Test-only: kill the worker process (os._exit) when capture `name`'s `run` reaches its
+    first render, on every worker and every attempt. `run` has then written the slice, the
+    labels and the inferred tables into its temporary folder, so the kill leaves a half-written
+    capture behind. The kill happens in the task's own thread at that fixed point: a watcher
+    thread polling the output folder raced the task, and lost under load (the capture was then
+    published before the kill and the test failed)."""
+
+    def __init__(self, name):
+        self.name = name
 
     def setup(self, worker):
-        self.worker = worker
+        self.original = original = cmd_run._render_and_compare
+        marker = f"..{self.name}.partial-"  # run's temporary folder of the capture's staging
 
-    def transition(self, key, start, finish, **kwargs):
-        if finish == "executing" and str(key).startswith(f"batch-{self.name}-"):
-            earlier = set(Path(self.out).glob(f".{self.name}.partial-*"))  # a killed attempt's
-            threading.Thread(target=self._kill_when_staged, args=(earlier,), daemon=True).start()
+        def render_or_die(*args, **kwargs):
+            staged = [a for a in args if isinstance(a, Path) and marker in str(a)]
+            if staged:
+                folder = next(p for p in staged[0].parents if p.name.startswith(marker))
+                files = sorted(p.name for p in folder.rglob("*") if p.is_file())
+                print(f"test: killing the worker mid-run; staged files: {' '.join(files)}",
+                      flush=True)
+                os._exit(1)
+            return original(*args, **kwargs)
 
-    def _kill_when_staged(self, earlier):
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
-            for staging in set(Path(self.out).glob(f".{self.name}.partial-*")) - earlier:
-                if any(staging.iterdir()):
-                    os._exit(1)
-            time.sleep(0.002)
+        cmd_run._render_and_compare = render_or_die
+
+    def teardown(self, worker):
+        cmd_run._render_and_compare = self.original
 
 
 def test_failures_exit_1_killed_worker_retried_once(captures, scheduler, tmp_path, capsys):
@@ -202,18 +245,23 @@ def test_failures_exit_1_killed_worker_retried_once(captures, scheduler, tmp_pat
     (folder / "broken" / "scene.json").write_text("{not json")
     out = tmp_path / "out"
     with Client(scheduler) as client:
-        client.register_plugin(KillWhenStaged("crash", out), name="kill-when-staged")
+        client.register_plugin(KillMidRun("crash"), name="kill-mid-run")
         try:
             code = main(["batch", str(folder), "--out", str(out), "--scheduler", scheduler,
                          *RUN_OPTIONS])
         finally:
-            client.unregister_worker_plugin("kill-when-staged")
+            client.unregister_worker_plugin("kill-mid-run")
     assert code == 1
     rows = _summary(out)
     assert rows["broken"]["status"] == "failed" and "scene.json" in rows["broken"]["reason"]
     assert rows["crash"]["status"] == "failed" and "KilledWorker" in rows["crash"]["reason"]
-    # Retried once: two attempts started, each killed with its staging folder half-written.
-    assert (out / "logs" / "crash.log").read_text().count(": started on ") == 2
+    # Retried once: two attempts started, each killed with its output half-written (the slice
+    # and the labels written, the report not), and nothing of either left in OUT_DIR.
+    log = (out / "logs" / "crash.log").read_text()
+    assert log.count(": started on ") == 2
+    kills = [line for line in log.splitlines() if line.startswith("test: killing")]
+    assert len(kills) == 2
+    assert all("slice.csv" in k and "labels.png" in k and "report.json" not in k for k in kills)
     assert sorted(p.name for p in out.iterdir()) == ["logs", "summary.csv", "summary.md"]
     err = capsys.readouterr().err
     assert "crash failed" in err and "broken failed" in err
