@@ -155,7 +155,8 @@ def markdown(result):
                   "|---|" + "---|" * len(present)]
         for mat in block["materials"]:
             row = {r["method"]: r["lab_log"] for r in block["records"] if r["material"] == mat}
-            lines.append(f"| {mat} | " + " | ".join(f"{row[m]:.2f}" for m in present) + " |")
+            if row:   # a --fold-runs part scores only its folds' materials
+                lines.append(f"| {mat} | " + " | ".join(f"{row[m]:.2f}" for m in present) + " |")
         lines.append("")
     lines += checks_markdown(result)
     return "\n".join(lines)
