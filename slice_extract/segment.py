@@ -22,8 +22,8 @@ What separates materials is what the photo says about the material, not about sh
   brightness offset from the slice BRIGHTNESS_WEIGHT times its colour offset: within one
   material brightness varies pixel to pixel (texture, glitter, bumps), colour far less.
 - the stated criterion for K > 1: every material but the largest must be explained clearly
-  better by its own slice than by the one-slice model of the whole object: the mean
-  |ln rho - ln slice| of its pixels (capped at 1 per pixel) at most `explained` times as large.
+  better by its own slice than by the one-slice model of the whole object: the mean residual
+  (_residuals, capped at 1 per pixel) of its pixels at most `explained` times as large.
   (A material only slightly better explained is a shading or noise split of one material.)
 - spatial clean-up (OpenCV connected components and labelled distance transform): patches
   smaller than `min_area_fraction` of the object merge into the nearest larger patch, and object
