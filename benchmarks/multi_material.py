@@ -155,8 +155,8 @@ def _markdown(result):
              "", "Mean over the reference shots of ΔE log mean (95 references per object; photos "
              "are the DiLiGenT shots, 'MERL (NBRDF proxy)' model). Commands (each object keeps "
              "the command that measured it):", ""]
-    lines += [f"- {name}: `{entry.get('command', result['command'])}`"
-              for name, entry in result["objects"].items()]
+    lines += [f"- {name} {run}: `{entry[run].get('command', result['command'])}`"
+              for name, entry in result["objects"].items() for run in RUNS if run in entry]
     if result.get("planar_cards"):
         lines += [f"- planar cards: `{result['planar_cards'].get('command', result['command'])}`"]
     lines += ["",

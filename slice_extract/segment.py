@@ -18,10 +18,12 @@ What separates materials is what the photo says about the material, not about sh
   split it; the separation test undoes that, so one material gives K = 1.
 - refinement ("k slices"): each pixel goes to the material whose slice (per-bin median of
   ln rho per channel, filled across empty bins) explains its sample best; that fixes highlight
-  pixels, whose colour alone is ambiguous.
+  pixels, whose colour alone is ambiguous. "Explains" (_residuals) weighs the sample's
+  brightness offset from the slice BRIGHTNESS_WEIGHT times its colour offset: within one
+  material brightness varies pixel to pixel (texture, glitter, bumps), colour far less.
 - the stated criterion for K > 1: every material but the largest must be explained clearly
-  better by its own slice than by the one-slice model of the whole object: the mean
-  |ln rho - ln slice| of its pixels (capped at 1 per pixel) at most `explained` times as large.
+  better by its own slice than by the one-slice model of the whole object: the mean residual
+  (_residuals, capped at 1 per pixel) of its pixels at most `explained` times as large.
   (A material only slightly better explained is a shading or noise split of one material.)
 - spatial clean-up (OpenCV connected components and labelled distance transform): patches
   smaller than `min_area_fraction` of the object merge into the nearest larger patch, and object
@@ -42,6 +44,10 @@ from brdf.errors import InputError
 from brdf.merl import N_THETA_H, theta_h_centres
 
 LOG_FLOOR_REL = 1e-3  # rho below this fraction of the median brightness counts as black
+# weight of a sample's brightness offset from a slice (the mean over channels of ln rho - ln
+# slice) against its colour offset (what is left per channel) in _residuals: texture, glitter,
+# bumps and printed albedo move a material's brightness pixel to pixel, far less its colour
+BRIGHTNESS_WEIGHT = 0.25
 
 
 @dataclass(frozen=True)
@@ -138,11 +144,13 @@ def material_features(rho, theta_h):
     elsewhere, so it is ~0 for the typical pixel everywhere.
     """
     _, log_total, floor = _log_rho(rho)
-    # dichromatic: a dielectric's highlight adds the light's colour (grey in rho, which has the
-    # light's RGB divided out) to its body colour, so channel differences keep the body colour
-    # where r/(r+g+b) fades to grey (pot2's orange clay read as its grey leaf in the highlight)
-    scale = max(float(np.median(rho.sum(axis=1))), 1e-12)
-    chroma = np.column_stack([rho[:, 0] - rho[:, 1], rho[:, 1] - rho[:, 2]]) / scale
+    # chromaticity, not channel differences over one global scale: differences grow with the
+    # pixel's brightness, so a coloured metal's highlight (gold and teal foil on the planar
+    # cards) became a material of its own (cards: 5 materials, 85% of pixels in the all-view
+    # colour cluster of their material; chromaticity: 3 and 94%, cards_diagnosis.md). A
+    # dielectric's highlight, which fades chromaticity to grey, is the k-slice refinement's job.
+    total = np.maximum(rho.sum(axis=1), floor)[:, None]
+    chroma = np.maximum(rho[:, :2], 0) / total
     bins = _bins(theta_h)
     lobe, median = specular_lobe_bins(log_total, bins)
     centres = np.degrees(theta_h_centres())
@@ -204,9 +212,17 @@ def _slices(log_rho, bins, labels, k):
 
 
 def _residuals(log_rho, bins, slices):
-    """(N, k) mean |ln rho - ln slice_k(theta_h)| over channels, capped at 1 (an outlier pixel
-    counts as a bad fit, not as an unbounded one)."""
-    return np.stack([np.minimum(np.abs(log_rho - s[bins]).mean(axis=1), 1.0) for s in slices], 1)
+    """(N, k) how badly slice_k explains each sample: with d = ln rho - ln slice_k(theta_h)
+    (N, 3) and its brightness offset m = mean over channels of d, the mean over channels of
+    |d - m| (colour) plus BRIGHTNESS_WEIGHT |m|, capped at 1 (an outlier pixel counts as a bad
+    fit, not as an unbounded one)."""
+    out = []
+    for s in slices:
+        d = log_rho - s[bins]
+        m = d.mean(axis=1, keepdims=True)
+        out.append(np.minimum(np.abs(d - m).mean(axis=1) + BRIGHTNESS_WEIGHT * np.abs(m[:, 0]),
+                              1.0))
+    return np.stack(out, 1)
 
 
 def _refine(log_rho, bins, labels, k, options):
@@ -295,10 +311,14 @@ def _assign_all(rho, theta_h, pick, labels, k):
         logs = [np.log(np.maximum(rho[part, c], 0).astype(np.float32) + offset) for c in range(3)]
         best, best_residual = np.zeros(len(bins), np.int64), None
         for j in range(k):
-            residual = np.abs(logs[0] - columns[j][0].take(bins))
-            residual += np.abs(logs[1] - columns[j][1].take(bins))
-            residual += np.abs(logs[2] - columns[j][2].take(bins))
-            np.minimum(residual / np.float32(3), np.float32(1), out=residual)
+            d = [logs[c] - columns[j][c].take(bins) for c in range(3)]
+            m = (d[0] + d[1] + d[2]) / np.float32(3)
+            residual = np.abs(d[0] - m)
+            residual += np.abs(d[1] - m)
+            residual += np.abs(d[2] - m)
+            residual /= np.float32(3)
+            residual += np.float32(BRIGHTNESS_WEIGHT) * np.abs(m)
+            np.minimum(residual, np.float32(1), out=residual)
             if best_residual is None:
                 best_residual = residual
                 continue
