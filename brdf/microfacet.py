@@ -27,14 +27,20 @@ def inverse_denominator():
     return inv_d, inv_d_2d[:, 0], inv_d_2d
 
 
+@functools.lru_cache(maxsize=1)
 def geometry_ratio_valid():
     """(n_valid,) ⟨1/D⟩ ratio of each valid 3D bin to its θh's θd = 0 bin: how a microfacet BRDF
     with a fixed distribution changes away from the flash configuration (Fresnel left out)."""
     inv_d, inv_d0, _ = inverse_denominator()
-    return inv_d / inv_d0[valid_bins_3d()[0]]
+    ratio = inv_d / inv_d0[valid_bins_3d()[0]]
+    ratio.flags.writeable = False      # cached and shared by every 3D blend
+    return ratio
 
 
+@functools.lru_cache(maxsize=1)
 def geometry_ratio_2d():
     """(90, 90) the φd-mean of geometry_ratio_valid per (θh, θd), NaN where no φd bin is valid."""
     _, inv_d0, inv_d_2d = inverse_denominator()
-    return inv_d_2d / inv_d0[:, None]
+    ratio = inv_d_2d / inv_d0[:, None]
+    ratio.flags.writeable = False
+    return ratio
