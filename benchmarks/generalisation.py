@@ -60,6 +60,19 @@ def band_errors(pred, true):
     return out
 
 
+def fold_training(merl_set, test, k, n_folds=5, seed=0):
+    """(training set, sorted held-out test indices) of fold k of the "merl+test-folds" setting;
+    k = "merl-only": MERL alone, every test table held out."""
+    if k == "merl-only":
+        return merl_set, np.arange(len(test))
+    folds = np.array_split(np.random.default_rng(seed).permutation(len(test)), n_folds)
+    rest = np.sort(np.concatenate([f for j, f in enumerate(folds) if j != int(k)]))
+    both = TrainingSet(list(merl_set.names) + [test.names[i] for i in rest],
+                       np.concatenate([merl_set.slices, test.slices[rest]]),
+                       np.concatenate([merl_set.tables_2d, test.tables_2d[rest]]))
+    return both, np.sort(folds[int(k)])
+
+
 def interval_hits(method, rho, true, coverage=0.9):
     """(bins inside the central `coverage` interval, bins scored), θd > 0, in the method's
     feature space (infer.adapter.standardised_residuals)."""
@@ -277,20 +290,13 @@ def main(argv=None):
             "materials": list(test.names), "summary": summarise(records)}
         print("merl-only", json.dumps(summarise(records)["dsgplvm"]), flush=True)
     if "merl+test-folds" in wanted:
-        order = np.random.default_rng(args.seed).permutation(len(test))
-        folds = np.array_split(order, args.folds)
         records, fit_s = [], {}
         runs = range(args.folds) if args.fold_runs is None else \
             [int(k) for k in args.fold_runs.split(",")]
-        for k, fold in enumerate(folds):
-            if k not in runs:
-                continue
-            rest = np.sort(np.concatenate([f for j, f in enumerate(folds) if j != k]))
-            both = TrainingSet(list(merl_set.names) + [test.names[i] for i in rest],
-                               np.concatenate([merl_set.slices, test.slices[rest]]),
-                               np.concatenate([merl_set.tables_2d, test.tables_2d[rest]]))
+        for k in runs:
+            both, fold = fold_training(merl_set, test, k, args.folds, args.seed)
             fitted, seconds, _ = fit_all(both, args.seed, methods)
-            score(fitted, test, np.sort(fold), records)
+            score(fitted, test, fold, records)
             for name, s in seconds.items():
                 fit_s[name] = fit_s.get(name, 0.0) + s / len(runs)
             print(f"fold {k}", json.dumps(summarise(records)["dsgplvm"]), flush=True)

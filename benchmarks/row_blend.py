@@ -25,22 +25,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from generalisation import BANDS_DEG, BASELINES, band_errors  # noqa: E402
+from generalisation import BANDS_DEG, BASELINES, band_errors, fold_training  # noqa: E402
 from infer import TrainingSet, make_method  # noqa: E402
 from infer.row_blend import ROW_BLEND_DEG  # noqa: E402
-
-
-def fold_training(merl_set, test, k, n_folds=5, seed=0):
-    """(training set, held-out test indices) of fold k as benchmarks/generalisation.py cuts them;
-    k = "merl-only": MERL alone, every test table held out."""
-    if k == "merl-only":
-        return merl_set, np.arange(len(test))
-    folds = np.array_split(np.random.default_rng(seed).permutation(len(test)), n_folds)
-    rest = np.sort(np.concatenate([f for j, f in enumerate(folds) if j != int(k)]))
-    both = TrainingSet(list(merl_set.names) + [test.names[i] for i in rest],
-                       np.concatenate([merl_set.slices, test.slices[rest]]),
-                       np.concatenate([merl_set.tables_2d, test.tables_2d[rest]]))
-    return both, np.sort(folds[int(k)])
 
 
 def run_part(args):

@@ -29,8 +29,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 from brdf import metrics  # noqa: E402
 from brdf.bins import scatter_valid, valid_bins_3d  # noqa: E402
+from generalisation import fold_training  # noqa: E402
 from infer import TrainingSet, load_method, make_method  # noqa: E402
 from infer.estimator import stream_combination  # noqa: E402
 from infer.row_blend import blend_log, blend_toward_row, blend_weights  # noqa: E402
@@ -89,15 +91,11 @@ def merl_splits(merl):
 
 def rgl_folds(merl, test, folds=5, seed=0):
     scores = {}
-    order = np.random.default_rng(seed).permutation(len(test))
-    for k, fold in enumerate(np.array_split(order, folds)):
-        rest = np.setdiff1d(np.arange(len(test)), fold)
-        both = TrainingSet(list(merl.names) + [test.names[i] for i in rest],
-                           np.concatenate([merl.slices, test.slices[rest]]),
-                           np.concatenate([merl.tables_2d, test.tables_2d[rest]]))
+    for k in range(folds):
+        both, fold = fold_training(merl, test, k, folds, seed)
         method = make_method("dsgplvm", feature_space="rgb", anchor=True).fit(both)
         merge(scores, score_predictions(method, [(test.slices[i], test.tables_2d[i])
-                                                 for i in np.sort(fold)]))
+                                                 for i in fold]))
         print("rgl fold", k, flush=True)
     return summarise(scores)
 
