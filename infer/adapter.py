@@ -177,9 +177,10 @@ class DSGPLVMMethod(InferenceMethod):
             table = blend_toward_row(anchor_to_slice(table, rho), rho, self.row_blend_deg)
         return table, variance
 
-    def _predict_2d(self, rho):
+    def _predict_2d(self, rho, weighted=None):
+        """weighted: (weights, variance) of _weights for the 2D view, when already at hand."""
         feats = slice_features(rho, self.feature_space)
-        w, var = self._weights(feats, "2d")
+        w, var = self._weights(feats, "2d") if weighted is None else weighted
         data = self.model_.view_data_["2d"]
         mean = np.full(len(data.keep), np.nan)
         # the weights sum to 1 and the stored rows are centred: mean + w @ rows is the combination
@@ -214,10 +215,13 @@ class DSGPLVMMethod(InferenceMethod):
     def _combination(self, rho):
         """(weights (N,), 3D combination space, predictive variance). Anchored: the space's inverse
         applies the correction computed on the 2D prediction."""
-        weights, var = self._weights(slice_features(rho, self.feature_space), self._weights_view())
+        view = self._weights_view()
+        weights, var = self._weights(slice_features(rho, self.feature_space), view)
         space = FeatureSpace(self.feature_space)
         if self.anchor:
-            log_c = anchor_log_correction(self._predict_2d(rho)[0][:, 0], rho)
+            # a model without a 3D view combines its 3D tables with the 2D weights: reuse them
+            table_2d = self._predict_2d(rho, (weights, var) if view == "2d" else None)[0]
+            log_c = anchor_log_correction(table_2d[:, 0], rho)
             space = space if log_c is None else AnchoredSpace(space, log_c)
             space = RowBlendSpace(space, rho, self.row_blend_deg)
         return np.asarray(weights, float), space, var
