@@ -40,7 +40,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from brdf import merl, metrics  # noqa: E402
 from infer import TrainingSet, make_method, novelty_warning  # noqa: E402
-from infer.adapter import standardised_residuals  # noqa: E402
+from infer.uncertainty import standardised_residuals  # noqa: E402
 from experiments.evaluate import PAPER_FIXED, run_evaluation  # noqa: E402
 from infer.model_selection import tune_baselines  # noqa: E402
 
@@ -75,7 +75,7 @@ def fold_training(merl_set, test, k, n_folds=5, seed=0):
 
 def interval_hits(method, rho, true, coverage=0.9):
     """(bins inside the central `coverage` interval, bins scored), θd > 0, in the method's
-    feature space (infer.adapter.standardised_residuals)."""
+    feature space (infer.uncertainty.standardised_residuals)."""
     from scipy.stats import norm
     z = standardised_residuals(method, rho, true)
     return int((z <= norm.ppf(0.5 + coverage / 2)).sum()), int(z.size)

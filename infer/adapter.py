@@ -12,7 +12,6 @@ import warnings
 
 import numpy as np
 from scipy.optimize import minimize
-from scipy.stats import norm
 
 from brdf import colour
 from infer.dsgplvm import DSGPLVM
@@ -24,6 +23,7 @@ from infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_
 from infer.row_blend import ROW_BLEND_DEG, RowBlendSpace, blend_toward_row
 from infer.slice_fit import SLICE_FIT_WEIGHT, convex_slice_weights, mixed_weights
 from infer.slices import check_slice
+from infer.uncertainty import mixture_spread, weights_disagreement
 
 
 class FeatureSpace(LinearSpace):
@@ -138,6 +138,9 @@ class DSGPLVMMethod(InferenceMethod):
         rows = self.model_.view_data_["2d"].data
         self.bin_variance_ = None if rows is None else \
             loo_bin_variance(self.model_.posteriors_["2d"], rows)
+        # the 2D rows and their squares, finite, for the combination's per-bin spread
+        self.rows_2d_ = None if rows is None else np.nan_to_num(rows)
+        self.rows_2d_squared_ = None if rows is None else self.rows_2d_ ** 2
         return self
 
     def novelty(self, flash_slice):
@@ -145,18 +148,23 @@ class DSGPLVMMethod(InferenceMethod):
         outside what the model was trained on."""
         return self.model_.novelty(slice_features(check_slice(flash_slice), self.feature_space))
 
-    def bin_variance(self, gp_variance):
+    def bin_variance(self, gp_variance, combination_variance=None):
         """Per-bin predictive variance (90, 90, 3) in feature units² from the GP's per-dimension
-        variance (feature units²): κ · v · the 2D view's leave-one-out residual shape
-        (infer.gp.loo_bin_variance), so bins the training data predict badly get wide intervals."""
+        variance (feature units²): κ · (v · the 2D view's leave-one-out residual shape
+        (infer.gp.loo_bin_variance) + combination_variance), so bins the training data predict
+        badly get wide intervals. combination_variance: (D_kept,) in feature units², the spread and
+        disagreement of the combined tables (infer.uncertainty), or None."""
         keep = self.model_.view_data_["2d"].keep
-        shape = np.full(len(keep), np.nan)
-        shape[keep] = 1.0 if self.bin_variance_ is None else self.bin_variance_
-        return (self.calibration * float(gp_variance) * shape).reshape(N_THETA_H, N_THETA_D, 3)
+        kept = float(gp_variance) * (1.0 if self.bin_variance_ is None else self.bin_variance_)
+        if combination_variance is not None:
+            kept = kept + combination_variance
+        out = np.full(len(keep), np.nan)
+        out[keep] = kept
+        return (self.calibration * out).reshape(N_THETA_H, N_THETA_D, 3)
 
-    def _weights(self, feats, view):
-        """(weights (N,) over the training rows, summing to 1; the GP's per-dimension predictive
-        variance in feature units²): the GP's weights, mixed with the slice fit's (slice_fit)."""
+    def _weight_parts(self, feats, view):
+        """(the GP's weights (N,) over the training rows, summing to 1; its per-dimension predictive
+        variance in feature units²; the slice fit's weights (N,), or None when not used)."""
         if self.latent == "backprojection":
             w, var = self.model_.predict_weights(feats, view=view)
         else:
@@ -164,11 +172,34 @@ class DSGPLVMMethod(InferenceMethod):
             w, var = post.weights(optimise_latent(self.model_, feats))
             w = w[0] + (1.0 - w[0].sum()) / w.shape[1]
             var = float(var[0]) * self.model_.view_data_[view].scale ** 2
+        fit = None
         if self.anchor and self.slice_fit:   # our addition; anchor=False is the paper's
             src = self.model_.view_data_[self.model_.source_view]
             y = (np.asarray(feats, float)[src.keep] - src.mean[src.keep]) / src.scale
-            w = mixed_weights(w, convex_slice_weights(src.data, y), self.slice_fit)
-        return w, var
+            fit = convex_slice_weights(src.data, y)
+        return w, var, fit
+
+    def _weights(self, feats, view):
+        """(weights (N,) over the training rows, summing to 1; the GP's per-dimension predictive
+        variance in feature units²): the GP's weights, mixed with the slice fit's (slice_fit)."""
+        return self._mix(self._weight_parts(feats, view))
+
+    def _mix(self, parts):
+        w, var, fit = parts
+        return (w if fit is None else mixed_weights(w, fit, self.slice_fit)), var
+
+    def _combination_variance(self, parts):
+        """(D_kept,) in feature units², for the anchored method: the spread of the 2D tables the
+        prediction combines plus the GP and slice-fit weights' disagreement (infer.uncertainty);
+        None for the paper's method, whose variance is the GP's alone."""
+        if not self.anchor or self.rows_2d_ is None:
+            return None
+        w_gp, _, fit = parts
+        w, _ = self._mix(parts)
+        out = mixture_spread(w, self.rows_2d_, self.rows_2d_squared_)
+        if fit is not None:
+            out = out + weights_disagreement(w_gp, fit, self.rows_2d_, self.slice_fit)
+        return out * self.model_.view_data_["2d"].scale ** 2
 
     def predict(self, flash_slice, view="2d"):
         table, variance = super().predict(flash_slice, view)
@@ -177,10 +208,11 @@ class DSGPLVMMethod(InferenceMethod):
             table = blend_toward_row(anchor_to_slice(table, rho), rho, self.row_blend_deg)
         return table, variance
 
-    def _predict_2d(self, rho, weighted=None):
-        """weighted: (weights, variance) of _weights for the 2D view, when already at hand."""
+    def _predict_2d(self, rho, parts=None):
+        """parts: _weight_parts for the 2D view, when already at hand."""
         feats = slice_features(rho, self.feature_space)
-        w, var = self._weights(feats, "2d") if weighted is None else weighted
+        parts = self._weight_parts(feats, "2d") if parts is None else parts
+        w, var = self._mix(parts)
         data = self.model_.view_data_["2d"]
         mean = np.full(len(data.keep), np.nan)
         # the weights sum to 1 and the stored rows are centred: mean + w @ rows is the combination
@@ -191,7 +223,8 @@ class DSGPLVMMethod(InferenceMethod):
         invalid = ~valid_mask_2d() | ~np.isfinite(mean).all(axis=-1)
         table[invalid] = np.nan
         # the GP's variance is one number per view (isotropic), broadcast over its dimensions
-        var = self.bin_variance(var if np.isfinite(var) else np.nan)
+        var = self.bin_variance(var if np.isfinite(var) else np.nan,
+                                self._combination_variance(parts))
         # Off the training data the GP's variance saturates at its prior while the error keeps
         # growing: widen the intervals by the squared novelty (distance over the training
         # slices' own 99th-percentile spacing) beyond 1. On RGL (NBRDF proxy), with the shipped
@@ -216,11 +249,12 @@ class DSGPLVMMethod(InferenceMethod):
         """(weights (N,), 3D combination space, predictive variance). Anchored: the space's inverse
         applies the correction computed on the 2D prediction."""
         view = self._weights_view()
-        weights, var = self._weights(slice_features(rho, self.feature_space), view)
+        parts = self._weight_parts(slice_features(rho, self.feature_space), view)
+        weights, var = self._mix(parts)
         space = FeatureSpace(self.feature_space)
         if self.anchor:
             # a model without a 3D view combines its 3D tables with the 2D weights: reuse them
-            table_2d = self._predict_2d(rho, (weights, var) if view == "2d" else None)[0]
+            table_2d = self._predict_2d(rho, parts if view == "2d" else None)[0]
             log_c = anchor_log_correction(table_2d[:, 0], rho)
             space = space if log_c is None else AnchoredSpace(space, log_c)
             space = RowBlendSpace(space, rho, self.row_blend_deg)
@@ -245,28 +279,3 @@ def optimise_latent(model, feats, n_starts=5):
     starts = [model.project(feats)[0]] + [model.latent_[i] for i in np.argsort(d2)[:n_starts - 1]]
     best = min((minimize(nll, x0, method="L-BFGS-B") for x0 in starts), key=lambda r: r.fun)
     return best.x[None]
-
-
-def standardised_residuals(method, rho, true):
-    """|z| of one held-out material: the residual of each (θh, θd > 0, channel) bin in the
-    method's feature space over its predicted standard deviation, (n,) for the bins with a
-    finite truth and a positive variance. rho (90, 3) slice, true (90, 90, 3) table, 1/sr. The
-    θd = 0 row is left out: anchoring makes it the observation."""
-    pred, var = method.predict(rho, "2d")
-    space = getattr(method, "feature_space", "rgb")
-    resid = (colour.rho_to_features(np.nan_to_num(true), space=space)
-             - colour.rho_to_features(np.nan_to_num(pred), space=space))
-    ok = np.isfinite(true).all(-1)[..., None] & np.isfinite(var) & (var > 0)
-    ok[:, 0] = False
-    return np.abs(resid[ok]) / np.sqrt(var[ok])
-
-
-def calibration_factor(method, slices, tables_2d, coverage=0.9):
-    """κ that makes a fitted method's central `coverage` intervals cover that share of held-out
-    bins: the squared ratio of the `coverage` quantile of |z| (standardised_residuals) to the
-    normal one. slices (M, 90, 3), tables_2d (M, 90, 90, 3) in 1/sr, never trained on."""
-    z = np.concatenate([standardised_residuals(method, rho, true)
-                        for rho, true in zip(slices, tables_2d)])
-    if not z.size:
-        return 1.0
-    return float((np.quantile(z, coverage) / norm.ppf(0.5 + coverage / 2)) ** 2)

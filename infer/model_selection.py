@@ -12,7 +12,7 @@ from sklearn.model_selection import ParameterGrid
 
 from brdf import metrics
 from infer import make_method
-from infer.adapter import calibration_factor
+from infer.uncertainty import calibration_factor
 
 DS_GRID = {"q": [None], "beta": [50.0, 100.0], "feature_space": ["lab", "rgb"]}
 DS_FIXED = {"anchor": True}                      # "dsgplvm" is the anchored DS-GPLVM of infer/run

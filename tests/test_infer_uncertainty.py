@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from infer import DSGPLVMMethod, RelativeDSGPLVMMethod, method_from_model, novelty_warning
-from infer.adapter import calibration_factor
+from infer.adapter import slice_features
+from infer.uncertainty import calibration_factor, mixture_spread, weights_disagreement
 from infer.relative import channel_levels, from_ratio, ratio_field
 from infer.slices import fill_slice
 from tests.test_infer_baselines import ap_material, training_set
@@ -100,3 +101,45 @@ def test_relative_representation_round_trips_and_anchors_exactly(materials):
     # every training ratio row is 0 at θd = 0, so the prediction's θd = 0 row is the observation
     np.testing.assert_allclose(pred[:, 0], materials.slices[8], rtol=1e-9)
     assert var.shape == (90, 90, 3) and np.isfinite(pred[np.isfinite(materials.tables_2d[8])]).all()
+
+
+def test_mixture_spread_is_the_weighted_variance_of_the_combined_rows():
+    rng = np.random.default_rng(3)
+    rows = rng.normal(size=(6, 40))
+    w = rng.dirichlet(np.ones(6))
+    mean = w @ rows
+    np.testing.assert_allclose(mixture_spread(w, rows), w @ (rows - mean) ** 2, rtol=1e-10, atol=1e-12)
+    # all weight on one row: that row is the prediction, nothing spreads
+    np.testing.assert_allclose(mixture_spread(np.eye(6)[2], rows), 0.0, atol=1e-12)
+    # GP weights may be negative: |w| weighs the spread around the (signed) prediction
+    signed = np.array([1.5, -0.5, 0, 0, 0, 0])
+    mean = signed @ rows
+    expect = (0.75 * (rows[0] - mean) ** 2 + 0.25 * (rows[1] - mean) ** 2)
+    np.testing.assert_allclose(mixture_spread(signed, rows), expect, rtol=1e-10)
+
+
+def test_weights_disagreement_is_the_two_point_variance():
+    rows = np.array([[0.0, 2.0], [4.0, 2.0]])
+    # GP all on row 0, fit all on row 1: estimates {0, 4} in column 0, weights 1/2 each: variance 4
+    np.testing.assert_allclose(weights_disagreement([1, 0], [0, 1], rows, 0.5), [4.0, 0.0])
+    np.testing.assert_allclose(weights_disagreement([1, 0], [0, 1], rows, 0.25), [3.0, 0.0])
+    assert (weights_disagreement([0.3, 0.7], [0.3, 0.7], rows, 0.5) == 0).all()
+
+
+def test_anchored_variance_adds_the_combination_terms_and_the_paper_keeps_the_gp_alone(fitted, materials):
+    rho = materials.slices[7]
+    _, var = fitted.predict(rho, "2d")
+    parts = fitted._weight_parts(slice_features(rho, fitted.feature_space), "2d")
+    extra = fitted._combination_variance(parts)
+    assert extra is not None and (extra >= 0).all() and extra.max() > 0
+    paper = method_from_model("dsgplvm", fitted.model_, materials.subset(range(7)),
+                              **(fitted.get_params() | {"anchor": False}))
+    assert paper._combination_variance(parts) is None
+    _, var_paper = paper.predict(rho, "2d")
+    nov = max(1.0, fitted.novelty(rho)) ** 2
+    gp_only = fitted.bin_variance(parts[1]) * nov
+    valid = np.isfinite(var_paper)
+    # the paper's variance is the GP term alone; the anchored one exceeds it by exactly the extra
+    np.testing.assert_allclose(var_paper[valid], gp_only[valid], rtol=1e-10)
+    np.testing.assert_allclose((var - gp_only)[valid].sum(),
+                               fitted.calibration * nov * extra.sum(), rtol=1e-8)
