@@ -18,6 +18,7 @@ from infer.dsgplvm import DSGPLVM
 from infer.gp import loo_bin_variance
 from brdf.bins import scatter_valid, valid_flat_3d, valid_mask_2d
 from brdf.merl import N_THETA_D, N_THETA_H
+from infer.blas import one_blas_thread
 from infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
 from infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_combination
 from infer.row_blend import ROW_BLEND_DEG, RowBlendSpace, blend_toward_row
@@ -138,8 +139,9 @@ class DSGPLVMMethod(InferenceMethod):
         rows = self.model_.view_data_["2d"].data
         self.bin_variance_ = None if rows is None else \
             loo_bin_variance(self.model_.posteriors_["2d"], rows)
-        # the 2D rows and their squares, finite, for the combination's per-bin spread
-        self.rows_2d_ = None if rows is None else np.nan_to_num(rows)
+        # the 2D rows and their squares, finite, for the combination's per-bin spread; float32:
+        # a variance needs no more, and predict reads them whole (2 × 11 MB for 121 tables)
+        self.rows_2d_ = None if rows is None else np.nan_to_num(rows).astype(np.float32)
         self.rows_2d_squared_ = None if rows is None else self.rows_2d_ ** 2
         return self
 
@@ -202,7 +204,11 @@ class DSGPLVMMethod(InferenceMethod):
         return out * self.model_.view_data_["2d"].scale ** 2
 
     def predict(self, flash_slice, view="2d"):
-        table, variance = super().predict(flash_slice, view)
+        if view == "2d":
+            with one_blas_thread():   # small products only (infer.blas)
+                table, variance = super().predict(flash_slice, view)
+        else:
+            table, variance = super().predict(flash_slice, view)
         if self.anchor and view == "2d":  # 3D: anchored in combination()
             rho = check_slice(flash_slice)
             table = blend_toward_row(anchor_to_slice(table, rho), rho, self.row_blend_deg)
@@ -249,12 +255,14 @@ class DSGPLVMMethod(InferenceMethod):
         """(weights (N,), 3D combination space, predictive variance). Anchored: the space's inverse
         applies the correction computed on the 2D prediction."""
         view = self._weights_view()
-        parts = self._weight_parts(slice_features(rho, self.feature_space), view)
-        weights, var = self._mix(parts)
+        with one_blas_thread():   # small products only (infer.blas); the 3D stream is not here
+            parts = self._weight_parts(slice_features(rho, self.feature_space), view)
+            weights, var = self._mix(parts)
+            table_2d = self._predict_2d(rho, parts if view == "2d" else None)[0] \
+                if self.anchor else None
         space = FeatureSpace(self.feature_space)
         if self.anchor:
             # a model without a 3D view combines its 3D tables with the 2D weights: reuse them
-            table_2d = self._predict_2d(rho, parts if view == "2d" else None)[0]
             log_c = anchor_log_correction(table_2d[:, 0], rho)
             space = space if log_c is None else AnchoredSpace(space, log_c)
             space = RowBlendSpace(space, rho, self.row_blend_deg)

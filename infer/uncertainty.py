@@ -32,22 +32,26 @@ BOOTSTRAP_QUANTILE = 0.9      # with 90% intervals: a 90%/90% tolerance bound
 
 def mixture_spread(weights, rows, rows_squared=None):
     """Σ_i a_i (x_i − x̄)² per column, a = |w| / Σ|w|, x̄ = Σ_i w_i x_i: (D,) ≥ 0. weights (N,)
-    summing to 1 (negative entries allowed, as GP weights have them); rows (N, D) finite;
-    rows_squared: rows ** 2 if at hand (a model keeps it)."""
+    summing to 1 (negative entries allowed, as GP weights have them); rows (N, D) finite, float64
+    or float32 (the products then run in float32); rows_squared: rows ** 2 if at hand (a model
+    keeps it)."""
     w = np.asarray(weights, dtype=float)
-    rows = np.asarray(rows, dtype=float)
+    rows = np.asarray(rows)
     a = np.abs(w) / max(float(np.abs(w).sum()), 1e-300)
-    mean = w @ rows
     sq = rows ** 2 if rows_squared is None else rows_squared
+    # vector-matrix products in the rows' own dtype (a mixed-dtype product skips BLAS: 25× slower)
+    mean, a_rows, a_sq = (np.asarray(v, rows.dtype) @ m for v, m in ((w, rows), (a, rows), (a, sq)))
     # Σ a (x − x̄)² = a·x² − 2 x̄ (a·x) + x̄² (Σ a = 1), without an (N, D) temporary
-    return np.maximum(a @ sq - 2.0 * mean * (a @ rows) + mean ** 2, 0.0)
+    mean, a_rows, a_sq = (v.astype(float) for v in (mean, a_rows, a_sq))
+    return np.maximum(a_sq - 2.0 * mean * a_rows + mean ** 2, 0.0)
 
 
 def weights_disagreement(gp_weights, fit_weights, rows, share):
     """share (1 − share) ((w_GP − w_fit) · x)² per column: (D,) ≥ 0, the variance of the two-point
     estimate whose mean (1 − share) w_GP · x + share w_fit · x the blend predicts."""
-    diff = (np.asarray(gp_weights, float) - np.asarray(fit_weights, float)) @ np.asarray(rows, float)
-    return share * (1.0 - share) * diff ** 2
+    rows = np.asarray(rows)
+    diff = np.asarray(np.subtract(gp_weights, fit_weights), rows.dtype) @ rows
+    return share * (1.0 - share) * diff.astype(float) ** 2
 
 
 def standardised_residuals(method, rho, true):

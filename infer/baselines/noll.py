@@ -16,10 +16,10 @@ robust (soft-L1) loss stands in for their outlier handling.
 
 import numpy as np
 from scipy.optimize import least_squares, nnls
-from threadpoolctl import threadpool_limits
 
 from brdf.bins import valid_bins_3d
 from brdf.merl import N_THETA_H
+from infer.blas import one_blas_thread
 from infer.estimator import InferenceMethod, LinearSpace
 
 EPS = 1e-3     # 1/sr, log metric offset
@@ -59,10 +59,8 @@ class Noll(InferenceMethod):
 
         if not np.any(target > 0):
             return np.zeros(len(w0))
-        # one BLAS thread: a threaded SVD sums in another order, and the robust fit's iterations
-        # carry that 1e-16 to 1e-9 in the result; a slice's weights must not depend on how many
-        # cores (or Dask workers) there are. The Jacobian is (≤ 270, N): threads gain nothing.
-        with threadpool_limits(1):
+        # one BLAS thread (infer.blas): the weights must not depend on the core count
+        with one_blas_thread():
             fit = least_squares(residual, w0, bounds=(0.0, np.inf), loss="soft_l1",
                                 f_scale=0.1, max_nfev=200, x_scale="jac")
         return fit.x
