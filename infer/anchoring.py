@@ -12,6 +12,9 @@ from infer.estimator import LinearSpace
 
 
 ANCHOR_SMOOTHING_BINS = 2.0  # see anchor_to_slice; chosen in benchmarks, not on test data
+# how ln c continues past the observed θh range, in θh bins: it fades to 0 (the model's own
+# prediction) as exp(-d²/2s²) at d bins from the nearest observed bin; inf holds it constant
+ANCHOR_FADE_BINS = np.inf
 
 
 def anchor_log_correction(first_row, flash_slice, smoothing_bins=None):
@@ -35,6 +38,10 @@ def anchor_log_correction(first_row, flash_slice, smoothing_bins=None):
         return None
     bins = np.arange(N_THETA_H)
     log_c = np.stack([np.interp(bins, bins[known], log_c[known, c]) for c in range(3)], axis=1)
+    if np.isfinite(ANCHOR_FADE_BINS):
+        seen = bins[known]
+        beyond = np.maximum(seen[0] - bins, 0) + np.maximum(bins - seen[-1], 0)
+        log_c *= np.exp(-0.5 * (beyond / max(ANCHOR_FADE_BINS, 1e-9)) ** 2)[:, None]
     if smoothing_bins > 0:
         log_c = gaussian_filter1d(log_c, smoothing_bins, axis=0, mode="nearest")
     return log_c
