@@ -12,6 +12,11 @@ from infer.estimator import LinearSpace
 
 
 ANCHOR_SMOOTHING_BINS = 2.0  # see anchor_to_slice; chosen in benchmarks, not on test data
+# how ln c continues past the observed θh range, in θh bins: it fades to 0 (the model's own
+# prediction) as exp(-d²/2s²) at d bins from the nearest observed bin; inf holds it constant.
+# Held: on held-out MERL/RGL (NBRDF proxy) slices cut to a 0-19°, 10-25° or 20-40° window, every
+# fade (8, 3, 0 bins) predicted the θd = 0 row past the window worse (benchmarks/sparse_slices.md)
+ANCHOR_FADE_BINS = np.inf
 
 
 def anchor_log_correction(first_row, flash_slice, smoothing_bins=None):
@@ -20,9 +25,10 @@ def anchor_log_correction(first_row, flash_slice, smoothing_bins=None):
 
     c = (ρ_obs + e) / (ρ_pred + e), e = brdf.colour.FEATURE_OFFSET, i.e. a shift in the ln(1 + ρ/e)
     feature space. Empty slice bins take ln c interpolated along θh (held constant beyond the
-    observed range). ln c is then smoothed along θh with a Gaussian of `smoothing_bins` bins (None:
-    ANCHOR_SMOOTHING_BINS): a bump of the prediction's θd = 0 row that its other rows lack is the
-    blend's own artefact, and cancelling it bin by bin would stamp a dark line across every θd.
+    observed range, or faded: ANCHOR_FADE_BINS). ln c is then smoothed along θh with a Gaussian
+    of `smoothing_bins` bins (None: ANCHOR_SMOOTHING_BINS): a bump of the prediction's θd = 0
+    row that its other rows lack is the blend's own artefact, and cancelling it bin by bin
+    would stamp a dark line across every θd.
     0 makes the θd = 0 row pass exactly through the observation. None when no bin is observed.
     """
     e = FEATURE_OFFSET
@@ -35,6 +41,10 @@ def anchor_log_correction(first_row, flash_slice, smoothing_bins=None):
         return None
     bins = np.arange(N_THETA_H)
     log_c = np.stack([np.interp(bins, bins[known], log_c[known, c]) for c in range(3)], axis=1)
+    if np.isfinite(ANCHOR_FADE_BINS):
+        seen = bins[known]
+        beyond = np.maximum(seen[0] - bins, 0) + np.maximum(bins - seen[-1], 0)
+        log_c *= np.exp(-0.5 * (beyond / max(ANCHOR_FADE_BINS, 1e-9)) ** 2)[:, None]
     if smoothing_bins > 0:
         log_c = gaussian_filter1d(log_c, smoothing_bins, axis=0, mode="nearest")
     return log_c

@@ -49,6 +49,11 @@ def extract(args):
 
 
 SPARSE_BINS = 10  # a material slice with fewer filled theta_h bins than this is flagged sparse
+# a material slice whose filled bins all lie below this theta_h is flagged "narrow": it never
+# sees the off-lobe level (slice_extract.segment's off-lobe body starts at 20 deg), so past its
+# last bin the table is the model's extrapolation (held-out MERL/RGL (NBRDF proxy) slices cut to
+# 0-19 deg: the theta_d = 0 row past 19 deg off by 1.33x, mean |ln|; benchmarks/sparse_slices.md)
+NARROW_LAST_THETA_H_DEG = 20.0
 
 
 def extract_materials(args, options):
@@ -67,7 +72,8 @@ def extract_materials(args, options):
 
 
 def material_coverage(slices, labels):
-    """{"materials": [{label, pixels, bins_filled, pixels_used, theta_h_deg_filled, sparse}],
+    """{"materials": [{label, pixels, bins_filled, pixels_used, theta_h_deg_filled, sparse,
+    narrow}],
     "warnings": [...]} for {k: SliceResult or None} and the label image."""
     entries, warnings = [], []
     for k, result in slices.items():
@@ -81,12 +87,17 @@ def material_coverage(slices, labels):
             cov = result.coverage
             entry.update(bins_filled=cov["bins_filled"], pixels_used=cov["pixels_used"],
                          theta_h_deg_filled=cov["theta_h_deg_filled"],
-                         sparse=cov["bins_filled"] < SPARSE_BINS)
+                         sparse=cov["bins_filled"] < SPARSE_BINS,
+                         narrow=cov["theta_h_deg_filled"][1] < NARROW_LAST_THETA_H_DEG)
+            lo, hi = cov["theta_h_deg_filled"]
             if entry["sparse"]:
-                lo, hi = cov["theta_h_deg_filled"]
                 warnings.append(f"material {k}: sparse slice, {cov['bins_filled']} of 90 theta_h "
                                 f"bins filled ({lo:.1f}-{hi:.1f} deg); inference treats the "
                                 "rest as missing")
+            elif entry["narrow"]:
+                warnings.append(f"material {k}: narrow slice, theta_h {lo:.1f}-{hi:.1f} deg only "
+                                "(no off-lobe bin); past it the table is the model's "
+                                "extrapolation")
         entries.append(entry)
     return {"materials": entries, "warnings": warnings}
 

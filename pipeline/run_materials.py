@@ -15,7 +15,8 @@ import numpy as np
 from brdf.merl import theta_h_centres
 from pipeline import report_figures as figs
 from pipeline.albedo_files import albedo_for_scene, write_albedo
-from pipeline.cmd_extract import material_coverage, write_extraction, write_material_slices
+from pipeline.cmd_extract import (NARROW_LAST_THETA_H_DEG, material_coverage, write_extraction,
+                                  write_material_slices)
 from pipeline.cmd_segment import write_labels
 from pipeline.report import _table_2d, _variance_2d, write_report
 from render import MaterialMap, TabulatedBRDF
@@ -96,10 +97,12 @@ def run_materials(ctx, samples, segmentation, faces):
         curves = {m: _theta_d0(tables[m][k][0]) for m in ctx.methods}
         figs.slice_plot(fig_dir / f"material_{k}_slice.png", theta_h_deg, observed, curves)
         entry = cover["materials"][k - 1]
+        note = (" (sparse: missing bins are imputed by inference)" if entry["sparse"] else
+                f" (narrow: no bin past {NARROW_LAST_THETA_H_DEG:g}°, the rest is extrapolated)"
+                if entry.get("narrow") else "")
         sections += [f"### Material {k}", "",
                      f"{entry['pixels']} pixels, {entry['bins_filled']} of 90 θh bins filled"
-                     + (" (sparse: missing bins are imputed by inference)" if entry["sparse"]
-                        else "") + f"; slice `materials/material_{k}.csv`.", "",
+                     + note + f"; slice `materials/material_{k}.csv`.", "",
                      f"![material {k} slice](figures/material_{k}_slice.png)", ""]
         for m in ctx.methods:
             table, variance, label = tables[m][k][0], tables[m][k][1], tables[m][k][3]

@@ -29,7 +29,8 @@ from brdf.merl import N_THETA_H
 from brdf.views import slice_coverage
 from slice_extract.binning import robust_bins
 from slice_extract.samples import REASONS, light_setup, photo_samples
-from slice_extract.segment import check_labels
+from slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
+                                   material_interior)
 
 
 @dataclass(frozen=True)
@@ -280,7 +281,9 @@ def extract_material_slices(samples, labels, where="--labels"):
     """One SliceResult per material: {k: SliceResult} for k = 1..labels.max().
 
     samples: FlashSamples; labels (H, W) int in the first flash photo's pixel grid (0 = not the
-    object). Every flash photo must share that grid. A material whose pixels give no usable
+    object). Every flash photo must share that grid. A material's slice leaves out its samples
+    within segment.border_width_px of another material (label borders are the least sure),
+    except in theta_h bins the interior alone would leave with < BORDER_MIN_BIN samples. A material whose pixels give no usable
     sample gets None (the caller reports it). InputError for a wrong-sized label image or a
     label in 1..K with no pixel.
     """
@@ -292,14 +295,32 @@ def extract_material_slices(samples, labels, where="--labels"):
                                 "cannot cover them")
     count = int(labels.max())
     of_sample = np.take(labels.ravel(), samples.pixels)
+    width = border_width_px(np.count_nonzero(labels))
+    interior = np.take(material_interior(labels, width).ravel(), samples.pixels)
+    bins = merl_bin_index(samples.theta_h, 0.0, 0.0)[0]
     slices = {}
     for k in range(1, count + 1):
-        mine = samples.subset(of_sample == k)
+        mine = of_sample == k
+        keep = _interior_samples(mine, interior, bins)
         try:
-            slices[k] = bin_samples(mine)
+            slices[k] = bin_samples(samples.subset(keep))
         except InputError:
             slices[k] = None
+            continue
+        slices[k].report["material_border"] = {
+            "width_px": width, "samples": int(mine.sum()),
+            "border_samples_dropped": int(np.count_nonzero(mine & ~keep))}
     return slices
+
+
+def _interior_samples(mine, interior, bins, min_bin=BORDER_MIN_BIN):
+    """(N,) bool: a material's samples (mine (N,) bool) away from its borders with other
+    materials (interior (N,) bool), except in the theta_h bins (bins (N,) int) where the
+    interior keeps fewer than min_bin samples: there every sample of the material stays, so
+    dropping the border never costs the slice a bin (nor thins a bin below min_bin)."""
+    inner = mine & interior
+    thin = np.bincount(bins[inner], minlength=N_THETA_H) < min_bin
+    return inner | (mine & thin[bins])
 
 
 def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin_clipped,

@@ -46,3 +46,19 @@ def test_smoothing_keeps_a_one_bin_artefact_from_striping_every_theta_d():
     smooth = ratio(anchor_to_slice(pred, truth[:, 0], smoothing_bins=2.0))[:, far]
     # A Gaussian of 2 bins spreads ln 1.5 over ~5 bins: the peak is ln 1.5 / (2 sqrt(2 pi)) = 0.081.
     assert np.max(np.abs(np.log(smooth))) < 0.09
+
+
+def test_past_the_observed_range_the_correction_is_held_or_faded(monkeypatch):
+    # a prediction 2x too low in ln(1 + rho/e) terms where the slice is seen (bins 0-39)
+    from infer import anchoring
+    first = np.full((90, 3), 0.1)
+    observed = np.full((90, 3), np.nan)
+    observed[:40] = 2 * (0.1 + E) - E
+    held = anchoring.anchor_log_correction(first, observed, smoothing_bins=0)
+    assert np.allclose(held, np.log(2.0))            # held: the last bin's ln 2 up to bin 89
+    monkeypatch.setattr(anchoring, "ANCHOR_FADE_BINS", 3.0)
+    faded = anchoring.anchor_log_correction(first, observed, smoothing_bins=0)
+    assert np.allclose(faded[:40], np.log(2.0))      # the observed range is untouched
+    # d bins past the last observed one: ln 2 exp(-d^2 / 18); at d = 3, exp(-1/2)
+    assert np.isclose(faded[42, 0], np.log(2.0) * np.exp(-0.5))
+    assert np.all(np.abs(faded[55:]) < 1e-6)
