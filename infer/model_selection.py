@@ -5,9 +5,11 @@ Methods are scored by the mean LAB-log error (brdf.metrics) of their 2D predicti
 materials; grids are scikit-learn ParameterGrids over the methods' constructor arguments.
 """
 
+import os
 import time
 
 import numpy as np
+from joblib import Parallel, delayed
 from sklearn.model_selection import ParameterGrid
 
 from brdf import metrics
@@ -35,25 +37,47 @@ def lab_log(errs):
     return float(np.mean([e["lab_log"] for e in errs]))
 
 
-def select(name, grid, train, valid, data, fixed=None):
-    """Grid search on validation LAB-log: -> (best fitted method, best params, [(params, err, s)])."""
-    trials, best = [], None
-    for combo in ParameterGrid(grid):
-        # in the grid's key order (ParameterGrid sorts them), as the reports print them
-        params = {k: combo[k] for k in grid} | (fixed or {})
-        t0 = time.perf_counter()
-        m = make_method(name, **params).fit(train)
-        fit_s = time.perf_counter() - t0
-        err = lab_log(errors_2d(m, data, valid))
-        trials.append({"params": params, "valid_lab_log": err, "fit_s": fit_s, "method": m})
-        if best is None or err < best["valid_lab_log"]:
-            best = trials[-1]
+def _trial(name, params, train, valid, data):
+    """Fit one grid point and score it on the validation materials: -> trial dict."""
+    t0 = time.perf_counter()
+    m = make_method(name, **params).fit(train)
+    fit_s = time.perf_counter() - t0
+    return {"params": params, "valid_lab_log": lab_log(errors_2d(m, data, valid)), "fit_s": fit_s,
+            "method": m}
+
+
+def select(name, grid, train, valid, data, fixed=None, workers=1):
+    """Grid search on validation LAB-log: -> (best fitted method, best params, [(params, err, s)]).
+
+    workers > 1 fits the grid points in that many processes (joblib); each fit is the same
+    deterministic computation in any process (DSGPLVM.fit runs its BLAS on one thread), so the
+    result does not depend on `workers`; ties go to the first grid point either way.
+    """
+    # in the grid's key order (ParameterGrid sorts them), as the reports print them
+    combos = [{k: combo[k] for k in grid} | (fixed or {}) for combo in ParameterGrid(grid)]
+    workers = max(1, min(workers, len(combos)))
+    if workers == 1:
+        trials = [_trial(name, params, train, valid, data) for params in combos]
+    else:
+        trials = Parallel(n_jobs=workers)(delayed(_trial)(name, params, train, valid, data)
+                                          for params in combos)
+    best = min(trials, key=lambda t: t["valid_lab_log"])     # min keeps the first of equals
     return best["method"], best["params"], trials
 
 
-def tune_baselines(training, seed=0, feature_space="auto"):
+def training_workers():
+    """Processes for the validation fits of `train`: $FLASHBRDF_THREADS (a worker's share of the
+    cores, as in infer.estimator), else one per core, at most 2 (the "auto" feature-space grid
+    has two points)."""
+    return max(1, int(os.environ.get("FLASHBRDF_THREADS") or min(os.cpu_count() or 1, 2)))
+
+
+def tune_baselines(training, seed=0, feature_space="auto", workers=None):
     """Hyperparameters for `flashbrdf train`: ashikhmin r0 on all; pca and (feature_space "auto")
-    the DS-GPLVM's feature space on a seeded 80/20 split, scored like Table 1's validation."""
+    the DS-GPLVM's feature space on a seeded 80/20 split, scored like Table 1's validation.
+    workers: processes for the DS-GPLVM validation fits (default training_workers(); the
+    result is the same for any number)."""
+    workers = training_workers() if workers is None else workers
     n = len(training)
     order = np.random.default_rng(seed).permutation(n)
     cut = max(1, n // 5)
@@ -62,7 +86,7 @@ def tune_baselines(training, seed=0, feature_space="auto"):
     _, pca_params, _ = select("pca", grid, training.subset(train), valid, training)
     spaces = DS_GRID["feature_space"] if feature_space == "auto" else [feature_space]
     best, ds, _ = select("dsgplvm", {"feature_space": spaces},
-                         training.subset(train), valid, training, fixed=DS_FIXED)
+                         training.subset(train), valid, training, fixed=DS_FIXED, workers=workers)
     # the per-bin variance is calibrated on the same held-out 20%: central 90% intervals there
     # cover 90% of the bins
     kappa = calibration_factor(best, training.slices[valid], training.tables_2d[valid])
