@@ -50,3 +50,46 @@ def test_threaded_table_reading_equals_sequential(materials, tmp_path, monkeypat
     # the hole is averaged over the 173 φd bins left, not counted as zero
     assert np.isfinite(a.tables_2d[1, 1, 3]).all()
     assert np.allclose(a.tables_2d[1, 1, 3], materials.tables_2d[1, 1, 3], rtol=1e-12)
+
+
+def test_fit_loo_grid_cache_changes_nothing():
+    # the grid's eigendecompositions depend on d2 alone: cached across calls (the ADM cycles),
+    # the second call with another latent gives what an uncached call gives, to the last bit
+    from infer.backmap import fit_loo
+    from infer.gp import squared_distances
+    rng = np.random.default_rng(2)
+    d2 = squared_distances(rng.normal(size=(15, 6)))
+    cache = {}
+    for k in range(2):
+        latent, lag = rng.normal(size=(15, 3)), 0.1 * rng.normal(size=(15, 3))
+        plain = fit_loo(d2, latent, lag, 1.5, 0.1, 1e-3)
+        assert fit_loo(d2, latent, lag, 1.5, 0.1, 1e-3, cache) == plain
+    assert len(cache) == 9                       # the 9 grid points, computed once
+
+
+def test_adm_schedule_reaches_mu_max_then_settles():
+    # the stated schedule: μ × 1.25 a cycle from 1 reaches μ_max = 1e3 after 31 cycles
+    # (1.25^30 = 808, 1.25^31 = 1009), then 9 more cycles at μ_max: 40 cycles in all
+    from _dsgplvm_data import latent_views
+    from infer.dsgplvm import DSGPLVM
+    _, v1, v2 = latent_views(16, seed=4)
+    model = DSGPLVM(q=2).fit({"1d": v1, "2d": v2})
+    mus = [c["mu"] for c in model.cycle_info_[1:]]
+    assert model.n_cycles_ == 40 and model.mu_ == 1e3
+    assert mus[29] < 1e3 and mus[30] == 1e3
+    assert np.all(np.isfinite(model.latent_))
+
+
+def test_lab_log_error_against_a_reference_equals_brdf_error():
+    # the truth's half of the metric computed once (ashikhmin's fit): the same error to the
+    # last bit, NaN and negative predictions included
+    from brdf import metrics
+    rng = np.random.default_rng(5)
+    true = rng.lognormal(-2, 2, size=(4, 90, 90, 3))
+    true[:, 80:, 85:] = np.nan
+    pred = true * rng.lognormal(0, 0.3, size=true.shape)
+    pred[0, 3, 4] = np.nan
+    pred[1, 5, 6, 1] = -1.0
+    reference = metrics.lab_log_reference(true)
+    assert metrics.lab_log_error(pred, reference) == metrics.brdf_error(pred, true, "log", "lab")
+    assert np.isnan(metrics.lab_log_error(pred, metrics.lab_log_reference(np.full((2, 3), np.nan))))
