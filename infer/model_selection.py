@@ -51,50 +51,68 @@ def _trial(name, params, train, valid, data):
             "method": m}
 
 
-def select(name, grid, train, valid, data, fixed=None, workers=1):
-    """Grid search on validation LAB-log: -> (best fitted method, best params, [(params, err, s)]).
+def _grid(grid, fixed=None):
+    """The grid's parameter dicts, in the grid's key order (ParameterGrid sorts them), as the
+    reports print them, each with `fixed` added."""
+    return [{k: combo[k] for k in grid} | (fixed or {}) for combo in ParameterGrid(grid)]
 
-    workers > 1 fits the grid points in that many processes (joblib); each fit is the same
-    deterministic computation in any process (DSGPLVM.fit runs its BLAS on one thread), so the
-    result does not depend on `workers`; ties go to the first grid point either way.
-    """
-    # in the grid's key order (ParameterGrid sorts them), as the reports print them
-    combos = [{k: combo[k] for k in grid} | (fixed or {}) for combo in ParameterGrid(grid)]
-    workers = max(1, min(workers, len(combos)))
+
+def _run(tasks, workers):
+    """Results of joblib `delayed` tasks, in their order: in `workers` processes, or here for 1.
+    Each task is the same deterministic computation in any process (DSGPLVM.fit runs its BLAS
+    on one thread), so the results do not depend on `workers`."""
+    workers = max(1, min(workers, len(tasks)))
     if workers == 1:
-        trials = [_trial(name, params, train, valid, data) for params in combos]
-    else:
-        trials = Parallel(n_jobs=workers)(delayed(_trial)(name, params, train, valid, data)
-                                          for params in combos)
+        return [fn(*args, **kwargs) for fn, args, kwargs in tasks]
+    return Parallel(n_jobs=workers)(tasks)
+
+
+def _best(trials):
+    """(best fitted method, best params, trials) of select; ties go to the first grid point."""
     best = min(trials, key=lambda t: t["valid_lab_log"])     # min keeps the first of equals
     return best["method"], best["params"], trials
 
 
+def select(name, grid, train, valid, data, fixed=None, workers=1):
+    """Grid search on validation LAB-log: -> (best fitted method, best params, [(params, err, s)]).
+    workers > 1 fits the grid points in that many processes (joblib), with the same result."""
+    tasks = [delayed(_trial)(name, params, train, valid, data) for params in _grid(grid, fixed)]
+    return _best(_run(tasks, workers))
+
+
+def _tune_closed_form(training, train, valid):
+    """pca's grid on the split and ashikhmin's r0 on all: -> (pca params, ashikhmin params)."""
+    grid = {k: [v for v in vals if v is None or v < len(train)] for k, vals in PCA_GRID.items()}
+    _, pca_params, _ = select("pca", grid, training.subset(train), valid, training)
+    return pca_params, make_method("ashikhmin").fit(training).fitted_params()
+
+
 def training_workers():
     """Processes for the validation fits of `train`: $FLASHBRDF_THREADS (a worker's share of the
-    cores, as in infer.estimator), else one per core, at most 2 (the "auto" feature-space grid
-    has two points)."""
+    cores, as in infer.estimator), else one per core, at most 2."""
     return max(1, int(os.environ.get("FLASHBRDF_THREADS") or min(os.cpu_count() or 1, 2)))
 
 
 def tune_baselines(training, seed=0, feature_space="auto", workers=None):
     """Hyperparameters for `flashbrdf train`: ashikhmin r0 on all; pca and (feature_space "auto")
     the DS-GPLVM's feature space on a seeded 80/20 split, scored like Table 1's validation.
-    workers: processes for the DS-GPLVM validation fits (default training_workers(); the
-    result is the same for any number)."""
+    workers: processes for the DS-GPLVM validation fits and the baselines' tuning (default
+    training_workers(); the result is the same for any number)."""
     workers = training_workers() if workers is None else workers
     n = len(training)
     order = np.random.default_rng(seed).permutation(n)
     cut = max(1, n // 5)
     valid, train = np.sort(order[:cut]), np.sort(order[cut:])
-    grid = {k: [v for v in vals if v is None or v < len(train)] for k, vals in PCA_GRID.items()}
-    _, pca_params, _ = select("pca", grid, training.subset(train), valid, training)
     spaces = DS_GRID["feature_space"] if feature_space == "auto" else [feature_space]
-    best, ds, _ = select("dsgplvm", {"feature_space": spaces},
-                         training.subset(train), valid, training, fixed=DS_FIXED, workers=workers)
+    # the DS-GPLVM's validation fits and the baselines' tuning side by side, longest first
+    tasks = [delayed(_trial)("dsgplvm", params, training.subset(train), valid, training)
+             for params in _grid({"feature_space": spaces}, DS_FIXED)]
+    *trials, (pca_params, ashikhmin_params) = _run(
+        tasks + [delayed(_tune_closed_form)(training, train, valid)], workers)
+    best, ds, _ = _best(trials)
     # the per-bin variance is calibrated on the same held-out 20%: central 90% intervals there
     # cover 90% of the bins
     kappa = calibration_factor(best, training.slices[valid], training.tables_2d[valid])
-    return {"pca": pca_params, "ashikhmin": make_method("ashikhmin").fit(training).fitted_params(),
+    return {"pca": pca_params, "ashikhmin": ashikhmin_params,
             "noll": {}, "chandraker": {},
             "dsgplvm": {"feature_space": ds["feature_space"], "calibration": kappa}}
