@@ -46,6 +46,25 @@ def brdf_error(pred, true, transform="log", space="lab"):
     return _error(p, t, transform, space)
 
 
+def lab_log_reference(true):
+    """What brdf_error(·, true, "log", "lab") computes of the truth alone, for scoring many
+    predictions against one truth (a fit's cost function): (valid mask (...), its CIELAB (n, 3))."""
+    true = np.asarray(true, dtype=np.float64)
+    valid = np.all(np.isfinite(true), axis=-1)
+    return valid, linear_rgb_to_lab(np.log1p(np.maximum(true[valid], 0.0)))
+
+
+def lab_log_error(pred, reference):
+    """brdf_error(pred, true, "log", "lab") with reference = lab_log_reference(true), to the last
+    bit: the same operations on the same arrays, the truth's half done once."""
+    valid, lab_true = reference
+    if not len(lab_true):
+        return float("nan")
+    p = np.asarray(pred, dtype=np.float64)[valid]
+    p = np.where(np.isfinite(p), np.maximum(p, 0.0), 0.0)
+    return float(np.mean(np.linalg.norm(linear_rgb_to_lab(np.log1p(p)) - lab_true, axis=-1)))
+
+
 def brdf_errors(pred, true):
     """All six Table 1 errors: {"rgb_lin", "rgb_root", "rgb_log", "lab_lin", "lab_root", "lab_log"}."""
     p, t = _valid_pairs(pred, true)

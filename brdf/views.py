@@ -10,7 +10,6 @@ Also reads and writes the contract's `slice.csv`.
 import csv
 import io
 import os
-import warnings
 
 import numpy as np
 
@@ -22,9 +21,15 @@ SLICE_HEADER = ["theta_h_deg", "r", "g", "b", "n"]
 
 
 def _nanmean(values, axis):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN bins stay NaN, on purpose
-        return np.nanmean(values, axis=axis)
+    """np.nanmean (the same sums, so the same bits) with all-NaN bins left NaN on purpose, and no
+    RuntimeWarning: no warnings.catch_warnings, which is not thread-safe (tables are read by
+    threads, infer.training_set)."""
+    values = np.asarray(values, dtype=np.float64)
+    missing = np.isnan(values)
+    total = np.sum(np.where(missing, 0.0, values), axis=axis)
+    count = np.sum(~missing, axis=axis)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return total / count
 
 
 def flash_slice(merl_table):

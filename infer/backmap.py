@@ -88,12 +88,14 @@ def loo_error(d2, latent, multipliers, mu, gamma, lam):
     return 0.5 * float(np.sum(resid ** 2))
 
 
-def fit_loo(d2, latent, multipliers, mu, gamma0, lam0):
+def fit_loo(d2, latent, multipliers, mu, gamma0, lam0, eig_cache=None):
     """Minimise E_LOO over (ln γ, ln λ) in a bounded box. Returns (γ, λ).
 
     For a given γ one eigendecomposition of K_bc makes E_LOO cheap for every λ, so λ is optimised
     inside (bounded Brent) and γ outside: a coarse grid first (E_LOO is often multi-modal in γ),
     then bounded Brent between the best grid point's neighbours.
+    eig_cache: a dict kept by the caller for one d2 across calls (the ADM cycles): the grid's
+    eigendecompositions depend on d2 alone, so they are computed once (same results).
     """
     t = np.mean(d2[~np.eye(len(d2), dtype=bool)]) if len(d2) > 1 else 1.0
     log_gamma_ref = np.log(2.0 / t) if t > 0 else 0.0
@@ -102,8 +104,13 @@ def fit_loo(d2, latent, multipliers, mu, gamma0, lam0):
     lag_mu = multipliers / mu
     targets = latent + lag_mu
 
-    def best_lambda(log_gamma):
-        s, u = _eig(d2, np.exp(log_gamma))
+    def best_lambda(log_gamma, cached=False):
+        if cached and eig_cache is not None:
+            if log_gamma not in eig_cache:
+                eig_cache[log_gamma] = _eig(d2, np.exp(log_gamma))
+            s, u = eig_cache[log_gamma]
+        else:
+            s, u = _eig(d2, np.exp(log_gamma))
         projected, u_sq = u.T @ targets, u * u
 
         def cost(log_lam):
@@ -119,7 +126,9 @@ def fit_loo(d2, latent, multipliers, mu, gamma0, lam0):
 
     grid = np.linspace(g_lo, g_hi, 9)
     start = float(np.clip(np.log(gamma0), g_lo, g_hi))
-    tried = {g: best_lambda(g) for g in [*grid, start]}
+    tried = {g: best_lambda(g, cached=True) for g in grid}
+    if start not in tried:
+        tried[start] = best_lambda(start)
     best = min(tried, key=lambda g: tried[g][0])
     step = grid[1] - grid[0]
     res = optimize.minimize_scalar(lambda g: best_lambda(g)[0], method="bounded",

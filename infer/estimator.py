@@ -8,7 +8,6 @@ where MERL's layout has no data (below the horizon).
 """
 
 import functools
-import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -17,6 +16,7 @@ from sklearn.base import BaseEstimator
 from brdf.bins import scatter_valid, valid_flat_3d
 from brdf.errors import InputError
 from infer.slices import check_slice
+from infer.training_set import default_threads
 
 
 class InferenceMethod(BaseEstimator):
@@ -123,7 +123,7 @@ def stream_combination(training, weights, space, tol=1e-12, workers=None):
     scale = np.abs(weights).max() if len(weights) else 0.0
     clip = getattr(space, "clip_to_training", False)
     used = [i for i, w in enumerate(weights) if clip or abs(w) > tol * scale]
-    workers = workers or int(os.environ.get("FLASHBRDF_THREADS") or min(os.cpu_count() or 1, 4))
+    workers = workers or default_threads()
     workers = max(1, min(workers, len(used)))
 
     def partial(part):

@@ -5,9 +5,11 @@ Methods are scored by the mean LAB-log error (brdf.metrics) of their 2D predicti
 materials; grids are scikit-learn ParameterGrids over the methods' constructor arguments.
 """
 
+import os
 import time
 
 import numpy as np
+from joblib import Parallel, delayed
 from sklearn.model_selection import ParameterGrid
 
 from brdf import metrics
@@ -21,51 +23,96 @@ PCA_GRID = {"n_components": [3, 6, 12, 24, None], "ridge": [1e-3, 1e-2, 1e-1, 1.
 
 def errors_2d(method, data, index):
     """[brdf_errors dict] of a fitted method's 2D predictions for materials `index` of `data`."""
-    out = []
-    for i in index:
-        if method.evaluation_only:
-            pred = method.predict_truth(data.tables_2d[i])
-        else:
-            pred = method.predict(data.slices[i], "2d")[0]
-        out.append(metrics.brdf_errors(pred, data.tables_2d[i]))
-    return out
+    return [metrics.brdf_errors(_predict_2d(method, data.slices[i], data.tables_2d[i]),
+                                data.tables_2d[i]) for i in index]
+
+
+def _predict_2d(method, rho, table):
+    """A fitted method's 2D prediction from slice rho; evaluation-only methods see the table."""
+    return method.predict_truth(table) if method.evaluation_only else method.predict(rho, "2d")[0]
 
 
 def lab_log(errs):
     return float(np.mean([e["lab_log"] for e in errs]))
 
 
-def select(name, grid, train, valid, data, fixed=None):
-    """Grid search on validation LAB-log: -> (best fitted method, best params, [(params, err, s)])."""
-    trials, best = [], None
-    for combo in ParameterGrid(grid):
-        # in the grid's key order (ParameterGrid sorts them), as the reports print them
-        params = {k: combo[k] for k in grid} | (fixed or {})
-        t0 = time.perf_counter()
-        m = make_method(name, **params).fit(train)
-        fit_s = time.perf_counter() - t0
-        err = lab_log(errors_2d(m, data, valid))
-        trials.append({"params": params, "valid_lab_log": err, "fit_s": fit_s, "method": m})
-        if best is None or err < best["valid_lab_log"]:
-            best = trials[-1]
+def valid_lab_log(method, data, index):
+    """lab_log(errors_2d(method, data, index)), computing that one error only (the grid's score)."""
+    return float(np.mean([metrics.brdf_error(_predict_2d(method, data.slices[i], data.tables_2d[i]),
+                                             data.tables_2d[i], "log", "lab") for i in index]))
+
+
+def _trial(name, params, train, valid, data):
+    """Fit one grid point and score it on the validation materials: -> trial dict."""
+    t0 = time.perf_counter()
+    m = make_method(name, **params).fit(train)
+    fit_s = time.perf_counter() - t0
+    return {"params": params, "valid_lab_log": valid_lab_log(m, data, valid), "fit_s": fit_s,
+            "method": m}
+
+
+def _grid(grid, fixed=None):
+    """The grid's parameter dicts, in the grid's key order (ParameterGrid sorts them), as the
+    reports print them, each with `fixed` added."""
+    return [{k: combo[k] for k in grid} | (fixed or {}) for combo in ParameterGrid(grid)]
+
+
+def _run(tasks, workers):
+    """Results of joblib `delayed` tasks, in their order: in `workers` processes, or here for 1.
+    Each task is the same deterministic computation in any process (DSGPLVM.fit runs its BLAS
+    on one thread), so the results do not depend on `workers`."""
+    workers = max(1, min(workers, len(tasks)))
+    if workers == 1:
+        return [fn(*args, **kwargs) for fn, args, kwargs in tasks]
+    return Parallel(n_jobs=workers)(tasks)
+
+
+def _best(trials):
+    """(best fitted method, best params, trials) of select; ties go to the first grid point."""
+    best = min(trials, key=lambda t: t["valid_lab_log"])     # min keeps the first of equals
     return best["method"], best["params"], trials
 
 
-def tune_baselines(training, seed=0, feature_space="auto"):
+def select(name, grid, train, valid, data, fixed=None, workers=1):
+    """Grid search on validation LAB-log: -> (best fitted method, best params, [(params, err, s)]).
+    workers > 1 fits the grid points in that many processes (joblib), with the same result."""
+    tasks = [delayed(_trial)(name, params, train, valid, data) for params in _grid(grid, fixed)]
+    return _best(_run(tasks, workers))
+
+
+def _tune_closed_form(training, train, valid):
+    """pca's grid on the split and ashikhmin's r0 on all: -> (pca params, ashikhmin params)."""
+    grid = {k: [v for v in vals if v is None or v < len(train)] for k, vals in PCA_GRID.items()}
+    _, pca_params, _ = select("pca", grid, training.subset(train), valid, training)
+    return pca_params, make_method("ashikhmin").fit(training).fitted_params()
+
+
+def training_workers():
+    """Processes for the validation fits of `train`: $FLASHBRDF_THREADS (a worker's share of the
+    cores, as in infer.estimator), else one per core, at most 2."""
+    return max(1, int(os.environ.get("FLASHBRDF_THREADS") or min(os.cpu_count() or 1, 2)))
+
+
+def tune_baselines(training, seed=0, feature_space="auto", workers=None):
     """Hyperparameters for `flashbrdf train`: ashikhmin r0 on all; pca and (feature_space "auto")
-    the DS-GPLVM's feature space on a seeded 80/20 split, scored like Table 1's validation."""
+    the DS-GPLVM's feature space on a seeded 80/20 split, scored like Table 1's validation.
+    workers: processes for the DS-GPLVM validation fits and the baselines' tuning (default
+    training_workers(); the result is the same for any number)."""
+    workers = training_workers() if workers is None else workers
     n = len(training)
     order = np.random.default_rng(seed).permutation(n)
     cut = max(1, n // 5)
     valid, train = np.sort(order[:cut]), np.sort(order[cut:])
-    grid = {k: [v for v in vals if v is None or v < len(train)] for k, vals in PCA_GRID.items()}
-    _, pca_params, _ = select("pca", grid, training.subset(train), valid, training)
     spaces = DS_GRID["feature_space"] if feature_space == "auto" else [feature_space]
-    best, ds, _ = select("dsgplvm", {"feature_space": spaces},
-                         training.subset(train), valid, training, fixed=DS_FIXED)
+    # the DS-GPLVM's validation fits and the baselines' tuning side by side, longest first
+    tasks = [delayed(_trial)("dsgplvm", params, training.subset(train), valid, training)
+             for params in _grid({"feature_space": spaces}, DS_FIXED)]
+    *trials, (pca_params, ashikhmin_params) = _run(
+        tasks + [delayed(_tune_closed_form)(training, train, valid)], workers)
+    best, ds, _ = _best(trials)
     # the per-bin variance is calibrated on the same held-out 20%: central 90% intervals there
     # cover 90% of the bins
     kappa = calibration_factor(best, training.slices[valid], training.tables_2d[valid])
-    return {"pca": pca_params, "ashikhmin": make_method("ashikhmin").fit(training).fitted_params(),
+    return {"pca": pca_params, "ashikhmin": ashikhmin_params,
             "noll": {}, "chandraker": {},
             "dsgplvm": {"feature_space": ds["feature_space"], "calibration": kappa}}

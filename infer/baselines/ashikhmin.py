@@ -53,10 +53,12 @@ class Ashikhmin(InferenceMethod):
             raise ValueError("ashikhmin needs a training set to fit r0 (or r0=...)")
         slices = np.array([fill_slice(s) for s in training.slices])[:, :, None, :]
 
+        reference = metrics.lab_log_reference(training.tables_2d)   # the truth's Lab, once
+
         def cost(log_r0):
             # every material has the same valid bins, so the pooled mean is the mean of the means
             pred = slices * ratio_2d(np.exp(log_r0))[None, :, :, None]
-            return metrics.brdf_error(pred, training.tables_2d, "log", "lab")
+            return metrics.lab_log_error(pred, reference)
 
         grid = np.linspace(np.log(1e-3), 0.0, 15)
         costs = [cost(g) for g in grid]
