@@ -12,9 +12,9 @@ import time
 
 import numpy as np
 from scipy import optimize
-from threadpoolctl import threadpool_limits
 
 from . import adm
+from .blas import one_blas_thread
 from .dsgplvm_io import load_model, save_model
 from .backmap import backmap_kernel, fit_loo, impute_missing, krr_weights, masked_squared_distances
 from .gp import GPPosterior
@@ -84,7 +84,7 @@ class DSGPLVM:
         """views: dict name -> (N, D_v) features (NaN = missing); labels: (N,) ints or None
         (spectral clustering into 2 classes). Returns self."""
         # N×N algebra: BLAS threads only add overhead (and thrash on a shared machine)
-        with threadpool_limits(1):
+        with one_blas_thread():
             return self._fit(views, labels)
 
     def _fit(self, views, labels):
