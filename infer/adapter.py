@@ -9,6 +9,7 @@ a 3D view uses its 2D view's weights (the GP posterior mean is linear in the tra
 """
 
 import warnings
+from contextlib import nullcontext
 
 import numpy as np
 from scipy.optimize import minimize
@@ -204,10 +205,8 @@ class DSGPLVMMethod(InferenceMethod):
         return out * self.model_.view_data_["2d"].scale ** 2
 
     def predict(self, flash_slice, view="2d"):
-        if view == "2d":
-            with one_blas_thread():   # small products only (infer.blas)
-                table, variance = super().predict(flash_slice, view)
-        else:
+        # the 2D view's products are small (infer.blas); the 3D stream keeps its threads
+        with one_blas_thread() if view == "2d" else nullcontext():
             table, variance = super().predict(flash_slice, view)
         if self.anchor and view == "2d":  # 3D: anchored in combination()
             rho = check_slice(flash_slice)
