@@ -9,6 +9,8 @@ threadpoolctl's ThreadpoolController is built once (inspecting the loaded librar
 too much to repeat per prediction), after numpy and scipy have loaded their BLAS.
 """
 
+import functools
+
 from threadpoolctl import ThreadpoolController
 
 _controller = None
@@ -20,3 +22,13 @@ def one_blas_thread():
     if _controller is None:
         _controller = ThreadpoolController()
     return _controller.limit(limits=1)
+
+
+def on_one_blas_thread(fn):
+    """Decorator: every call of fn runs inside one_blas_thread(), so its products sum in the same
+    order on any core count (Table 1's loop and its Dask workers then agree bit for bit)."""
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with one_blas_thread():
+            return fn(*args, **kwargs)
+    return wrapper

@@ -11,6 +11,7 @@ import numpy as np
 
 from infer.baselines.pca import PCA, LogRelative3D, to_mapped
 from brdf.bins import valid_mask_2d
+from infer.blas import on_one_blas_thread
 
 
 def dual_weights(raw_gram, cross, ridge):
@@ -37,6 +38,7 @@ class Oracle(PCA):
     def __init__(self, ridge=1e-6):
         self.ridge = ridge
 
+    @on_one_blas_thread
     def predict_truth(self, true_table_2d):
         """Ridge projection of the true 2D table (90, 90, 3) -> predicted (90, 90, 3), NaN invalid."""
         m = to_mapped(np.asarray(true_table_2d)[valid_mask_2d()], self.ref_, self.w_).ravel()

@@ -21,6 +21,7 @@ import numpy as np
 
 from brdf.bins import cos_in_out_valid, mean_over_phi_d, valid_bins_3d, valid_mask_2d
 from brdf.merl import N_THETA_D, N_THETA_H
+from infer.blas import on_one_blas_thread
 from infer.estimator import InferenceMethod, LinearSpace
 
 EPS = 1e-3
@@ -66,6 +67,7 @@ class PCA(InferenceMethod):
         self.n_components = n_components   # None: all N-1
         self.ridge = ridge
 
+    @on_one_blas_thread
     def fit(self, training):
         self.training_ = training
         valid = valid_mask_2d()
@@ -89,6 +91,7 @@ class PCA(InferenceMethod):
         self.slice_rows_ = np.searchsorted(flat, np.arange(N_THETA_H) * N_THETA_D)     # index of (θh, 0) in n2
         return self
 
+    @on_one_blas_thread
     def coefficients(self, rho):
         ok = np.isfinite(rho).all(axis=1)
         rows = self.slice_rows_[ok]
@@ -105,6 +108,7 @@ class PCA(InferenceMethod):
         table[valid] = from_mapped(mapped.reshape(-1, 3), self.ref_, self.w_)
         return table
 
+    @on_one_blas_thread
     def _predict_2d(self, rho):
         c = self.coefficients(rho)
         return self._table_from_mapped(self.mean_ + self.components_ @ c), None
