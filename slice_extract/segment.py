@@ -480,8 +480,10 @@ def clean_label_image(labels, object_mask, min_area_fraction):
     """Spatial clean-up of a label image (H, W) int (0 = no sample) over object_mask (H, W).
 
     Connected patches smaller than min_area_fraction of the object (at least 4 pixels) are
-    cleared, then every object pixel takes the label of the nearest labelled pixel. Labels are
-    renumbered 1..K by decreasing area. Returns (H, W) uint16.
+    cleared, unless they touch the photo's frame: such a patch continues outside the photo, so
+    its visible area does not say it is noise (an object larger than the frame: the planar
+    cards' scales cut by the frame). Then every object pixel takes the label of the nearest
+    labelled pixel. Labels are renumbered 1..K by decreasing area. Returns (H, W) uint16.
     Works on the object's bounding box only (the rest stays 0): the same result, less image.
     """
     object_mask = np.asarray(object_mask, bool)
@@ -490,13 +492,16 @@ def clean_label_image(labels, object_mask, min_area_fraction):
     if not len(rows):
         return out
     box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+    frame = np.zeros(object_mask.shape, bool)
+    frame[[0, -1], :] = frame[:, [0, -1]] = True
     out[box] = _clean_labels(np.asarray(labels)[box], object_mask[box], min_area_fraction,
-                             int(object_mask.sum()))
+                             int(object_mask.sum()), frame[box])
     return out
 
 
-def _clean_labels(labels, object_mask, min_area_fraction, object_pixels):
-    """clean_label_image on a crop holding the whole object."""
+def _clean_labels(labels, object_mask, min_area_fraction, object_pixels, frame):
+    """clean_label_image on a crop holding the whole object; frame (crop) bool: the photo's
+    outermost pixels."""
     labels = labels.astype(np.int32)
     min_area = max(4, int(min_area_fraction * max(object_pixels, 1)))
     for k in range(1, int(labels.max()) + 1):
@@ -507,6 +512,7 @@ def _clean_labels(labels, object_mask, min_area_fraction, object_pixels):
         area = stats[:, cv2.CC_STAT_AREA]
         clear = area < min_area
         clear[0] = False                      # the background of this label's mask
+        clear[np.unique(comp[frame])] = False  # cut by the frame: its size is unknown
         if clear[1:].all():                   # all small: keep the largest
             clear[1 + int(np.argmax(area[1:]))] = False
         if clear.any():
