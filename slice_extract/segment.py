@@ -25,9 +25,13 @@ What separates materials is what the photo says about the material, not about sh
   better by its own slice than by the one-slice model of the whole object: the mean residual
   (_residuals, capped at 1 per pixel) of its pixels at most `explained` times as large.
   (A material only slightly better explained is a shading or noise split of one material.)
+- the last assignment of every pixel (_assign_all) first takes off a flash-coloured (white)
+  highlight term where the pixel is brighter than a coloured material's slice (_added_white,
+  dichromatic model): a foil's highlight no longer passes for a paler material.
 - spatial clean-up (OpenCV connected components and labelled distance transform): patches
-  smaller than `min_area_fraction` of the object merge into the nearest larger patch, and object
-  pixels without a sample (silhouette ring, grazing, clipped, shadowed) take the nearest label.
+  smaller than `min_area_fraction` of the object merge into the nearest larger patch (unless
+  the photo's frame cuts them), and object pixels without a sample (silhouette ring, grazing,
+  clipped, shadowed) take the nearest label.
 
 Labels are numbered by decreasing pixel count (1 = the largest material).
 """
@@ -54,7 +58,7 @@ BRIGHTNESS_WEIGHT = 0.25
 GREY_SPREAD = 0.1
 # the white term takes at most this share of a sample's weakest channel: all of it would leave
 # that channel at the log floor, where ln rho measures the floor, not the pixel (planar cards:
-# labels in their all-view cluster 92.4% with 1.0, 96.2% with 0.9; benchmarks/cards_labels.md)
+# labels in their all-view cluster 96.2% with 1.0, 96.8% with 0.9; results/cards_labels.md)
 WHITE_CAP = 0.9
 
 
@@ -235,9 +239,9 @@ def _added_white(rho, mean, deviation, coloured):
     """(N,) the flash-coloured (white) term s >= 0 to take off each sample before it is compared
     with a slice: least squares rho_c = a slice_c + s over the 3 channels, kept where the slice is
     coloured and the body a >= 1 (a highlight adds to the material, it does not replace part of
-    it), and at most WHITE_CAP of the sample's weakest channel. rho: 3 arrays (N,) (linear, per channel);
-    mean (N,), deviation: 3 arrays (N,), coloured (N,) bool: _white_terms taken at each sample's
-    bin. Zero elsewhere."""
+    it), and at most WHITE_CAP of the sample's weakest channel. rho: 3 arrays (N,) (linear, per
+    channel); mean (N,), deviation: 3 arrays (N,), coloured (N,) bool: _white_terms taken at
+    each sample's bin. Zero elsewhere."""
     dtype = rho[0].dtype
     norm = deviation[0] * deviation[0] + deviation[1] * deviation[1] + deviation[2] * deviation[2]
     covariance = deviation[0] * rho[0] + deviation[1] * rho[1] + deviation[2] * rho[2]
@@ -352,7 +356,7 @@ def _assign_all(rho, theta_h, pick, labels, k):
     material on a tie). Why the white term here and not while the materials and slices are
     found: there each material's slice must come from pixels of its own colour, and allowing
     the term let highlight pixels of one material into another's slice (planar cards: 95.2% of
-    pixels in their all-view cluster against 96.2%, benchmarks/results/cards_labels.md).
+    pixels in their all-view cluster against 96.8%, benchmarks/results/cards_labels.md).
 
     Why column by column in float32: this is the one pass over all (12 million) pixels, and
     numpy's reductions over a length-3 axis and (N, 3) gathers cost more than the arithmetic."""
