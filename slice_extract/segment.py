@@ -25,9 +25,13 @@ What separates materials is what the photo says about the material, not about sh
   better by its own slice than by the one-slice model of the whole object: the mean residual
   (_residuals, capped at 1 per pixel) of its pixels at most `explained` times as large.
   (A material only slightly better explained is a shading or noise split of one material.)
+- the last assignment of every pixel (_assign_all) first takes off a flash-coloured (white)
+  highlight term where the pixel is brighter than a coloured material's slice (_added_white,
+  dichromatic model): a foil's highlight no longer passes for a paler material.
 - spatial clean-up (OpenCV connected components and labelled distance transform): patches
-  smaller than `min_area_fraction` of the object merge into the nearest larger patch, and object
-  pixels without a sample (silhouette ring, grazing, clipped, shadowed) take the nearest label.
+  smaller than `min_area_fraction` of the object merge into the nearest larger patch (unless
+  the photo's frame cuts them), and object pixels without a sample (silhouette ring, grazing,
+  clipped, shadowed) take the nearest label.
 
 Labels are numbered by decreasing pixel count (1 = the largest material).
 """
@@ -48,6 +52,14 @@ LOG_FLOOR_REL = 1e-3  # rho below this fraction of the median brightness counts 
 # slice) against its colour offset (what is left per channel) in _residuals: texture, glitter,
 # bumps and printed albedo move a material's brightness pixel to pixel, far less its colour
 BRIGHTNESS_WEIGHT = 0.25
+# a slice whose channels spread by less than this share of their mean is grey: an added white
+# (flash-coloured) highlight term cannot be told from its brightness there, so _residuals does
+# not take one off. 0.1: the ~10% at which two ln-rho slices count as one material (alike).
+GREY_SPREAD = 0.1
+# the white term takes at most this share of a sample's weakest channel: all of it would leave
+# that channel at the log floor, where ln rho measures the floor, not the pixel (planar cards:
+# labels in their all-view cluster 96.2% with 1.0, 96.8% with 0.9; results/cards_labels.md)
+WHITE_CAP = 0.9
 
 
 @dataclass(frozen=True)
@@ -211,14 +223,58 @@ def _slices(log_rho, bins, labels, k):
     return out
 
 
-def _residuals(log_rho, bins, slices):
+def _white_terms(slice_log, offset):
+    """Per theta_h bin of one ln-rho slice (n_bins, 3): its linear value's channel mean (n_bins,),
+    the channels' deviations from it (n_bins, 3), and whether the slice is coloured (n_bins,)
+    bool: channels spread by at least GREY_SPREAD of their mean. A grey slice's own colour is
+    the flash's: an added white term there is just brightness, which the residual weighs."""
+    linear = np.maximum(np.exp(slice_log) - offset, 0)
+    mean = linear.mean(axis=1)
+    deviation = linear - mean[:, None]
+    spread = np.sqrt((deviation ** 2).mean(axis=1))
+    return mean, deviation, spread >= GREY_SPREAD * mean
+
+
+def _added_white(rho, mean, deviation, coloured):
+    """(N,) the flash-coloured (white) term s >= 0 to take off each sample before it is compared
+    with a slice: least squares rho_c = a slice_c + s over the 3 channels, kept where the slice is
+    coloured and the body a >= 1 (a highlight adds to the material, it does not replace part of
+    it), and at most WHITE_CAP of the sample's weakest channel. rho: 3 arrays (N,) (linear, per
+    channel); mean (N,), deviation: 3 arrays (N,), coloured (N,) bool: _white_terms taken at
+    each sample's bin. Zero elsewhere."""
+    dtype = rho[0].dtype
+    norm = deviation[0] * deviation[0] + deviation[1] * deviation[1] + deviation[2] * deviation[2]
+    covariance = deviation[0] * rho[0] + deviation[1] * rho[1] + deviation[2] * rho[2]
+    with np.errstate(divide="ignore", invalid="ignore"):  # a grey bin (norm 0) is not kept
+        body = covariance / norm
+        white = (rho[0] + rho[1] + rho[2]) / dtype.type(3) - body * mean
+    weakest = np.minimum(np.minimum(rho[0], rho[1]), rho[2])
+    keep = coloured & (body >= 1) & (white > 0)
+    return np.where(keep, np.minimum(white, dtype.type(WHITE_CAP) * weakest), dtype.type(0))
+
+
+def _residuals(log_rho, bins, slices, floor=None):
     """(N, k) how badly slice_k explains each sample: with d = ln rho - ln slice_k(theta_h)
     (N, 3) and its brightness offset m = mean over channels of d, the mean over channels of
     |d - m| (colour) plus BRIGHTNESS_WEIGHT |m|, capped at 1 (an outlier pixel counts as a bad
-    fit, not as an unbounded one)."""
+    fit, not as an unbounded one). With floor (_log_rho's: log_rho = ln(rho + floor/3)), rho
+    is first relieved of the white term _added_white finds for slice_k (dichromatic model: a
+    flash highlight adds the flash's colour, white after white balance): the final assignment's
+    rule (_assign_all). Without, the plain rule that finds the materials and their slices."""
+    if floor is not None:
+        offset = floor / 3
+        rho = np.maximum(np.exp(log_rho) - offset, 0)
+        columns = [rho[:, c] for c in range(3)]
     out = []
     for s in slices:
         d = log_rho - s[bins]
+        if floor is not None:
+            mean, deviation, coloured = _white_terms(s, offset)
+            white = _added_white(columns, mean[bins], [deviation[bins, c] for c in range(3)],
+                                 coloured[bins])
+            lifted = white > 0
+            d[lifted] = (np.log(rho[lifted] - white[lifted, None] + offset)
+                         - s[bins[lifted]])
         m = d.mean(axis=1, keepdims=True)
         out.append(np.minimum(np.abs(d - m).mean(axis=1) + BRIGHTNESS_WEIGHT * np.abs(m[:, 0]),
                               1.0))
@@ -280,13 +336,13 @@ def cluster_samples(rho, theta_h, options=None):
 
     rho (N, 3) 1/sr, finite; theta_h (N,) radians. See the module docstring for the method.
     Materials and their slices are found on a random subsample of options.work_samples
-    samples; then every sample goes to the material whose slice explains it best.
+    samples (all of them if there are fewer); then every sample goes to the material whose
+    slice explains it best once a flash-coloured highlight term is taken off (_assign_all).
     """
     options = options or SegmentOptions()
     n = len(rho)
-    if n <= options.work_samples:
-        return _cluster(rho, theta_h, options)
-    pick = np.random.default_rng(options.seed).choice(n, options.work_samples, replace=False)
+    pick = (np.arange(n) if n <= options.work_samples else
+            np.random.default_rng(options.seed).choice(n, options.work_samples, replace=False))
     labels, k, criterion = _cluster(rho[pick], theta_h[pick], options)
     criterion.update(samples=int(n), work_samples=int(len(pick)))
     if k == 1:
@@ -296,22 +352,38 @@ def cluster_samples(rho, theta_h, options=None):
 
 def _assign_all(rho, theta_h, pick, labels, k):
     """Labels (N,) of every sample: the material (of the k found on samples `pick`, labelled
-    `labels`) whose slice explains it best (_residuals' criterion, first material on a tie).
+    `labels`) whose slice explains it best (_residuals' criterion with the white term, first
+    material on a tie). Why the white term here and not while the materials and slices are
+    found: there each material's slice must come from pixels of its own colour, and allowing
+    the term let highlight pixels of one material into another's slice (planar cards: 95.2% of
+    pixels in their all-view cluster against 96.8%, benchmarks/results/cards_labels.md).
 
     Why column by column in float32: this is the one pass over all (12 million) pixels, and
     numpy's reductions over a length-3 axis and (N, 3) gathers cost more than the arithmetic."""
     log_rho, _, floor = _log_rho(rho[pick])
-    slices = _slices(log_rho, _bins(theta_h[pick]), labels, k).astype(np.float32)
+    slices = _slices(log_rho, _bins(theta_h[pick]), labels, k)
+    white_terms = [[np.ascontiguousarray(t, np.float32) for t in (mean, *deviation.T, coloured)]
+                   for mean, deviation, coloured in (_white_terms(s, floor / 3) for s in slices)]
+    slices = slices.astype(np.float32)
     columns = [[np.ascontiguousarray(slices[j, :, c]) for c in range(3)] for j in range(k)]
     offset = np.float32(floor / 3)
     out = np.empty(len(rho), np.int64)
     for start in range(0, len(rho), 1 << 20):  # in chunks: bounded memory at 12 megapixels
         part = slice(start, start + (1 << 20))
         bins = _bins(theta_h[part])
-        logs = [np.log(np.maximum(rho[part, c], 0).astype(np.float32) + offset) for c in range(3)]
+        linear = [np.maximum(rho[part, c], 0).astype(np.float32) for c in range(3)]
+        logs = [np.log(linear[c] + offset) for c in range(3)]
         best, best_residual = np.zeros(len(bins), np.int64), None
         for j in range(k):
-            d = [logs[c] - columns[j][c].take(bins) for c in range(3)]
+            terms = [t.take(bins) for t in white_terms[j]]
+            white = _added_white(linear, terms[0], terms[1:4], terms[4] > 0)
+            lifted = np.flatnonzero(white)  # a minority of pixels: only they need new logs
+            d = []
+            for c in range(3):
+                dc = logs[c] - columns[j][c].take(bins)
+                dc[lifted] = (np.log(np.maximum(linear[c][lifted] - white[lifted], 0) + offset)
+                              - columns[j][c].take(bins[lifted]))
+                d.append(dc)
             m = (d[0] + d[1] + d[2]) / np.float32(3)
             residual = np.abs(d[0] - m)
             residual += np.abs(d[1] - m)
@@ -412,8 +484,10 @@ def clean_label_image(labels, object_mask, min_area_fraction):
     """Spatial clean-up of a label image (H, W) int (0 = no sample) over object_mask (H, W).
 
     Connected patches smaller than min_area_fraction of the object (at least 4 pixels) are
-    cleared, then every object pixel takes the label of the nearest labelled pixel. Labels are
-    renumbered 1..K by decreasing area. Returns (H, W) uint16.
+    cleared, unless they touch the photo's frame: such a patch continues outside the photo, so
+    its visible area does not say it is noise (an object larger than the frame: the planar
+    cards' scales cut by the frame). Then every object pixel takes the label of the nearest
+    labelled pixel. Labels are renumbered 1..K by decreasing area. Returns (H, W) uint16.
     Works on the object's bounding box only (the rest stays 0): the same result, less image.
     """
     object_mask = np.asarray(object_mask, bool)
@@ -422,13 +496,16 @@ def clean_label_image(labels, object_mask, min_area_fraction):
     if not len(rows):
         return out
     box = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+    frame = np.zeros(object_mask.shape, bool)
+    frame[[0, -1], :] = frame[:, [0, -1]] = True
     out[box] = _clean_labels(np.asarray(labels)[box], object_mask[box], min_area_fraction,
-                             int(object_mask.sum()))
+                             int(object_mask.sum()), frame[box])
     return out
 
 
-def _clean_labels(labels, object_mask, min_area_fraction, object_pixels):
-    """clean_label_image on a crop holding the whole object."""
+def _clean_labels(labels, object_mask, min_area_fraction, object_pixels, frame):
+    """clean_label_image on a crop holding the whole object; frame (crop) bool: the photo's
+    outermost pixels."""
     labels = labels.astype(np.int32)
     min_area = max(4, int(min_area_fraction * max(object_pixels, 1)))
     for k in range(1, int(labels.max()) + 1):
@@ -439,6 +516,7 @@ def _clean_labels(labels, object_mask, min_area_fraction, object_pixels):
         area = stats[:, cv2.CC_STAT_AREA]
         clear = area < min_area
         clear[0] = False                      # the background of this label's mask
+        clear[np.unique(comp[frame])] = False  # cut by the frame: its size is unknown
         if clear[1:].all():                   # all small: keep the largest
             clear[1 + int(np.argmax(area[1:]))] = False
         if clear.any():

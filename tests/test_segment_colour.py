@@ -31,8 +31,8 @@ def test_chromaticity_features_do_not_move_with_a_coloured_highlight():
 
 
 def test_every_pixel_assignment_agrees_with_the_refinement_rule():
-    # _assign_all (float32, column by column) against argmin of _residuals (float64) on
-    # 20000 samples of 3 materials (30% log-normal scatter); ties within float32 rounding
+    # _assign_all (float32, column by column) against argmin of _residuals (float64, with the
+    # white term) on 20000 samples of 3 materials (30% log-normal scatter); ties within float32 rounding
     # (1e-5) may differ
     rng = np.random.default_rng(3)
     material = rng.integers(0, 3, 20000)
@@ -44,7 +44,7 @@ def test_every_pixel_assignment_agrees_with_the_refinement_rule():
     fast = _assign_all(rho, theta_h, pick, labels, 3)
     log_rho, _, floor = _log_rho(rho[pick])
     slices = _slices(log_rho, _bins(theta_h[pick]), labels, 3)
-    residual = _residuals(_log_rho(rho, floor)[0], _bins(theta_h), slices)
+    residual = _residuals(_log_rho(rho, floor)[0], _bins(theta_h), slices, floor)
     exact = residual.argmin(axis=1)
     best_two = np.sort(residual, axis=1)[:, :2]
     clear = best_two[:, 1] - best_two[:, 0] > 1e-5

@@ -1,0 +1,74 @@
+"""Which material a pixel gets (slice_extract.segment): a flash highlight's added white does not
+move a pixel to another material, and a patch cut by the photo's frame is not cleared as noise."""
+
+import numpy as np
+
+from brdf.merl import N_THETA_H
+from slice_extract.segment import _residuals, clean_label_image
+
+TEAL = np.array([0.01, 0.06, 0.058])      # a coloured material's slice value (1/sr)
+SILVER = np.array([0.045, 0.083, 0.094])  # a pale lavender one
+BIN = np.array([10])
+
+
+def _slice(rho):
+    return np.broadcast_to(np.log(rho), (N_THETA_H, 3))
+
+
+def _plain(sample):
+    return _residuals(np.log(sample)[None], BIN, [_slice(TEAL), _slice(SILVER)])[0]
+
+
+def _white(sample):
+    return _residuals(np.log(sample)[None], BIN, [_slice(TEAL), _slice(SILVER)], 0.0)[0]
+
+
+def test_a_highlight_with_the_flash_colour_added_keeps_its_material():
+    # twice the teal slice plus 0.04 of white (the flash's colour) in every channel. Plainly it
+    # is nearer the pale silver: ln(rho / slice) = (0.29, 0.66, 0.51) from silver, colour 0.130
+    # + 0.25 * 0.484 = 0.251, against (1.79, 0.98, 0.99) from teal, 0.359 + 0.313 = 0.672. The
+    # least-squares fit rho = a teal + s gives a = 2, s = 0.04 exactly (s < 0.9 * 0.06, the cap),
+    # so teal leaves only the brightness 0.25 ln 2 = 0.173; against silver s < 0: no white term
+    sample = 2 * TEAL + 0.04
+    np.testing.assert_allclose(_plain(sample), [0.672, 0.251], atol=2e-3)
+    np.testing.assert_allclose(_white(sample), [0.25 * np.log(2), 0.251], atol=2e-3)
+    assert _plain(sample).argmin() == 1 and _white(sample).argmin() == 0
+
+
+def test_a_darker_pixel_is_not_given_a_white_term():
+    # 0.67 x silver: against teal the fit's body a = 0.59 < 1 (the white would replace part of
+    # the material, not add to it), so no term is taken: the residual is the plain one, and
+    # silver's own, 0.25 |ln 0.67| = 0.100, wins
+    sample = 0.67 * SILVER
+    np.testing.assert_allclose(_white(sample), _plain(sample), rtol=1e-12)
+    np.testing.assert_allclose(_white(sample)[1], 0.25 * abs(np.log(0.67)), atol=1e-9)
+
+
+def test_a_grey_slice_takes_no_white_term():
+    # against a grey slice (channels within GREY_SPREAD = 10% of their mean) white is only
+    # brightness: the residual stays the plain one even for a pixel that is grey + white
+    grey = np.array([0.1, 0.1, 0.1])
+    sample = 2 * grey + 0.05 + np.array([0.0, 0.004, -0.004])
+    slices = [_slice(grey)]
+    plain = _residuals(np.log(sample)[None], BIN, slices)
+    np.testing.assert_allclose(_residuals(np.log(sample)[None], BIN, slices, 0.0), plain,
+                               rtol=1e-12)
+
+
+def test_a_small_patch_cut_by_the_frame_is_kept():
+    # a 100 x 100 object filling the photo; min_area 0.005 * 10,000 = 50 px. Material 2 has a
+    # 10 x 10 patch (100 px, kept) and two 5 x 5 patches (25 px): the one in the corner is cut
+    # by the frame and stays; the one inside is noise by the rule and takes its surroundings'
+    labels = np.ones((100, 100), int)
+    labels[80:90, 20:30] = 2
+    labels[:5, :5] = 2
+    labels[50:55, 50:55] = 2
+    cleaned = clean_label_image(labels, np.ones((100, 100), bool), 0.005)
+    assert np.all(cleaned[:5, :5] == 2)
+    assert np.all(cleaned[50:55, 50:55] == 1)
+    assert np.count_nonzero(cleaned == 2) == 100 + 25
+    # the same object inside a larger photo does not touch the frame: both small patches go
+    photo = np.zeros((120, 120), int)
+    photo[10:110, 10:110] = labels
+    cleaned = clean_label_image(photo, photo > 0, 0.005)
+    assert np.count_nonzero(cleaned == 2) == 100
