@@ -22,9 +22,17 @@ def _valid_pairs(pred, true):
     if pred.shape != true.shape or pred.shape[-1] != 3:
         raise ValueError(f"shapes differ or are not (..., 3): {pred.shape} vs {true.shape}")
     valid = np.all(np.isfinite(true), axis=-1)
-    p = pred[valid]
-    p = np.where(np.isfinite(p), np.maximum(p, 0.0), 0.0)
-    return p, np.maximum(true[valid], 0.0)
+    return _clean_pred(pred[valid]), np.maximum(true[valid], 0.0)
+
+
+def _clean_pred(p):
+    """A prediction's values on the valid bins: NaN/inf count as 0, negatives as 0."""
+    return np.where(np.isfinite(p), np.maximum(p, 0.0), 0.0)
+
+
+def _mean_delta_e(lab_p, lab_t):
+    """Mean CIE 1976 ΔE*ab between two (n, 3) CIELAB arrays."""
+    return float(np.mean(np.linalg.norm(lab_p - lab_t, axis=-1)))
 
 
 def _error(p, t, transform, space):
@@ -32,7 +40,7 @@ def _error(p, t, transform, space):
     if space == "rgb":
         return float(np.mean(np.abs(ep - et)))
     if space == "lab":
-        return float(np.mean(np.linalg.norm(linear_rgb_to_lab(ep) - linear_rgb_to_lab(et), axis=-1)))
+        return _mean_delta_e(linear_rgb_to_lab(ep), linear_rgb_to_lab(et))
     raise ValueError(f"unknown colour space {space!r}")
 
 
@@ -60,9 +68,8 @@ def lab_log_error(pred, reference):
     valid, lab_true = reference
     if not len(lab_true):
         return float("nan")
-    p = np.asarray(pred, dtype=np.float64)[valid]
-    p = np.where(np.isfinite(p), np.maximum(p, 0.0), 0.0)
-    return float(np.mean(np.linalg.norm(linear_rgb_to_lab(np.log1p(p)) - lab_true, axis=-1)))
+    p = _clean_pred(np.asarray(pred, dtype=np.float64)[valid])
+    return _mean_delta_e(linear_rgb_to_lab(np.log1p(p)), lab_true)
 
 
 def brdf_errors(pred, true):

@@ -29,6 +29,14 @@ def training_set(rows):
                        valid_3d=np.array(rows, np.float32))
 
 
+def coloured_ap_set(seed, specs):
+    """training_set of ap_material rows, one per (roughness, r0, diffuse) in specs, each with a
+    random colour in [0.1, 1)³ from a generator seeded with `seed`."""
+    rng = np.random.default_rng(seed)
+    return training_set([ap_material(a, r0, rng.uniform(0.1, 1, 3), diffuse=d)
+                         for a, r0, d in specs])
+
+
 @pytest.fixture(scope="module")
 def ap_set():
     rows = [ap_material(a, 0.08, c) for a, c in [(0.1, (0.9, 0.8, 0.6)), (0.25, (0.5, 0.5, 0.5)),

@@ -10,17 +10,14 @@ from infer.adapter import slice_features
 from infer.uncertainty import calibration_factor, mixture_spread, weights_disagreement
 from infer.relative import channel_levels, from_ratio, ratio_field
 from infer.slices import fill_slice
-from tests.test_infer_baselines import ap_material, training_set
+from tests.test_infer_baselines import coloured_ap_set
 
 
 @pytest.fixture(scope="module")
 def materials():
-    rng = np.random.default_rng(7)
-    rows = [ap_material(a, r0, rng.uniform(0.1, 1, 3), diffuse=d)
-            for a, r0, d in [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02),
-                             (0.5, 0.9, 0.5), (0.15, 0.2, 0.05), (0.7, 0.05, 0.8),
-                             (0.25, 0.3, 0.2), (0.12, 0.06, 0.4), (0.45, 0.15, 0.1)]]
-    return training_set(rows)
+    return coloured_ap_set(7, [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02),
+                               (0.5, 0.9, 0.5), (0.15, 0.2, 0.05), (0.7, 0.05, 0.8),
+                               (0.25, 0.3, 0.2), (0.12, 0.06, 0.4), (0.45, 0.15, 0.1)])
 
 
 @pytest.fixture(scope="module")

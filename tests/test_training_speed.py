@@ -8,17 +8,14 @@ import pytest
 from brdf import merl
 from infer.model_selection import tune_baselines
 from infer.training_set import TrainingSet
-from tests.test_infer_baselines import ap_material, training_set
+from tests.test_infer_baselines import coloured_ap_set
 
 
 @pytest.fixture(scope="module")
 def materials():
-    rng = np.random.default_rng(11)
-    rows = [ap_material(a, r0, rng.uniform(0.1, 1, 3), diffuse=d)
-            for a, r0, d in [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02),
-                             (0.5, 0.9, 0.5), (0.15, 0.2, 0.05), (0.7, 0.05, 0.8),
-                             (0.25, 0.3, 0.2)]]
-    return training_set(rows)
+    return coloured_ap_set(11, [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02),
+                               (0.5, 0.9, 0.5), (0.15, 0.2, 0.05), (0.7, 0.05, 0.8),
+                               (0.25, 0.3, 0.2)])
 
 
 def test_parallel_validation_fits_equal_sequential(materials):

@@ -91,7 +91,6 @@ class PCA(InferenceMethod):
         self.slice_rows_ = np.searchsorted(flat, np.arange(N_THETA_H) * N_THETA_D)     # index of (θh, 0) in n2
         return self
 
-    @on_one_blas_thread
     def coefficients(self, rho):
         ok = np.isfinite(rho).all(axis=1)
         rows = self.slice_rows_[ok]
@@ -123,5 +122,6 @@ class PCA(InferenceMethod):
         ref[valid_mask_2d()] = self.ref_
         return ref
 
+    @on_one_blas_thread
     def combination(self, rho):
         return self.training_weights(self.coefficients(rho)), LogRelative3D(self.reference_2d())
