@@ -25,6 +25,8 @@ What separates materials is what the photo says about the material, not about sh
   better by its own slice than by the one-slice model of the whole object: the mean residual
   (_residuals, capped at 1 per pixel) of its pixels at most `explained` times as large.
   (A material only slightly better explained is a shading or noise split of one material.)
+  This test and the alike merge read each pixel's neighbour (neighbour_samples) under the
+  pixel's label, so the noise that chose a label is not read back as a difference.
 - the last assignment of every pixel (_assign_all) first takes off a flash-coloured (white)
   highlight term where the pixel is brighter than a coloured material's slice (_added_white,
   dichromatic model): a foil's highlight no longer passes for a paler material.
@@ -331,19 +333,46 @@ def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_com
     return remap[labels], int(remap.max()) + 1
 
 
-def cluster_samples(rho, theta_h, options=None):
+def neighbour_samples(pixels, shape):
+    """(N,) for each sample (pixels (N,) flat indices into an (H, W) image, one sample per pixel)
+    the index of a sample at an adjacent pixel (right, left, below or above, the first that holds
+    one), or the sample itself where none does."""
+    height, width = shape
+    at = np.full(height * width, -1, np.int64)
+    at[pixels] = np.arange(len(pixels))
+    out = np.full(len(pixels), -1, np.int64)
+    row, col = np.divmod(pixels, width)
+    for d_row, d_col in ((0, 1), (0, -1), (1, 0), (-1, 0)):
+        todo = out < 0
+        r, c = row[todo] + d_row, col[todo] + d_col
+        inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
+        found = np.full(len(r), -1, np.int64)
+        found[inside] = at[r[inside] * width + c[inside]]
+        out[np.flatnonzero(todo)] = found
+    alone = out < 0
+    out[alone] = np.flatnonzero(alone)
+    return out
+
+
+def cluster_samples(rho, theta_h, options=None, neighbours=None):
     """Material of each sample: (labels (N,) int 0..K-1, K, criterion dict).
 
     rho (N, 3) 1/sr, finite; theta_h (N,) radians. See the module docstring for the method.
     Materials and their slices are found on a random subsample of options.work_samples
     samples (all of them if there are fewer); then every sample goes to the material whose
     slice explains it best once a flash-coloured highlight term is taken off (_assign_all).
+    neighbours (N,): a sample at an adjacent pixel of each (neighbour_samples), or None. The
+    tests that decide K (alike, explained) then read each sample's neighbour under the sample's
+    label: its noise is independent of the label. Read on the samples the labels were chosen
+    from, the noise that chose them passes for a difference of materials (near-black pixels of
+    chrome-steel and of a dark blue car paint split off, benchmarks/results/segment_sweep.md).
     """
     options = options or SegmentOptions()
     n = len(rho)
     pick = (np.arange(n) if n <= options.work_samples else
             np.random.default_rng(options.seed).choice(n, options.work_samples, replace=False))
-    labels, k, criterion = _cluster(rho[pick], theta_h[pick], options)
+    check = None if neighbours is None else (rho[neighbours[pick]], theta_h[neighbours[pick]])
+    labels, k, criterion = _cluster(rho[pick], theta_h[pick], options, check)
     criterion.update(samples=int(n), work_samples=int(len(pick)))
     if k == 1:
         return np.zeros(n, int), 1, criterion
@@ -401,8 +430,9 @@ def _assign_all(rho, theta_h, pick, labels, k):
     return out
 
 
-def _cluster(rho, theta_h, options):
-    """cluster_samples on the samples given, all of them."""
+def _cluster(rho, theta_h, options, check=None):
+    """cluster_samples on the samples given, all of them; check: (rho, theta_h) of the samples'
+    neighbours, which the alike and explained tests read (None: the samples themselves)."""
     from sklearn.mixture import GaussianMixture  # lazy: +2.4 s on every import of slice_extract
     n = len(rho)
     criterion = {"samples": int(n)}
@@ -433,13 +463,17 @@ def _cluster(rho, theta_h, options):
     for g, members in enumerate(groups):
         component_to_group[members] = g
     labels = component_to_group[best.predict(x)]
-    log_rho, _, _ = _log_rho(rho)
+    log_rho, _, floor = _log_rho(rho)
     bins = _bins(theta_h)
-    one = _residuals(log_rho, bins, _slices(log_rho, bins, np.zeros(n, int), 1))[:, 0].mean()
+    # the tests read the neighbours (same floor: one brightness scale for both)
+    log_test, bins_test = (log_rho, bins) if check is None else \
+        (_log_rho(check[0], floor)[0], _bins(check[1]))
+    one = _residuals(log_test, bins_test,
+                     _slices(log_test, bins_test, np.zeros(n, int), 1))[:, 0].mean()
     k = len(groups)
     for _ in range(options.max_materials):  # refine, merge look-alikes, until nothing merges
         labels, k = _refine(log_rho, bins, labels, k, options)
-        labels, merged = _merge_alike_slices(log_rho, bins, labels, k, options,
+        labels, merged = _merge_alike_slices(log_test, bins_test, labels, k, options,
                                              margins=margins)
         if merged == k:
             break
@@ -447,11 +481,12 @@ def _cluster(rho, theta_h, options):
     criterion["alike_merged_k"] = int(k)
     # each material but the largest must be explained clearly better by its own slice than by
     # the one-slice model; one that is not is given back to the others
-    single = _residuals(log_rho, bins, _slices(log_rho, bins, np.zeros(n, int), 1))[:, 0]
+    single = _residuals(log_test, bins_test,
+                        _slices(log_test, bins_test, np.zeros(n, int), 1))[:, 0]
     ratios = {}
     while k > 1:
-        residual = _residuals(log_rho, bins, _slices(log_rho, bins, labels, k))
-        own = residual[np.arange(n), labels]
+        tested = _residuals(log_test, bins_test, _slices(log_test, bins_test, labels, k))
+        own = tested[np.arange(n), labels]
         counts = np.bincount(labels, minlength=k)
         ratio = np.array([own[labels == j].mean() / max(single[labels == j].mean(), 1e-12)
                           for j in range(k)])
@@ -461,6 +496,7 @@ def _cluster(rho, theta_h, options):
         margins.setdefault("worst_own_vs_one_slice", []).append(round(float(ratio[worst]), 4))
         if ratio[worst] <= options.explained:
             break
+        residual = _residuals(log_rho, bins, _slices(log_rho, bins, labels, k))
         residual[:, worst] = np.inf
         labels = np.unique(residual.argmin(axis=1), return_inverse=True)[1]
         k -= 1
@@ -594,7 +630,8 @@ def _segment_samples(samples, materials, options):
     else:
         rho, theta_h, pixels = samples.rho[first], samples.theta_h[first], samples.pixels[first]
     if materials == "auto":
-        labels, k, criterion = cluster_samples(rho, theta_h, options)
+        labels, k, criterion = cluster_samples(rho, theta_h, options,
+                                               neighbour_samples(pixels, samples.shape))
     else:
         k = int(materials)
         labels, criterion = _fixed_k(rho, theta_h, k, options)

@@ -15,20 +15,24 @@ import pytest
 import capture
 from brdf.merl import read_merl
 from slice_extract.extract import ExtractOptions, collect_samples
-from slice_extract.segment import SegmentOptions, segment_samples
+from slice_extract.segment import SegmentOptions, neighbour_samples, segment_samples
 from synthetic import (combine, pinhole_camera, point_light, sphere_mesh, table_brdf, torus_mesh,
                        write_synthetic_scene)
 
 
-@pytest.fixture(scope="module")
-def shadowed_gold(merl_proxy, tmp_path_factory):
-    brdf = table_brdf(read_merl(merl_proxy("gold-metallic-paint")))
+def shadowed_samples(table_path, folder, seed):
+    """FlashSamples of one MERL table on the sphere-behind-a-torus scene (module docstring)."""
     mesh = combine(sphere_mesh(radius=0.07, centre=(0, 0, 1.1)),
                    torus_mesh(centre=(0.0, 0.0, 0.98)))
-    folder = write_synthetic_scene(tmp_path_factory.mktemp("gold") / "scene", mesh, brdf,
+    folder = write_synthetic_scene(folder, mesh, table_brdf(read_merl(table_path)),
                                    pinhole_camera(256, 256, 1000.0), [point_light([0.03, 0, 0])],
-                                   photons=2000, seed=9)
+                                   photons=2000, seed=seed)
     return collect_samples(capture.load_scene(folder), ExtractOptions())
+
+
+@pytest.fixture(scope="module")
+def shadowed_gold(merl_proxy, tmp_path_factory):
+    return shadowed_samples(merl_proxy("gold-metallic-paint"), tmp_path_factory.mktemp("gold"), 9)
 
 
 def test_one_material_with_shadows_and_a_coloured_lobe_stays_one(shadowed_gold):
@@ -44,3 +48,21 @@ def test_the_explained_test_alone_also_keeps_it_whole(shadowed_gold):
     seg = segment_samples(shadowed_gold, options=SegmentOptions(separation=0.0, alike=0.0))
     ratios = seg.criterion["margins"]["worst_own_vs_one_slice"]
     assert seg.k == 1 and min(ratios) > 0.6, seg.criterion
+
+
+def test_near_black_chrome_stays_one_material(merl_proxy, tmp_path):
+    # chrome-steel under a flash is black but for its highlights: most pixels hold a few photons,
+    # and a G channel at 0 photons gives them a colour of their own. Read on the pixels the
+    # clusters were chosen from, that noise passed every test (K = 2, 9% of the object; the
+    # explained ratio 0.58 against 0.6); read on their neighbours (cluster_samples) it does not.
+    # The seed is the one benchmarks/segment_sweep.py gave this table (its index in MERL's list).
+    samples = shadowed_samples(merl_proxy("chrome-steel"), tmp_path / "chrome", 17)
+    seg = segment_samples(samples)
+    assert seg.k == 1, seg.criterion
+
+
+def test_neighbour_samples_pick_an_adjacent_sample():
+    # a 3 x 4 image holding samples at (0,0) (0,1) (1,3) (2,0) (2,1), in that order: right first,
+    # then left, below, above; (1,3) has none of the four and keeps itself
+    pixels = np.array([0, 1, 7, 8, 9])
+    assert neighbour_samples(pixels, (3, 4)).tolist() == [1, 0, 2, 4, 3]
