@@ -18,6 +18,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
+
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from benchmarks._real_common import RESULTS, write_json  # noqa: E402
@@ -25,7 +27,21 @@ from benchmarks._real_common import RESULTS, write_json  # noqa: E402
 PHOTONS = 2000
 
 
-def material_k(table_path, work, seed):
+def quantiser(bits):
+    """post hook for tests/synthetic.write_synthetic_scene: the photo quantised in steps of
+    1/(2^bits - 1) of its 99th-percentile object pixel (an exposure that keeps the body in range
+    and would clip the top 1%, the highlight; values above stay, quantised in the same steps)."""
+    levels = 2 ** bits - 1
+
+    def post(image, _):
+        image = np.asarray(image)
+        lit = image[image > 0]
+        white = float(np.percentile(lit, 99)) if lit.size else 1.0
+        return np.round(image / white * levels) / levels * white
+    return post
+
+
+def material_k(table_path, work, seed, photons=PHOTONS, bits=None):
     """(K chosen by auto, its criterion dict) for one MERL table on the sphere-and-torus scene."""
     import capture
     from brdf.merl import read_merl
@@ -37,7 +53,8 @@ def material_k(table_path, work, seed):
     folder = write_synthetic_scene(work / Path(table_path).stem, mesh,
                                    table_brdf(read_merl(table_path)),
                                    pinhole_camera(256, 256, 1000.0), [point_light([0.03, 0, 0])],
-                                   photons=PHOTONS, seed=seed)
+                                   photons=photons, seed=seed,
+                                   post=None if bits is None else quantiser(bits))
     seg = segment_samples(collect_samples(capture.load_scene(folder), ExtractOptions()))
     return int(seg.k), seg.criterion
 
@@ -47,32 +64,37 @@ def main(argv=None):
     ap.add_argument("--merl-dir", action="append", required=True)
     ap.add_argument("--work", type=Path, default=None)
     ap.add_argument("--limit", type=int, default=None, help="first N tables of each folder")
+    ap.add_argument("--photons", type=int, default=PHOTONS, help="Poisson noise at the mean pixel")
+    ap.add_argument("--bits", type=int, default=None, help="quantise the photo to this many bits")
+    ap.add_argument("--out", default="segment_sweep", help="results name in benchmarks/results")
     args = ap.parse_args(argv)
     work = args.work or Path(tempfile.mkdtemp(prefix="segment_sweep_"))
     work.mkdir(parents=True, exist_ok=True)
     result = {"command": "python benchmarks/segment_sweep.py " + " ".join(argv or sys.argv[1:]),
-              "photons": PHOTONS, "folders": {}}
+              "photons": args.photons, "bits": args.bits, "folders": {}}
     start = time.perf_counter()
     for folder in args.merl_dir:
         tables = sorted(Path(folder).glob("*.binary"))[:args.limit]
         rows = {}
         for i, path in enumerate(tables):
-            k, criterion = material_k(path, work, seed=i)
+            k, criterion = material_k(path, work, seed=i, photons=args.photons, bits=args.bits)
             rows[path.stem] = {"k": k, "criterion": criterion if k != 1 else None}
             print(f"{path.stem}: K = {k}", flush=True)
         result["folders"][folder] = rows
     result["seconds"] = time.perf_counter() - start
-    write_json(RESULTS / "segment_sweep.json", result)
+    write_json(RESULTS / f"{args.out}.json", result)
     lines = ["# `segment --materials auto` on single-material objects, every table", "",
              f"Command: `{result['command']}` ({result['seconds']:.0f} s). One table at a time on a "
              "sphere behind a torus (shadows, occlusion), flash 3 cm off the lens, "
-             f"{PHOTONS}-photon noise; K must be 1.", "",
+             f"{args.photons}-photon noise"
+             + (f", quantised to {args.bits} bits of the 99th-percentile pixel" if args.bits else "")
+             + "; K must be 1.", "",
              "| folder | tables | K = 1 | split (K) |", "|---|---|---|---|"]
     for folder, rows in result["folders"].items():
         split = {name: r["k"] for name, r in rows.items() if r["k"] != 1}
         lines.append(f"| {Path(folder).name} | {len(rows)} | {len(rows) - len(split)} | "
                      + (", ".join(f"{n} ({k})" for n, k in split.items()) or "none") + " |")
-    (RESULTS / "segment_sweep.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{args.out}.md").write_text("\n".join(lines) + "\n")
     return 0
 
 
