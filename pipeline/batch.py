@@ -45,11 +45,13 @@ from pathlib import Path
 from brdf.atomic import write_text
 from brdf.errors import InputError
 from pipeline import dask_engine
+from pipeline.safety import MARKER as RUN_MARKER
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
 SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "cpu_seconds", "worker")
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map")
+OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md")  # what a batch writes in OUT_DIR itself
 
 
 def find_captures(captures_dir):
@@ -196,10 +198,12 @@ def check_run_options(options, as_text=False):
     are returned as its (where, problem) tuple."""
     from pipeline.cmd_render import samples_per_pixel
     from pipeline.cmd_run import _methods, _model_path
+    from pipeline.cmd_segment import materials_option
     settings = argparse.Namespace(**options)
     try:
         model = _model_path(settings, _methods(settings.methods))
         samples_per_pixel(settings)
+        materials_option(settings.materials)
     except InputError as err:
         if as_text:
             return err.where, err.problem
@@ -248,15 +252,38 @@ def run_capture(scene_dir, out_dir, options):
 # --- client side -------------------------------------------------------------------------------
 
 def _check_outputs(out_dir, captures_dir, captures):
-    """InputError if an output folder OUT_DIR/<name> would be, or hold, an input."""
+    """InputError if an output folder OUT_DIR/<name> would be, or hold, an input, if a capture's
+    name is one of the batch's own files, or if OUT_DIR holds what no batch made (a batch adds
+    to its OUT_DIR, so it never writes into someone's folder)."""
+    given = out_dir
     out_dir, captures_dir = Path(out_dir).resolve(), Path(captures_dir).resolve()
     inputs = [captures_dir] + [c.resolve() for c in captures]
     for c in captures:
+        if c.name in OWN_NAMES:
+            raise InputError(c, f"a capture named {c.name!r} would collide with the batch's own "
+                                f"OUT_DIR/{c.name}; rename the capture folder")
         target = out_dir / c.name
         if any(p.is_relative_to(target) for p in inputs) or any(
                 target.is_relative_to(p) for p in inputs[1:]):
             raise InputError(out_dir, f"output {target} would overwrite the input capture(s); "
                                       "choose an --out outside CAPTURES_DIR's captures")
+    _check_batch_folder(given)
+
+
+def _check_batch_folder(out_dir):
+    """InputError unless OUT_DIR is missing, empty, or holds only what a batch writes: its
+    summary and logs, captures' output folders (a `run` output: safety.MARKER, or MARKER) and
+    hidden staging folders."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        return
+    for entry in sorted(out_dir.iterdir()):
+        ours = (entry.name.startswith(".") or entry.name in OWN_NAMES or (
+            entry.is_dir() and ((entry / MARKER).is_file() or (entry / RUN_MARKER).is_file())))
+        if not ours:
+            raise InputError(out_dir, f"holds {entry.name}, which no flashbrdf batch made; "
+                                      "refusing to write into someone's folder (give a new or "
+                                      "empty --out)")
 
 
 def _reason(err):

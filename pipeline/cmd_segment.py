@@ -82,6 +82,8 @@ def read_labels(path, shape):
     labels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if labels is None or labels.ndim != 2:
         raise InputError(path, "is not a single-channel (16-bit) label PNG")
+    if labels.dtype.kind not in "iu":  # a float TIFF: 1.5 or NaN is no label
+        raise InputError(path, f"holds {labels.dtype} values; labels are integers (a 16-bit PNG)")
     labels = labels.astype(np.int64)
     check_labels(labels, shape, path)
     return labels
