@@ -193,15 +193,18 @@ def failed_row(name, reason, seconds=None, worker=""):
 
 def check_run_options(options, as_text=False):
     """`run`'s checks of the run options (RUN_OPTIONS dict): method names, the model file (the
-    default one when none is given and a method needs it), --spp. -> the options with the model
-    as an absolute path or None. Bad options raise InputError, or with `as_text` (a Dask task)
-    are returned as its (where, problem) tuple."""
+    default one when none is given and a method needs it; whole and of our format), --spp,
+    --materials. -> the options with the model as an absolute path or None. Bad options raise
+    InputError, or with `as_text` (a Dask task) are returned as its (where, problem) tuple."""
     from pipeline.cmd_render import samples_per_pixel
     from pipeline.cmd_run import _methods, _model_path
+    from infer.model_file import check_model_file
     from pipeline.cmd_segment import materials_option
     settings = argparse.Namespace(**options)
     try:
         model = _model_path(settings, _methods(settings.methods))
+        if model is not None:  # a truncated model would fail every capture, not the batch
+            check_model_file(model)
         samples_per_pixel(settings)
         materials_option(settings.materials)
     except InputError as err:

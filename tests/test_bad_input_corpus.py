@@ -624,10 +624,17 @@ SWEEP_CASES = [
         captures(w, t, "a"), _out(t), "--scheduler", "tcp://127.0.0.1:1"), "--scheduler"),
     ("batch", "out is someone's folder", lambda w, t: _batch(captures(w, t, "a"), user_folder(t)),
      "mine"),
+    ("batch", "model truncated", lambda w, t: _batch(captures(w, t, "a"), _out(t), "--methods",
+                                                     "pca", "--model", str(write(
+                                                         t, "m.npz", truncated(w.model, 0.7)))),
+     "m.npz"),
     ("batch", "a capture named logs", lambda w, t: _batch(captures(w, t, "logs"), _out(t)),
      "logs"),
     ("train", "three tables (a fifth is held out)", lambda w, t: [
         "train", "--merl-dir", str(w.merl_dir), "--out", _out(t, "m.npz")], "merl"),
+    ("train", "the same folder twice", lambda w, t: [
+        "train", "--merl-dir", str(w.merl_dir), "--merl-dir", str(w.merl_dir) + os.sep, "--out",
+        _out(t, "m.npz")], "given twice"),
     ("evaluate", "test-dir with --workers and --scheduler", lambda w, t: [
         "evaluate", "--merl-dir", str(w.merl_dir), "--test-dir", str(w.merl_dir), "--out",
         _out(t), "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--workers"),
