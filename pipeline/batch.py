@@ -61,7 +61,9 @@ def find_captures(captures_dir):
         raise InputError(captures_dir, "not a folder")
     captures = sorted(p for p in folder.iterdir() if p.is_dir() and (p / "scene.json").is_file())
     if not captures:
-        raise InputError(captures_dir, "no capture: no subfolder holds a scene.json")
+        hint = (" (it is itself a capture: give the folder that holds it, or use `run`)"
+                if (folder / "scene.json").is_file() else "")
+        raise InputError(captures_dir, f"no capture: no subfolder holds a scene.json{hint}")
     return captures
 
 

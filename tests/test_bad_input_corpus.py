@@ -698,6 +698,20 @@ def test_bad_input_exits_2_cleanly(world, tmp_path, capfd, command, name, argv, 
     assert snapshot(*roots) == before
 
 
+def test_segment_keeps_no_albedo_map_when_its_labels_fail(world, tmp_path, capfd, monkeypatch):
+    """segment --albedo writes the albedo map, then the labels: when the labels fail, the map
+    already written is removed (all or nothing over both)."""
+    from brdf.errors import InputError
+
+    def fail(out, *args, **kwargs):
+        raise InputError(out, "cannot write a PNG there")
+    monkeypatch.setattr("pipeline.cmd_segment.write_labels", fail)
+    assert main(["segment", str(world.scene), "--out", str(tmp_path / "l.png"), "--albedo",
+                 str(tmp_path / "a.exr")]) == 2
+    assert len(capfd.readouterr().err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
+
+
 # ----- valid controls: the same harness passes good input -------------------------------------
 CONTROLS = [
     ("merl-slice", lambda w, t: ["merl-slice", str(w.brdf), "--out", _out(t, "s.csv")],
