@@ -78,7 +78,8 @@ def read_labels(path, shape):
     label in 1..K has no pixel."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, "label image not found")
+        raise InputError(path, "is a folder, not a label image" if path.is_dir() else
+                         "label image not found")
     labels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if labels is None or labels.ndim != 2:
         raise InputError(path, "is not a single-channel (16-bit) label PNG")

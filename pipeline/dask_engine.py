@@ -43,7 +43,10 @@ def check_engine_options(args):
     workers = getattr(args, "workers", None)
     if workers is not None and workers < 1:
         raise InputError("--workers", f"must be at least 1, got {workers}")
-    if workers is not None and getattr(args, "scheduler", None):
+    scheduler = getattr(args, "scheduler", None)
+    if scheduler is not None and not scheduler.strip():  # "" would silently mean a local cluster
+        raise InputError("--scheduler", "is empty; give tcp://HOST:PORT")
+    if workers is not None and scheduler:
         raise InputError("--workers", "give either --workers (a local cluster) or --scheduler, "
                                       "not both")
 

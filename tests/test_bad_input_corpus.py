@@ -576,6 +576,8 @@ SWEEP_CASES = [
     ("extract", "labels wrong size", lambda w, t: [
         "extract", str(w.scene), "--labels", str(write(t, "l.png", b"")), "--out", _out(t)],
      "l.png"),
+    ("extract", "labels is a folder", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(empty(t)), "--out", _out(t)], "empty"),
     ("extract", "labels float TIFF", lambda w, t: [
         "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.tif", 1, dtype=np.float32)),
         "--out", _out(t)], "l.tif"),
@@ -622,6 +624,8 @@ SWEEP_CASES = [
                                                  "0"), "--materials"),
     ("batch", "scheduler with nothing listening", lambda w, t: _batch(
         captures(w, t, "a"), _out(t), "--scheduler", "tcp://127.0.0.1:1"), "--scheduler"),
+    ("batch", "scheduler empty", lambda w, t: _batch(captures(w, t, "a"), _out(t),
+                                                     "--scheduler", ""), "--scheduler"),
     ("batch", "out is someone's folder", lambda w, t: _batch(captures(w, t, "a"), user_folder(t)),
      "mine"),
     ("batch", "model truncated", lambda w, t: _batch(captures(w, t, "a"), _out(t), "--methods",
