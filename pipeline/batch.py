@@ -52,6 +52,9 @@ LOG_DIR = "logs"
 SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "cpu_seconds", "worker")
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map")
 OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md")  # what a batch writes in OUT_DIR itself
+SUMMARY_TITLE = "# flashbrdf batch summary"
+SUMMARY_HEADS = {"summary.csv": ",".join(SUMMARY_FIELDS).encode(),
+                 "summary.md": SUMMARY_TITLE.encode()}
 
 
 def find_captures(captures_dir):
@@ -283,12 +286,24 @@ def _check_batch_folder(out_dir):
     if not out_dir.is_dir():
         return
     for entry in sorted(out_dir.iterdir()):
-        ours = (entry.name.startswith(".") or entry.name in OWN_NAMES or (
-            entry.is_dir() and ((entry / MARKER).is_file() or (entry / RUN_MARKER).is_file())))
+        if entry.name in SUMMARY_HEADS:  # a summary is ours if it starts as write_summary writes
+            ours = entry.is_file() and _starts_with(entry, SUMMARY_HEADS[entry.name])
+        else:
+            ours = entry.name.startswith(".") or (entry.is_dir() and (
+                entry.name == LOG_DIR or (entry / MARKER).is_file() or
+                (entry / RUN_MARKER).is_file()))
         if not ours:
             raise InputError(out_dir, f"holds {entry.name}, which no flashbrdf batch made; "
                                       "refusing to write into someone's folder (give a new or "
                                       "empty --out)")
+
+
+def _starts_with(path, head):
+    try:
+        with open(path, "rb") as f:
+            return f.read(len(head)) == head
+    except OSError:
+        return False
 
 
 def _reason(err):
@@ -324,7 +339,7 @@ def write_summary(out_dir, rows, header_lines=()):
                            else "" for c in columns])
     write_text(Path(out_dir) / "summary.csv", buffer.getvalue())
     head = list(SUMMARY_FIELDS) + [f"ΔE-log {c}" for c in columns]
-    lines = ["# flashbrdf batch summary", "", *header_lines, "",
+    lines = [SUMMARY_TITLE, "", *header_lines, "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_FIELDS]

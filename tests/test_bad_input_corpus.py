@@ -632,6 +632,8 @@ SWEEP_CASES = [
                                                      "pca", "--model", str(write(
                                                          t, "m.npz", truncated(w.model, 0.7)))),
      "m.npz"),
+    ("batch", "out holds someone's summary.md", lambda w, t: _batch(
+        captures(w, t, "a"), write(empty(t), "summary.md", "my notes").parent), "empty"),
     ("batch", "a capture named logs", lambda w, t: _batch(captures(w, t, "logs"), _out(t)),
      "logs"),
     ("train", "three tables (a fifth is held out)", lambda w, t: [
