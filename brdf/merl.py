@@ -157,8 +157,13 @@ def list_merl_dirs(folders):
     """
     if isinstance(folders, (str, os.PathLike)):
         folders = [folders]
-    found = {}
+    found, seen = {}, {}
     for folder in folders:
+        real = os.path.realpath(folder)
+        if real in seen:
+            raise InputError(folder, f"is given twice (also as {seen[real]}); give each "
+                                     "--merl-dir folder once")
+        seen[real] = folder
         for name, path in list_merl(folder):
             if name in found:
                 raise InputError(path, f"material name {name!r} is also {found[name]}; names must "

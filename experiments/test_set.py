@@ -26,10 +26,10 @@ import numpy as np
 
 from brdf import merl, metrics
 from brdf.atomic import write_text
-from brdf.errors import InputError
 from infer import METHODS, TrainingSet, make_method
 from experiments.evaluate import PAPER, _warm_up, build_method
 from infer.model_file import load_methods
+from infer.model_selection import check_training_size
 from experiments.table1_report import summarise_errors
 from infer.training import train_model
 
@@ -149,8 +149,7 @@ def run_test_set(merl_dirs, test_dir, out_dir, seed=0, label=None, command=None)
     files): a test table is never also a training table."""
     merl.list_merl_dirs(list(merl_dirs) + [test_dir])
     train = TrainingSet.from_merl_dirs(merl_dirs)
-    if len(train) < 3:
-        raise InputError("--merl-dir", f"needs at least 3 MERL tables, found {len(train)}")
+    check_training_size(len(train), "--merl-dir")
     test = TrainingSet.from_merl_dir(test_dir)
     start = time.perf_counter()
     result = score_methods(train, test, seed=seed)

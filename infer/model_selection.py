@@ -13,11 +13,14 @@ from joblib import Parallel, delayed
 from sklearn.model_selection import ParameterGrid
 
 from brdf import metrics
+from brdf.errors import InputError
 from infer import make_method
 from infer.uncertainty import calibration_factor
 
 DS_GRID = {"q": [None], "beta": [50.0, 100.0], "feature_space": ["lab", "rgb"]}
 DS_FIXED = {"anchor": True}                      # "dsgplvm" is the anchored DS-GPLVM of infer/run
+# tune_baselines holds max(1, n // 5) tables out to validate, and a DS-GPLVM needs 3 to fit
+MIN_TRAINING_TABLES = 4
 PCA_GRID = {"n_components": [3, 6, 12, 24, None], "ridge": [1e-3, 1e-2, 1e-1, 1.0, 10.0]}
 
 
@@ -91,6 +94,13 @@ def training_workers():
     """Processes for the validation fits of `train`: $FLASHBRDF_THREADS (a worker's share of the
     cores, as in infer.estimator), else one per core, at most 2."""
     return max(1, int(os.environ.get("FLASHBRDF_THREADS") or min(os.cpu_count() or 1, 2)))
+
+
+def check_training_size(n_tables, where):
+    """InputError naming `where` (a folder or "--merl-dir") when n_tables is too few to train."""
+    if n_tables < MIN_TRAINING_TABLES:
+        raise InputError(where, f"needs at least {MIN_TRAINING_TABLES} MERL tables (a fifth is "
+                                f"held out to validate), found {n_tables}")
 
 
 def tune_baselines(training, seed=0, feature_space="auto", workers=None):

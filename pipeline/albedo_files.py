@@ -18,7 +18,7 @@ from brdf.atomic import atomic_path
 from brdf.errors import InputError
 from capture import load_mesh
 from render.albedo_map import table_floor
-from render.images import read_image, write_exr
+from render.images import image_channel_names, read_image, write_exr
 from slice_extract.albedo import estimate_albedo_map, face_means
 
 
@@ -78,6 +78,10 @@ def read_albedo(path, scene, camera, tables):
     if not path.is_file():
         raise InputError(path, "albedo map not found")
     albedo = read_image(path)
+    channels = image_channel_names(path)
+    if not (set("RGB") <= set(channels) or len(channels) == 3):  # grey or 2-channel: not colour
+        raise InputError(path, f"has {len(channels)} channel(s) ({','.join(channels)}); an "
+                               "albedo map is RGB")
     if albedo.shape[:2] != tuple(camera.shape):
         raise InputError(path, f"is {albedo.shape[1]}x{albedo.shape[0]} but the flash photo is "
                                f"{camera.shape[1]}x{camera.shape[0]}")

@@ -45,11 +45,16 @@ from pathlib import Path
 from brdf.atomic import write_text
 from brdf.errors import InputError
 from pipeline import dask_engine
+from pipeline.safety import MARKER as RUN_MARKER
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
 SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "cpu_seconds", "worker")
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map")
+OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md")  # what a batch writes in OUT_DIR itself
+SUMMARY_TITLE = "# flashbrdf batch summary"
+SUMMARY_HEADS = {"summary.csv": ",".join(SUMMARY_FIELDS).encode(),
+                 "summary.md": SUMMARY_TITLE.encode()}
 
 
 def find_captures(captures_dir):
@@ -59,7 +64,9 @@ def find_captures(captures_dir):
         raise InputError(captures_dir, "not a folder")
     captures = sorted(p for p in folder.iterdir() if p.is_dir() and (p / "scene.json").is_file())
     if not captures:
-        raise InputError(captures_dir, "no capture: no subfolder holds a scene.json")
+        hint = (" (it is itself a capture: give the folder that holds it, or use `run`)"
+                if (folder / "scene.json").is_file() else "")
+        raise InputError(captures_dir, f"no capture: no subfolder holds a scene.json{hint}")
     return captures
 
 
@@ -191,15 +198,20 @@ def failed_row(name, reason, seconds=None, worker=""):
 
 def check_run_options(options, as_text=False):
     """`run`'s checks of the run options (RUN_OPTIONS dict): method names, the model file (the
-    default one when none is given and a method needs it), --spp. -> the options with the model
-    as an absolute path or None. Bad options raise InputError, or with `as_text` (a Dask task)
-    are returned as its (where, problem) tuple."""
+    default one when none is given and a method needs it; whole and of our format), --spp,
+    --materials. -> the options with the model as an absolute path or None. Bad options raise
+    InputError, or with `as_text` (a Dask task) are returned as its (where, problem) tuple."""
     from pipeline.cmd_render import samples_per_pixel
     from pipeline.cmd_run import _methods, _model_path
+    from infer.model_file import check_model_file
+    from pipeline.cmd_segment import materials_option
     settings = argparse.Namespace(**options)
     try:
         model = _model_path(settings, _methods(settings.methods))
+        if model is not None:  # a truncated model would fail every capture, not the batch
+            check_model_file(model)
         samples_per_pixel(settings)
+        materials_option(settings.materials)
     except InputError as err:
         if as_text:
             return err.where, err.problem
@@ -248,15 +260,50 @@ def run_capture(scene_dir, out_dir, options):
 # --- client side -------------------------------------------------------------------------------
 
 def _check_outputs(out_dir, captures_dir, captures):
-    """InputError if an output folder OUT_DIR/<name> would be, or hold, an input."""
+    """InputError if an output folder OUT_DIR/<name> would be, or hold, an input, if a capture's
+    name is one of the batch's own files, or if OUT_DIR holds what no batch made (a batch adds
+    to its OUT_DIR, so it never writes into someone's folder)."""
+    given = out_dir
     out_dir, captures_dir = Path(out_dir).resolve(), Path(captures_dir).resolve()
     inputs = [captures_dir] + [c.resolve() for c in captures]
     for c in captures:
+        if c.name in OWN_NAMES:
+            raise InputError(c, f"a capture named {c.name!r} would collide with the batch's own "
+                                f"OUT_DIR/{c.name}; rename the capture folder")
         target = out_dir / c.name
         if any(p.is_relative_to(target) for p in inputs) or any(
                 target.is_relative_to(p) for p in inputs[1:]):
             raise InputError(out_dir, f"output {target} would overwrite the input capture(s); "
                                       "choose an --out outside CAPTURES_DIR's captures")
+    _check_batch_folder(given)
+
+
+def _check_batch_folder(out_dir):
+    """InputError unless OUT_DIR is missing, empty, or holds only what a batch writes: its
+    summary and logs, captures' output folders (a `run` output: safety.MARKER, or MARKER) and
+    hidden staging folders."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        return
+    for entry in sorted(out_dir.iterdir()):
+        if entry.name in SUMMARY_HEADS:  # a summary is ours if it starts as write_summary writes
+            ours = entry.is_file() and _starts_with(entry, SUMMARY_HEADS[entry.name])
+        else:
+            ours = entry.name.startswith(".") or (entry.is_dir() and (
+                entry.name == LOG_DIR or (entry / MARKER).is_file() or
+                (entry / RUN_MARKER).is_file()))
+        if not ours:
+            raise InputError(out_dir, f"holds {entry.name}, which no flashbrdf batch made; "
+                                      "refusing to write into someone's folder (give a new or "
+                                      "empty --out)")
+
+
+def _starts_with(path, head):
+    try:
+        with open(path, "rb") as f:
+            return f.read(len(head)) == head
+    except OSError:
+        return False
 
 
 def _reason(err):
@@ -292,7 +339,7 @@ def write_summary(out_dir, rows, header_lines=()):
                            else "" for c in columns])
     write_text(Path(out_dir) / "summary.csv", buffer.getvalue())
     head = list(SUMMARY_FIELDS) + [f"ΔE-log {c}" for c in columns]
-    lines = ["# flashbrdf batch summary", "", *header_lines, "",
+    lines = [SUMMARY_TITLE, "", *header_lines, "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_FIELDS]

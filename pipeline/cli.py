@@ -15,8 +15,16 @@ from pipeline.safety import Terminated, handle_signals, hold_native_stderr
 FORCE_HELP = "replace OUT_DIR if an earlier flashbrdf command made it (never any other folder)"
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """argparse, but a bad option gives the contract's one stderr line (exit 2), not the usage
+    block first; `-h` still prints the usage. Sub-parsers inherit the class."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} -h)\n")
+
+
 def _parser():
-    p = argparse.ArgumentParser(
+    p = _OneLineParser(
         prog="flashbrdf",
         description="Flash photograph + known geometry -> full measured BRDF "
                     "(Georgoulis et al., ICCV 2015).")
@@ -65,6 +73,7 @@ def _parser():
     s.add_argument("--min-cos", type=float, help="reject cos(theta_i|o) below this (default 0.1)")
     s.add_argument("--silhouette-px", type=int, metavar="PX",
                    help="reject pixels this close to the object's outline (default 1)")
+    s.add_argument("--force", action="store_true", help="with --labels: " + FORCE_HELP)
 
     s = sub.add_parser("segment", help="label the flash photo's pixels by material")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
@@ -160,7 +169,10 @@ def _add_run_options(s):
 
 
 def main(argv=None):
-    args = _parser().parse_args(argv)
+    try:
+        args = _parser().parse_args(argv)
+    except SystemExit as done:  # -h (0) or a bad option (2, its one line already printed)
+        return done.code
     try:
         with hold_native_stderr(), handle_signals():
             return getattr(commands, args.command.replace("-", "_"))(args) or 0

@@ -15,7 +15,7 @@ from brdf.errors import InputError
 from brdf.merl import N_THETA_H
 from brdf.views import write_slice_csv
 from pipeline.cmd_segment import read_labels
-from pipeline.safety import check_outputs, sidecar_json
+from pipeline.safety import check_outputs, sidecar_json, staged_output_dir
 from slice_extract import ExtractOptions, extract_slice
 from slice_extract.extract import collect_samples, extract_material_slices
 
@@ -64,10 +64,13 @@ def extract_materials(args, options):
     scene = capture.load_scene(args.scene_dir)
     check_outputs(inputs=[args.scene_dir, args.labels, *scene.input_files()], outputs=[out],
                   folders=[out])
-    samples = collect_samples(scene, options)
-    labels = read_labels(args.labels, samples.shape)
-    slices = extract_material_slices(samples, labels, args.labels)
-    write_material_slices(out, args.scene_dir, slices, options, labels)
+    # a folder output, so built aside and renamed: never written into someone's folder, and
+    # never half-written
+    with staged_output_dir(out, force=getattr(args, "force", False), command="extract") as staged:
+        samples = collect_samples(scene, options)
+        labels = read_labels(args.labels, samples.shape)
+        slices = extract_material_slices(samples, labels, args.labels)
+        write_material_slices(staged, args.scene_dir, slices, options, labels)
     return 0
 
 

@@ -13,6 +13,7 @@ from brdf.errors import InputError
 from experiments.evaluate import experiment_predictor, run_evaluation
 from experiments.test_set import run_test_set
 from infer import TrainingSet, load_method, make_method, novelty_warning
+from infer.model_selection import check_training_size
 from infer.training import train_model
 from pipeline.dask_engine import check_engine_options, dask_client
 from pipeline.safety import check_outputs, sidecar_json, staged_output_dir
@@ -31,9 +32,7 @@ def train(args):
     folders = _merl_dirs(args.merl_dir)
     check_outputs(inputs=_merl_inputs(folders), outputs=[args.out])
     training = TrainingSet.from_merl_dirs(folders, keep_3d="3d" in args.views.split(","))
-    if len(training) < 3:
-        raise InputError(folders[0] if len(folders) == 1 else "--merl-dir",
-                         f"needs at least 3 MERL tables, found {len(training)}")
+    check_training_size(len(training), folders[0] if len(folders) == 1 else "--merl-dir")
     params = train_model(training, args.out, views=args.views.split(","), seed=args.seed,
                          feature_space=getattr(args, "feature_space", "auto"), merl_dirs=folders)
     print(f"trained on {len(training)} materials from {len(folders)} folder(s) in "
@@ -119,12 +118,25 @@ def infer(args):
     return 0
 
 
+def _check_protocol_options(args):
+    """InputError for --experiments below 1 (0 would silently mean all 25) or a --time-budget
+    that is not a positive number of seconds."""
+    experiments = getattr(args, "experiments", None)
+    if experiments is not None and experiments < 1:
+        raise InputError("--experiments", f"must be at least 1, got {experiments}")
+    budget = getattr(args, "time_budget", None)
+    if budget is not None and not (np.isfinite(budget) and budget > 0):
+        raise InputError("--time-budget", f"must be a positive number of seconds, got {budget}")
+
+
 def evaluate(args):
     """The paper's Table 1 protocol on --merl-dir (see experiments.evaluate); with --render also its
     Table 2 (experiments.table2) on the mean-performing experiment's test materials, 2D predictions.
     With --test-dir: trained on every --merl-dir table, scored on the --test-dir tables
     (experiments.test_set), written all or nothing."""
     folders = _merl_dirs(args.merl_dir)
+    check_engine_options(args)
+    _check_protocol_options(args)
     if getattr(args, "test_dir", None):
         if getattr(args, "render", False):
             raise InputError("--render", "renders the cross-validation protocol's materials; "
@@ -139,7 +151,6 @@ def evaluate(args):
     if len(folders) != 1:
         raise InputError("--merl-dir", "the cross-validation protocol takes one folder; give "
                                        "--test-dir to train on several")
-    check_engine_options(args)
     merl_dir = folders[0]
     check_outputs(inputs=_merl_inputs(folders), outputs=[args.out], folders=[args.out])
     options = dict(quick=args.quick, experiments=getattr(args, "experiments", None),

@@ -18,7 +18,7 @@ import capture
 from brdf.atomic import write_text
 from brdf.errors import InputError
 from brdf.merl import read_merl
-from pipeline.albedo_files import read_albedo
+from pipeline.albedo_files import albedo_sidecars, read_albedo
 from pipeline.safety import check_outputs, staged_output_dir
 from render.albedo_map import DiffuseAlbedoMap
 from render.brdf_models import TabulatedBRDF
@@ -43,6 +43,28 @@ def samples_per_pixel(args):
     return spp
 
 
+def brdf_paths(text):
+    """--brdf B1.binary[,B2.binary,...] as [path]; InputError for an empty item (`a,,b`, a
+    trailing comma), which would silently shift material k onto another table."""
+    paths = [p.strip() for p in str(text).split(",")]
+    if not all(paths):
+        raise InputError("--brdf", f"item {paths.index('') + 1} of {len(paths)} is empty in "
+                                   f"{text!r}; give one table per material, comma-separated")
+    return paths
+
+
+def side_inputs(labels_png=None, albedo_exr=None):
+    """The files `--labels LABELS.png` and `--albedo ALBEDO.exr` read beside them (LABELS.png,
+    LABELS.faces.npy; ALBEDO.exr, ALBEDO.json, ALBEDO.faces.npy): inputs no output may touch."""
+    from pipeline.cmd_segment import faces_path  # it imports this module: a cycle
+    found = []
+    if labels_png:
+        found += [labels_png, faces_path(labels_png)]
+    if albedo_exr:
+        found += [albedo_exr, *albedo_sidecars(albedo_exr)]
+    return found
+
+
 def flash_photo_camera(scene, where):
     """The first flash photo's camera (the pixel grid of labels and albedo maps)."""
     flash = scene.photos_with_role("flash")
@@ -54,15 +76,16 @@ def flash_photo_camera(scene, where):
 
 def render(args):
     spp = samples_per_pixel(args)
+    paths = brdf_paths(args.brdf)
+    labels_png = getattr(args, "labels", None)
+    albedo_exr = getattr(args, "albedo", None)
     scene = capture.load_scene(args.scene_dir)
-    check_outputs(inputs=[args.scene_dir, *scene.input_files(), args.brdf,
-                          getattr(args, "albedo", None)], outputs=[args.out],
-                  folders=[args.out])
+    # every file read is an input (each table, the labels and the albedo map with their sidecars)
+    check_outputs(inputs=[args.scene_dir, *scene.input_files(), *paths, *side_inputs(
+        labels_png, albedo_exr)], outputs=[args.out], folders=[args.out])
     references = scene.photos_with_role("reference")
     if not references:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'reference'")
-    paths = [p.strip() for p in str(args.brdf).split(",") if p.strip()]
-    labels_png = getattr(args, "labels", None)
     if len(paths) > 1 and not labels_png:
         raise InputError("--brdf", f"{len(paths)} tables need --labels LABELS.png to say which "
                                    "pixels each one covers")
@@ -73,7 +96,6 @@ def render(args):
     tables = [read_merl(p) for p in paths]
     models = [TabulatedBRDF(t, interpolate=interpolate) for t in tables]
     brdf = MaterialMap(models, labels, camera, faces) if labels_png else models[0]
-    albedo_exr = getattr(args, "albedo", None)
     if albedo_exr:
         flash_camera = camera if labels_png else flash_photo_camera(scene, "--albedo")
         albedo, floors, albedo_faces = read_albedo(albedo_exr, scene, flash_camera, tables)

@@ -171,6 +171,7 @@ def run(args, load_methods=None):
     methods = _methods(args.methods)
     model_path = _model_path(args, methods)
     spp = samples_per_pixel(args)
+    materials_option(getattr(args, "materials", None))  # bad --materials: before the model loads
     scene = capture.load_scene(args.scene_dir)
     check_outputs(inputs=[args.scene_dir, *scene.input_files(), model_path], outputs=[args.out],
                   folders=[args.out])

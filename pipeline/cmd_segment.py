@@ -78,10 +78,13 @@ def read_labels(path, shape):
     label in 1..K has no pixel."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, "label image not found")
+        raise InputError(path, "is a folder, not a label image" if path.is_dir() else
+                         "label image not found")
     labels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if labels is None or labels.ndim != 2:
         raise InputError(path, "is not a single-channel (16-bit) label PNG")
+    if labels.dtype.kind not in "iu":  # a float TIFF: 1.5 or NaN is no label
+        raise InputError(path, f"holds {labels.dtype} values; labels are integers (a 16-bit PNG)")
     labels = labels.astype(np.int64)
     check_labels(labels, shape, path)
     return labels
@@ -128,12 +131,19 @@ def segment(args):
     traced = time.perf_counter()
     segmentation, faces = segment_scene(samples, materials)
     done = time.perf_counter()
-    if albedo_out:  # computed before anything is written: a failure leaves no file
-        from pipeline.albedo_files import albedo_for_scene, write_albedo
-        albedo, albedo_faces = albedo_for_scene(samples, segmentation.labels, faces)
-        write_albedo(albedo_out, albedo, albedo_faces)
-    write_labels(args.out, segmentation, faces,
-                 {"seconds": {"samples": round(traced - started, 3),
-                              "segment": round(done - traced, 3)}})
+    albedo_written = False
+    try:
+        if albedo_out:  # computed before anything is written: a failure leaves no file
+            from pipeline.albedo_files import albedo_for_scene, write_albedo
+            albedo, albedo_faces = albedo_for_scene(samples, segmentation.labels, faces)
+            write_albedo(albedo_out, albedo, albedo_faces)
+            albedo_written = True
+        write_labels(args.out, segmentation, faces,
+                     {"seconds": {"samples": round(traced - started, 3),
+                                  "segment": round(done - traced, 3)}})
+    except BaseException:  # the labels failed (or Ctrl-C): the albedo map goes too, all or none
+        for path in [albedo_out, *albedo_sidecars(albedo_out)] if albedo_written else []:
+            Path(path).unlink(missing_ok=True)
+        raise
     print(f"{segmentation.k} material(s): {Path(args.out).resolve()}")
     return 0

@@ -11,6 +11,7 @@ capture on one worker still renders on every core as `run` does. Tasks run insid
 import contextlib
 import logging
 import os
+import socket
 import warnings
 
 from brdf.errors import InputError
@@ -22,6 +23,7 @@ THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"
 # (DASK_DISTRIBUTED__SCHEDULER__ALLOWED_FAILURES=1 when it is started gives the same rule).
 ALLOWED_FAILURES = 1
 CONNECT_TIMEOUT = "20s"
+PROBE_TIMEOUT_S = 5.0  # a TCP handshake with a live scheduler takes milliseconds, even remote
 
 
 def add_engine_options(parser, what, default):
@@ -41,7 +43,10 @@ def check_engine_options(args):
     workers = getattr(args, "workers", None)
     if workers is not None and workers < 1:
         raise InputError("--workers", f"must be at least 1, got {workers}")
-    if workers is not None and getattr(args, "scheduler", None):
+    scheduler = getattr(args, "scheduler", None)
+    if scheduler is not None and not scheduler.strip():  # "" would silently mean a local cluster
+        raise InputError("--scheduler", "is empty; give tcp://HOST:PORT")
+    if workers is not None and scheduler:
         raise InputError("--workers", "give either --workers (a local cluster) or --scheduler, "
                                       "not both")
 
@@ -65,6 +70,7 @@ def dask_client(workers=None, scheduler=None):
     import dask
     from distributed import Client, LocalCluster
     if scheduler:
+        _probe_scheduler(scheduler)
         try:
             client = Client(scheduler, timeout=CONNECT_TIMEOUT)
         except (OSError, TimeoutError, ValueError) as err:
@@ -103,6 +109,25 @@ def dask_client(workers=None, scheduler=None):
             _close(client)
     finally:
         _close(cluster)
+
+
+def _probe_scheduler(address, timeout=PROBE_TIMEOUT_S):
+    """InputError naming --scheduler at once when nothing accepts a TCP connection at a tcp://
+    or tls:// ADDRESS (default port 8786): Dask's Client would retry for CONNECT_TIMEOUT."""
+    from distributed.comm.addressing import parse_address, parse_host_port
+    try:
+        scheme, location = parse_address(address)
+        if scheme not in ("tcp", "tls"):
+            return
+        host, port = parse_host_port(location, default_port=8786)
+    except (ValueError, TypeError) as err:
+        raise InputError("--scheduler", f"not a Dask scheduler address ({err}); expected "
+                                        "tcp://HOST:PORT") from None
+    try:
+        socket.create_connection((host or "127.0.0.1", port), timeout=timeout).close()
+    except OSError as err:
+        raise InputError("--scheduler", f"cannot reach a Dask scheduler at {address}: "
+                                        f"{err.strerror or err}") from None
 
 
 def _close(thing):

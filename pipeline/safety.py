@@ -83,9 +83,17 @@ def check_outputs(inputs, outputs, folders=()):
     """
     inputs = [os.fspath(p) for p in inputs if p is not None]
     folder_set = {os.fspath(p) for p in folders}
+    written = {}
     for out in (os.fspath(p) for p in outputs):
         is_folder = out in folder_set
         out_forms = _forms(out)
+        # two outputs at one path (`segment --out x.png --albedo x.exr`: both write x.json): the
+        # second would silently replace the first
+        twice = next((written[f] for f in out_forms if f in written), None)
+        if twice is not None:
+            raise InputError(out, f"would be written twice (also as {twice}); give the outputs "
+                                  "different names")
+        written.update(dict.fromkeys(out_forms, out))
         for src in inputs:
             src_forms = _forms(src)
             if out_forms & src_forms or _same_file(out, src):

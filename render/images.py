@@ -41,6 +41,19 @@ def read_image(path):
     return read_float_image(path)
 
 
+def image_channel_names(path):
+    """The channel names of an image file, from its header (no pixels read), e.g. ["R", "G",
+    "B"] or ["Y"]; [] when it cannot be opened (read_image then says why)."""
+    inp = oiio.ImageInput.open(os.fspath(path))
+    if inp is None:
+        oiio.geterror()  # clear it: read_image reports the failure
+        return []
+    try:
+        return [n.split(".")[-1].upper() for n in inp.spec().channelnames]
+    finally:
+        inp.close()
+
+
 def tonemap(rgb, exposure=None):
     """(H, W, 3) linear -> (H, W, 3) uint8 sRGB preview.
 

@@ -159,6 +159,11 @@ class FlashSamples:
     timings: dict
     started: float
 
+    def no_sample_error(self):
+        """The InputError (naming the flash photo, the geometry or the photos' tests) for
+        samples of which none is usable."""
+        return _no_sample_error(self.scene, self.per_photo)
+
     def subset(self, keep):
         """The same samples restricted to keep (N,) bool (e.g. one material)."""
         pick = {k: getattr(self, k)[keep] for k in ("theta_h", "theta_d", "rho", "censored",
@@ -249,7 +254,7 @@ def bin_samples(samples):
     theta_h, theta_d, rho, censored = (samples.theta_h, samples.theta_d, samples.rho,
                                        samples.censored)
     if not np.any(~censored):
-        raise _no_sample_error(scene, samples.per_photo)
+        raise samples.no_sample_error()
     bins = merl_bin_index(theta_h, 0.0, 0.0)[0]
     estimate, n, spread, inlier = robust_bins(bins, rho, censored, theta_h, k=options.outlier_k,
                                               estimator=options.estimator)

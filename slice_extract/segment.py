@@ -629,11 +629,16 @@ def _segment_samples(samples, materials, options):
         rho, theta_h, pixels = samples.rho, samples.theta_h, samples.pixels
     else:
         rho, theta_h, pixels = samples.rho[first], samples.theta_h[first], samples.pixels[first]
+    if not len(rho):  # nothing to segment: the error extracting a slice would give
+        raise samples.no_sample_error()
     if materials == "auto":
         labels, k, criterion = cluster_samples(rho, theta_h, options,
                                                neighbour_samples(pixels, samples.shape))
     else:
         k = int(materials)
+        if k > 1 and len(rho) < 2 * k:  # a K-component mixture needs 2K samples at least
+            raise InputError("--materials", f"{k} materials need at least {2 * k} usable object "
+                                            f"pixels; the flash photo has {len(rho)}")
         labels, criterion = _fixed_k(rho, theta_h, k, options)
     image = np.zeros(samples.shape, np.int32)
     image.ravel()[pixels] = labels + 1
@@ -669,12 +674,16 @@ def check_labels(labels, shape, where, count=None):
     if labels.shape != tuple(shape):
         raise InputError(where, f"is {labels.shape[1]}x{labels.shape[0]} but the flash photo is "
                                 f"{shape[1]}x{shape[0]}")
+    if labels.size and labels.min() < 0:
+        raise InputError(where, f"holds a negative label ({int(labels.min())}); labels are 0 "
+                                "(not the object) or 1..K")
     k = int(labels.max()) if labels.size else 0
     present = np.bincount(labels.ravel().astype(np.int64), minlength=k + 1)
     empty = [j for j in range(1, k + 1) if present[j] == 0]
     if k == 0 or empty:
-        raise InputError(where, f"label(s) {empty or [1]} have no pixel: labels must be 1..K, "
-                                "each used")
+        shown = ", ".join(map(str, (empty or [1])[:5])) + (", ..." if len(empty) > 5 else "")
+        raise InputError(where, f"label(s) {shown} have no pixel ({len(empty) or 1} in all): "
+                                "labels must be 1..K, each used")
     if count is not None and count != k:
         raise InputError(where, f"has {k} material label(s) but {count} BRDF table(s) were "
                                 "given")

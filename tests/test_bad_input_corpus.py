@@ -501,6 +501,156 @@ CASES = [
 ]
 
 
+# ----- the multi-material and batch commands (issues 13 and 15) -------------------------------
+def labels_png(w, tmp, name="labels.png", k=2, value=None, dtype=np.uint16):
+    """The world scene's object pixels (its flash photo > 0) as labels 1..k in vertical bands
+    (`value(labels) -> array` edits them), written as a PNG (or TIFF) in tmp."""
+    import cv2
+    from render.images import read_image
+    on = read_image(w.scene / "flash0.exr").sum(axis=2) > 0
+    labels = np.where(on, 1 + np.arange(on.shape[1])[None, :] * k // on.shape[1], 0)
+    path = tmp / name
+    cv2.imwrite(str(path), (labels if value is None else value(labels)).astype(dtype))
+    return path
+
+
+def with_faces(png, faces):
+    np.save(png.with_name(png.stem + ".faces.npy"), faces)
+    return png
+
+
+def marked_holding(tmp, source):
+    """An earlier flashbrdf output folder holding a copy of `source` (an input of the case)."""
+    folder = marked_folder(tmp)
+    shutil.copy(source, folder / Path(source).name)
+    return folder
+
+
+def tiny_scene(tmp, radius):
+    """A 16x16 capture of a sphere a few pixels wide (radius 0.03 m: 12 usable pixels; 0.004 m:
+    none)."""
+    return write_synthetic_scene(tmp / "tiny", sphere_mesh(radius=radius, subdivisions=2),
+                                 ggx_lambert(), pinhole_camera(16, 16, 100.0),
+                                 [point_light([0.02, 0, 0])])
+
+
+def one_channel_exr(tmp, shape=(40, 40)):
+    import OpenImageIO as oiio
+    path = tmp / "albedo.exr"
+    out = oiio.ImageOutput.create(str(path))
+    out.open(str(path), oiio.ImageSpec(shape[1], shape[0], 1, oiio.FLOAT))
+    out.write_image(np.full(shape, 0.5, np.float32))
+    out.close()
+    return path
+
+
+def captures(w, tmp, *names):
+    folder = tmp / "captures"
+    for name in names:
+        shutil.copytree(w.scene, folder / name)
+    return folder
+
+
+def _batch(folder, out, *extra):
+    return ["batch", str(folder), "--out", str(out), "--methods", "chandraker", "--spp", "2",
+            *extra]
+
+
+def _two_tables(w):
+    return f"{w.brdf},{w.merl_dir / f'{TABLES[1]}.binary'}"
+
+
+SWEEP_CASES = [
+    ("segment", "materials 0", lambda w, t: ["segment", str(w.scene), "--out", _out(t, "l.png"),
+                                             "--materials", "0"], "--materials"),
+    ("segment", "materials more than the pixels allow", lambda w, t: [
+        "segment", str(tiny_scene(t, 0.03)), "--out", _out(t, "l.png"), "--materials", "8"],
+     "--materials"),
+    ("segment", "no object pixel", lambda w, t: ["segment", str(tiny_scene(t, 0.004)), "--out",
+                                                 _out(t, "l.png")], "flash0.exr"),
+    ("segment", "albedo's sidecar is the labels'", lambda w, t: [
+        "segment", str(w.scene), "--out", _out(t, "l.png"), "--albedo", _out(t, "l.exr")],
+     "l.json"),
+    ("segment", "out is scene.png (its sidecar is scene.json)", lambda w, t: [
+        "segment", str(w.scene), "--out", str(w.scene / "scene.png")], "scene.json"),
+    ("extract", "labels wrong size", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(write(t, "l.png", b"")), "--out", _out(t)],
+     "l.png"),
+    ("extract", "labels is a folder", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(empty(t)), "--out", _out(t)], "empty"),
+    ("extract", "labels float TIFF", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.tif", 1, dtype=np.float32)),
+        "--out", _out(t)], "l.tif"),
+    ("extract", "labels {1, 3}", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(labels_png(w, t, value=lambda a: a * 2 - (
+            a > 0))), "--out", _out(t)], "labels.png"),
+    ("extract", "labels RGB", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(labels_png(w, t, value=lambda a: np.dstack(
+            [a] * 3), dtype=np.uint8)), "--out", _out(t)], "labels.png"),
+    ("extract", "labels all zero", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(labels_png(w, t, value=lambda a: 0 * a)),
+        "--out", _out(t)], "labels.png"),
+    ("extract", "out is someone's folder", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(labels_png(w, t)), "--out", str(user_folder(t))],
+     "mine"),
+    ("extract", "labelled earlier output without --force", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(labels_png(w, t)), "--out", str(marked_folder(t))],
+     "old"),
+    ("render", "only commas in --brdf", lambda w, t: _render(w.scene, ",,", _out(t)), "--brdf"),
+    ("render", "an empty item in --brdf", lambda w, t: _render(
+        w.scene, f"{w.brdf},,{w.brdf}", _out(t), "--labels", str(labels_png(w, t))), "--brdf"),
+    ("render", "more tables than labels", lambda w, t: _render(
+        w.scene, f"{_two_tables(w)},{w.brdf}", _out(t), "--labels", str(labels_png(w, t))),
+     "labels.png"),
+    ("render", "label faces of another mesh", lambda w, t: _render(
+        w.scene, _two_tables(w), _out(t), "--labels", str(with_faces(labels_png(w, t), np.ones(
+            7, np.int32)))), "labels.faces.npy"),
+    ("render", "--force onto a folder holding a listed table", lambda w, t: _render(
+        w.scene, f"{w.brdf},{marked_holding(t, w.brdf) / w.brdf.name}", t / "old", "--labels",
+        str(labels_png(w, t)), "--force"), "old"),
+    ("render", "--force onto a folder holding the labels", lambda w, t: _render(
+        w.scene, _two_tables(w), t / "old", "--labels",
+        str(marked_holding(t, labels_png(w, t)) / "labels.png"), "--force"), "old"),
+    ("render", "albedo of one channel", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--albedo", str(one_channel_exr(t))), "albedo.exr"),
+    ("run", "materials abc", lambda w, t: _run(w.scene, _out(t), "--materials", "abc"),
+     "--materials"),
+    ("run", "spp not a number (argparse, one line)", lambda w, t: _run(w.scene, _out(t)) + [
+        "--spp", "x"], "--spp"),
+    ("batch", "empty folder", lambda w, t: _batch(empty(t), _out(t)), "empty"),
+    ("batch", "workers abc", lambda w, t: _batch(captures(w, t, "a"), _out(t), "--workers",
+                                                 "abc"), "--workers"),
+    ("batch", "materials 0", lambda w, t: _batch(captures(w, t, "a"), _out(t), "--materials",
+                                                 "0"), "--materials"),
+    ("batch", "scheduler with nothing listening", lambda w, t: _batch(
+        captures(w, t, "a"), _out(t), "--scheduler", "tcp://127.0.0.1:1"), "--scheduler"),
+    ("batch", "scheduler empty", lambda w, t: _batch(captures(w, t, "a"), _out(t),
+                                                     "--scheduler", ""), "--scheduler"),
+    ("batch", "out is someone's folder", lambda w, t: _batch(captures(w, t, "a"), user_folder(t)),
+     "mine"),
+    ("batch", "model truncated", lambda w, t: _batch(captures(w, t, "a"), _out(t), "--methods",
+                                                     "pca", "--model", str(write(
+                                                         t, "m.npz", truncated(w.model, 0.7)))),
+     "m.npz"),
+    ("batch", "out holds someone's summary.md", lambda w, t: _batch(
+        captures(w, t, "a"), write(empty(t), "summary.md", "my notes").parent), "empty"),
+    ("batch", "a capture named logs", lambda w, t: _batch(captures(w, t, "logs"), _out(t)),
+     "logs"),
+    ("train", "three tables (a fifth is held out)", lambda w, t: [
+        "train", "--merl-dir", str(w.merl_dir), "--out", _out(t, "m.npz")], "merl"),
+    ("train", "the same folder twice", lambda w, t: [
+        "train", "--merl-dir", str(w.merl_dir), "--merl-dir", str(w.merl_dir) + os.sep, "--out",
+        _out(t, "m.npz")], "given twice"),
+    ("evaluate", "test-dir with --workers and --scheduler", lambda w, t: [
+        "evaluate", "--merl-dir", str(w.merl_dir), "--test-dir", str(w.merl_dir), "--out",
+        _out(t), "--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "--workers"),
+    ("evaluate", "experiments 0", lambda w, t: ["evaluate", "--merl-dir", str(w.merl_dir),
+                                                "--out", _out(t), "--experiments", "0"],
+     "--experiments"),
+]
+CASES += SWEEP_CASES
+
+
 def link(path, target):
     path.symlink_to(target)
     return path
@@ -534,7 +684,7 @@ def test_corpus_size_and_spread():
         by_command[command] = by_command.get(command, 0) + 1
     assert len(CASES) >= 60 and len({name for _, name, *_ in CASES}) > 50
     assert set(by_command) == {"merl-slice", "extract", "infer", "train", "render", "compare",
-                               "run", "evaluate", "import-diligent"}
+                               "run", "evaluate", "import-diligent", "segment", "batch"}
 
 
 @pytest.mark.parametrize("command,name,argv,names", CASES,
@@ -552,6 +702,20 @@ def test_bad_input_exits_2_cleanly(world, tmp_path, capfd, command, name, argv, 
     assert len(lines) == 1, err
     assert (str(tmp_path) if names == HERE else names) in lines[0], lines[0]
     assert snapshot(*roots) == before
+
+
+def test_segment_keeps_no_albedo_map_when_its_labels_fail(world, tmp_path, capfd, monkeypatch):
+    """segment --albedo writes the albedo map, then the labels: when the labels fail, the map
+    already written is removed (all or nothing over both)."""
+    from brdf.errors import InputError
+
+    def fail(out, *args, **kwargs):
+        raise InputError(out, "cannot write a PNG there")
+    monkeypatch.setattr("pipeline.cmd_segment.write_labels", fail)
+    assert main(["segment", str(world.scene), "--out", str(tmp_path / "l.png"), "--albedo",
+                 str(tmp_path / "a.exr")]) == 2
+    assert len(capfd.readouterr().err.strip().splitlines()) == 1
+    assert list(tmp_path.iterdir()) == []
 
 
 # ----- valid controls: the same harness passes good input -------------------------------------

@@ -12,6 +12,7 @@ import json
 import os
 import shutil
 import sys
+import time
 from pathlib import Path
 
 import cloudpickle
@@ -286,3 +287,15 @@ def test_no_capture_or_bad_options_exit_2(captures, tmp_path, capsys, monkeypatc
     assert main(["batch", str(captures), "--out", str(out), "--scheduler",
                  "tcp://127.0.0.1:9"]) == 2
     assert "--scheduler" in capsys.readouterr().err
+
+
+def test_scheduler_with_nothing_listening_fails_at_once(captures, tmp_path, capsys):
+    """Nothing listens at --scheduler: one line naming it, exit 2, long before Dask's 20 s connect
+    timeout (a refused TCP probe takes milliseconds; 5 s leaves room for a loaded machine)."""
+    out = tmp_path / "out"
+    start = time.perf_counter()
+    assert main(["batch", str(captures), "--out", str(out), "--scheduler",
+                 "tcp://127.0.0.1:1"]) == 2
+    assert time.perf_counter() - start < 5
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--scheduler" in err[0] and not out.exists()
