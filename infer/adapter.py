@@ -8,7 +8,6 @@ in feature space with the model's GP weights, streamed one table at a time; a mo
 a 3D view uses its 2D view's weights (the GP posterior mean is linear in the training outputs).
 """
 
-import warnings
 from contextlib import nullcontext
 
 import numpy as np
@@ -133,9 +132,12 @@ class DSGPLVMMethod(InferenceMethod):
         self.training_ = training
         if feats is None:
             feats = table_features(training.tables_2d, self.feature_space)
-        with np.errstate(invalid="ignore"), warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)   # all-NaN bins below the horizon
-            self.range_2d_ = (np.nanmin(feats, axis=0), np.nanmax(feats, axis=0))
+        # bins below the horizon are NaN in every table: left NaN without numpy's all-NaN
+        # warning (catch_warnings is not thread-safe, and Dask workers fit in threads)
+        seen = np.isfinite(feats).any(axis=0)
+        low, high = np.full(feats.shape[1], np.nan), np.full(feats.shape[1], np.nan)
+        low[seen], high[seen] = np.nanmin(feats[:, seen], axis=0), np.nanmax(feats[:, seen], axis=0)
+        self.range_2d_ = (low, high)
         self.model_ = model
         rows = self.model_.view_data_["2d"].data
         self.bin_variance_ = None if rows is None else \
