@@ -42,7 +42,8 @@ def table_errors(table_path, work, offset, photons, seed):
                                    pinhole_camera(), [point_light([offset, 0, 0])],
                                    photons=photons, seed=seed)
     result = extract_slice(folder)
-    ok = (result.n >= N_MIN) & np.all(np.isfinite(truth), axis=1) & np.all(truth > 0, axis=1)
+    ok = (result.n >= N_MIN) & np.all(np.isfinite(truth), axis=1) & np.all(truth > 0, axis=1) \
+        & np.all(np.isfinite(result.rho), axis=1)
     rel = np.max(np.abs(result.rho[ok] / truth[ok] - 1), axis=1)
     log = np.max(np.abs(np.log(result.rho[ok] + FEATURE_OFFSET)
                         - np.log(truth[ok] + FEATURE_OFFSET)), axis=1)

@@ -1,7 +1,7 @@
 """Does `segment --materials auto` keep every single-material object whole? A sweep over whole sets.
 
     nice -n 10 python benchmarks/segment_sweep.py --merl-dir /work/data/merl [--merl-dir /work/data/rgl]
-        [--work DIR] [--limit N]
+        [--photons N] [--bits B] [--pairs N] [--out NAME] [--work DIR] [--limit N]
 
 Every table of each folder (MERL (NBRDF proxy), RGL (NBRDF proxy)) is rendered as one material on the
 harder single-material scene of tests/test_segment_single_material.py: a sphere (r = 7 cm) behind a
@@ -29,8 +29,9 @@ PHOTONS = 2000
 
 def quantiser(bits):
     """post hook for tests/synthetic.write_synthetic_scene: the photo quantised in steps of
-    1/(2^bits - 1) of its 99th-percentile object pixel (an exposure that keeps the body in range
-    and would clip the top 1%, the highlight; values above stay, quantised in the same steps)."""
+    1/(2^bits - 1) of the 99th percentile of its positive channel values (object and occluder):
+    the step an exposure that keeps the body in range would have. Unlike a real 8-bit photo the
+    top 1% (the highlight) is not clipped: it keeps its value, quantised in the same steps."""
     levels = 2 ** bits - 1
 
     def post(image, _):
@@ -61,11 +62,13 @@ def material_k(table_path, work, seed, photons=PHOTONS, bits=None):
 
 def pair_result(paths, work, seed, photons=PHOTONS):
     """{"k", "accuracy", "slice_gap"} for two MERL tables on the two halves of a sphere: K chosen
-    by auto, the share of object pixels whose label maps to the true half (each label to the
-    half it overlaps most), and the tables' own θd = 0 slice gap (median over θh bins of the mean
-    |Δ ln ρ| over channels: below 0.1 the segmenter counts them as one material by design)."""
+    by auto; where K = 2, the share of object pixels whose label is their true half under the
+    better of the two one-to-one matchings of labels to halves (None for another K); and the
+    tables' own θd = 0 slice gap (median over θh bins of the mean |Δ ln ρ| over channels, ρ +
+    1e-3: below 0.1 the segmenter counts two slices as one material by design)."""
     import capture
     from brdf.merl import read_merl
+    from brdf.views import flash_slice
     from slice_extract.extract import ExtractOptions, collect_samples
     from slice_extract.segment import segment_samples
     from synthetic import (by_region, pinhole_camera, point_light, region_image, sphere_mesh,
@@ -79,11 +82,13 @@ def pair_result(paths, work, seed, photons=PHOTONS):
     seg = segment_samples(collect_samples(capture.load_scene(folder), ExtractOptions()))
     truth = region_image(mesh, cam, half)
     both = (truth > 0) & (seg.labels > 0)
-    overlap = np.zeros((int(seg.labels.max()) + 1, 3), int)
-    np.add.at(overlap, (seg.labels[both], truth[both]), 1)
-    slices = np.log(np.stack([t[:, 0].mean(axis=1) for t in tables]) + 1e-3)
+    accuracy = None
+    if seg.k == 2:
+        same = np.mean(seg.labels[both] == truth[both])
+        accuracy = float(max(same, np.mean(seg.labels[both] == 3 - truth[both])))
+    slices = np.log(np.stack([flash_slice(t)[0] for t in tables]) + 1e-3)
     gap = np.abs(slices[0] - slices[1]).mean(axis=1)
-    return {"k": int(seg.k), "accuracy": float(overlap.max(axis=1).sum() / both.sum()),
+    return {"k": int(seg.k), "accuracy": accuracy,
             "slice_gap": float(np.median(gap[np.isfinite(gap)]))}
 
 
@@ -154,8 +159,8 @@ def _pairs(args, work, result, start):
              + (f"{np.median([r['accuracy'] for r in found]):.4f}, "
                 f"{min(r['accuracy'] for r in found):.4f}" if found else "–"), "",
              "| pair | slice gap | K | accuracy |", "|---|---|---|---|"]
-    lines += [f"| {' / '.join(r['tables'])} | {r['slice_gap']:.2f} | {r['k']} | {r['accuracy']:.4f} |"
-              for r in rows]
+    lines += [f"| {' / '.join(r['tables'])} | {r['slice_gap']:.2f} | {r['k']} | "
+              + ("–" if r["accuracy"] is None else f"{r['accuracy']:.4f}") + " |" for r in rows]
     (RESULTS / f"{args.out}.md").write_text("\n".join(lines) + "\n")
     return 0
 

@@ -134,7 +134,7 @@ class DSGPLVMMethod(InferenceMethod):
             feats = table_features(training.tables_2d, self.feature_space)
         # bins below the horizon are NaN in every table: left NaN without numpy's all-NaN
         # warning (catch_warnings is not thread-safe, and Dask workers fit in threads)
-        seen = np.isfinite(feats).any(axis=0)
+        seen = ~np.isnan(feats).all(axis=0)
         low, high = np.full(feats.shape[1], np.nan), np.full(feats.shape[1], np.nan)
         low[seen], high[seen] = np.nanmin(feats[:, seen], axis=0), np.nanmax(feats[:, seen], axis=0)
         self.range_2d_ = (low, high)

@@ -25,8 +25,9 @@ What separates materials is what the photo says about the material, not about sh
   better by its own slice than by the one-slice model of the whole object: the mean residual
   (_residuals, capped at 1 per pixel) of its pixels at most `explained` times as large.
   (A material only slightly better explained is a shading or noise split of one material.)
-  This test and the alike merge read each pixel's neighbour (neighbour_samples) under the
-  pixel's label, so the noise that chose a label is not read back as a difference.
+  This test and the alike merge read, for each pixel of the work subsample, its neighbour's
+  sample (neighbour_samples) under the pixel's label, so the noise that chose a label is not
+  read back as a difference.
 - the last assignment of every pixel (_assign_all) first takes off a flash-coloured (white)
   highlight term where the pixel is brighter than a coloured material's slice (_added_white,
   dichromatic model): a foil's highlight no longer passes for a paler material.
@@ -333,15 +334,17 @@ def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_com
     return remap[labels], int(remap.max()) + 1
 
 
-def neighbour_samples(pixels, shape):
-    """(N,) for each sample (pixels (N,) flat indices into an (H, W) image, one sample per pixel)
-    the index of a sample at an adjacent pixel (right, left, below or above, the first that holds
-    one), or the sample itself where none does."""
+def neighbour_samples(pixels, shape, which=None):
+    """(M,) for each sample in `which` (indices into pixels; default all N) the index of a sample at
+    an adjacent pixel (right, left, below or above, the first that holds one), or the sample
+    itself where none does. pixels (N,): flat indices into an (H, W) image, one sample per pixel."""
     height, width = shape
-    at = np.full(height * width, -1, np.int64)
-    at[pixels] = np.arange(len(pixels))
-    out = np.full(len(pixels), -1, np.int64)
-    row, col = np.divmod(pixels, width)
+    pixels = np.asarray(pixels, np.int64)
+    which = np.arange(len(pixels)) if which is None else np.asarray(which, np.int64)
+    at = np.full(height * width, -1, np.int32)      # sample index per pixel (< 2^31 samples)
+    at[pixels] = np.arange(len(pixels), dtype=np.int32)
+    out = np.full(len(which), -1, np.int64)
+    row, col = np.divmod(pixels[which], width)
     for d_row, d_col in ((0, 1), (0, -1), (1, 0), (-1, 0)):
         todo = out < 0
         r, c = row[todo] + d_row, col[todo] + d_col
@@ -350,28 +353,34 @@ def neighbour_samples(pixels, shape):
         found[inside] = at[r[inside] * width + c[inside]]
         out[np.flatnonzero(todo)] = found
     alone = out < 0
-    out[alone] = np.flatnonzero(alone)
+    out[alone] = which[alone]
     return out
 
 
-def cluster_samples(rho, theta_h, options=None, neighbours=None):
+def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None):
     """Material of each sample: (labels (N,) int 0..K-1, K, criterion dict).
 
     rho (N, 3) 1/sr, finite; theta_h (N,) radians. See the module docstring for the method.
     Materials and their slices are found on a random subsample of options.work_samples
     samples (all of them if there are fewer); then every sample goes to the material whose
     slice explains it best once a flash-coloured highlight term is taken off (_assign_all).
-    neighbours (N,): a sample at an adjacent pixel of each (neighbour_samples), or None. The
-    tests that decide K (alike, explained) then read each sample's neighbour under the sample's
-    label: its noise is independent of the label. Read on the samples the labels were chosen
-    from, the noise that chose them passes for a difference of materials (near-black pixels of
-    chrome-steel and of a dark blue car paint split off, benchmarks/results/segment_sweep.md).
+    pixels (N,), shape (H, W): where each sample lies in the photo (flat indices), or None. The
+    tests that decide K (alike, explained) then read, for each sample of the work subsample, an
+    adjacent pixel's sample (neighbour_samples) under the sample's label: where pixel noise is
+    independent from pixel to pixel (raw or rendered photos; demosaicing and JPEG correlate
+    neighbours), that noise is independent of the label. Read on the samples the labels were
+    chosen from, the noise that chose them passes for a difference of materials (near-black
+    pixels of chrome-steel and of a dark blue car paint split off,
+    benchmarks/results/segment_sweep.md).
     """
     options = options or SegmentOptions()
     n = len(rho)
     pick = (np.arange(n) if n <= options.work_samples else
             np.random.default_rng(options.seed).choice(n, options.work_samples, replace=False))
-    check = None if neighbours is None else (rho[neighbours[pick]], theta_h[neighbours[pick]])
+    check = None
+    if pixels is not None:
+        neighbours = neighbour_samples(pixels, shape, pick)
+        check = (rho[neighbours], theta_h[neighbours])
     labels, k, criterion = _cluster(rho[pick], theta_h[pick], options, check)
     criterion.update(samples=int(n), work_samples=int(len(pick)))
     if k == 1:
@@ -465,7 +474,8 @@ def _cluster(rho, theta_h, options, check=None):
     labels = component_to_group[best.predict(x)]
     log_rho, _, floor = _log_rho(rho)
     bins = _bins(theta_h)
-    # the tests read the neighbours (same floor: one brightness scale for both)
+    # the tests read the neighbours (same floor: one brightness scale for both); residual_one
+    # in the criterion is then the neighbours' too
     log_test, bins_test = (log_rho, bins) if check is None else \
         (_log_rho(check[0], floor)[0], _bins(check[1]))
     one = _residuals(log_test, bins_test,
@@ -632,8 +642,7 @@ def _segment_samples(samples, materials, options):
     if not len(rho):  # nothing to segment: the error extracting a slice would give
         raise samples.no_sample_error()
     if materials == "auto":
-        labels, k, criterion = cluster_samples(rho, theta_h, options,
-                                               neighbour_samples(pixels, samples.shape))
+        labels, k, criterion = cluster_samples(rho, theta_h, options, pixels, samples.shape)
     else:
         k = int(materials)
         if k > 1 and len(rho) < 2 * k:  # a K-component mixture needs 2K samples at least

@@ -66,3 +66,4 @@ def test_neighbour_samples_pick_an_adjacent_sample():
     # then left, below, above; (1,3) has none of the four and keeps itself
     pixels = np.array([0, 1, 7, 8, 9])
     assert neighbour_samples(pixels, (3, 4)).tolist() == [1, 0, 2, 4, 3]
+    assert neighbour_samples(pixels, (3, 4), which=[2, 4]).tolist() == [2, 3]  # a subset
