@@ -42,7 +42,24 @@ def quantiser(bits):
     return post
 
 
-def material_k(table_path, work, seed, photons=PHOTONS, bits=None):
+def demosaiced(image, _):
+    """post hook: the photo sampled through an RGGB Bayer mosaic and demosaiced bilinearly
+    (OpenCV), as a camera's developed photo is: adjacent pixels then share noise."""
+    import cv2
+    image = np.asarray(image, np.float32)
+    scale = float(image.max()) or 1.0
+    mosaic = np.zeros(image.shape[:2], np.float32)
+    mosaic[0::2, 0::2] = image[0::2, 0::2, 0]     # R
+    mosaic[0::2, 1::2] = image[0::2, 1::2, 1]     # G
+    mosaic[1::2, 0::2] = image[1::2, 0::2, 1]     # G
+    mosaic[1::2, 1::2] = image[1::2, 1::2, 2]     # B
+    # OpenCV names Bayer patterns from the second row; its output is BGR
+    code = np.clip(mosaic / scale * 65535, 0, 65535).astype(np.uint16)
+    bgr = cv2.cvtColor(code, cv2.COLOR_BayerBG2BGR).astype(np.float64) / 65535 * scale
+    return bgr[..., ::-1]
+
+
+def material_k(table_path, work, seed, photons=PHOTONS, bits=None, demosaic=False):
     """(K chosen by auto, its criterion dict) for one MERL table on the sphere-and-torus scene."""
     import capture
     from brdf.merl import read_merl
@@ -55,7 +72,8 @@ def material_k(table_path, work, seed, photons=PHOTONS, bits=None):
                                    table_brdf(read_merl(table_path)),
                                    pinhole_camera(256, 256, 1000.0), [point_light([0.03, 0, 0])],
                                    photons=photons, seed=seed,
-                                   post=None if bits is None else quantiser(bits))
+                                   post=demosaiced if demosaic else
+                                   (None if bits is None else quantiser(bits)))
     seg = segment_samples(collect_samples(capture.load_scene(folder), ExtractOptions()))
     return int(seg.k), seg.criterion
 
@@ -99,6 +117,7 @@ def main(argv=None):
     ap.add_argument("--limit", type=int, default=None, help="first N tables of each folder")
     ap.add_argument("--photons", type=int, default=PHOTONS, help="Poisson noise at the mean pixel")
     ap.add_argument("--bits", type=int, default=None, help="quantise the photo to this many bits")
+    ap.add_argument("--demosaic", action="store_true", help="through a Bayer mosaic and back")
     ap.add_argument("--pairs", type=int, default=0,
                     help="instead: this many seeded random pairs of tables on a sphere's halves")
     ap.add_argument("--out", default="segment_sweep", help="results name in benchmarks/results")
@@ -106,7 +125,8 @@ def main(argv=None):
     work = args.work or Path(tempfile.mkdtemp(prefix="segment_sweep_"))
     work.mkdir(parents=True, exist_ok=True)
     result = {"command": "python benchmarks/segment_sweep.py " + " ".join(argv or sys.argv[1:]),
-              "photons": args.photons, "bits": args.bits, "folders": {}}
+              "photons": args.photons, "bits": args.bits, "demosaic": args.demosaic,
+              "folders": {}}
     start = time.perf_counter()
     if args.pairs:
         return _pairs(args, work, result, start)
@@ -114,7 +134,8 @@ def main(argv=None):
         tables = sorted(Path(folder).glob("*.binary"))[:args.limit]
         rows = {}
         for i, path in enumerate(tables):
-            k, criterion = material_k(path, work, seed=i, photons=args.photons, bits=args.bits)
+            k, criterion = material_k(path, work, seed=i, photons=args.photons, bits=args.bits,
+                                      demosaic=args.demosaic)
             rows[path.stem] = {"k": k, "criterion": criterion if k != 1 else None}
             print(f"{path.stem}: K = {k}", flush=True)
         result["folders"][folder] = rows
@@ -125,6 +146,7 @@ def main(argv=None):
              "sphere behind a torus (shadows, occlusion), flash 3 cm off the lens, "
              f"{args.photons}-photon noise"
              + (f", quantised to {args.bits} bits of the 99th-percentile pixel" if args.bits else "")
+             + (", through a Bayer mosaic and bilinear demosaicing" if args.demosaic else "")
              + "; K must be 1.", "",
              "| folder | tables | K = 1 | split (K) |", "|---|---|---|---|"]
     for folder, rows in result["folders"].items():

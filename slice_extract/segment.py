@@ -25,9 +25,9 @@ What separates materials is what the photo says about the material, not about sh
   better by its own slice than by the one-slice model of the whole object: the mean residual
   (_residuals, capped at 1 per pixel) of its pixels at most `explained` times as large.
   (A material only slightly better explained is a shading or noise split of one material.)
-  This test and the alike merge read, for each pixel of the work subsample, its neighbour's
-  sample (neighbour_samples) under the pixel's label, so the noise that chose a label is not
-  read back as a difference.
+  This test and the alike merge read, for each pixel of the work subsample, the sample 2 px away
+  (neighbour_samples) under the pixel's label, so the noise that chose a label is not read back
+  as a difference.
 - the last assignment of every pixel (_assign_all) first takes off a flash-coloured (white)
   highlight term where the pixel is brighter than a coloured material's slice (_added_white,
   dichromatic model): a foil's highlight no longer passes for a paler material.
@@ -76,6 +76,11 @@ class SegmentOptions:
     min_area_fraction: float = 0.002
     refine_iterations: int = 3
     alike: float = 0.1             # ln-rho slices closer than this (~10%) are one material
+    # how far the sample the K tests read lies (neighbour_samples): 2 px, the nearest whose value
+    # a bilinear demosaic makes without the pixel's own raw sample (demosaiced single materials
+    # kept whole: 111 of 122 at 1 px, 117 at 2, 120 at 3; the cards' criterion margin 0.49, 0.54,
+    # 0.55 against 0.6; benchmarks/results/segment_sweep_demosaic.md, README)
+    neighbour_px: int = 2
     seed: int = 0
 
 
@@ -334,9 +339,9 @@ def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_com
     return remap[labels], int(remap.max()) + 1
 
 
-def neighbour_samples(pixels, shape, which=None):
-    """(M,) for each sample in `which` (indices into pixels; default all N) the index of a sample at
-    an adjacent pixel (right, left, below or above, the first that holds one), or the sample
+def neighbour_samples(pixels, shape, which=None, distance=1):
+    """(M,) for each sample in `which` (indices into pixels; default all N) the index of the sample
+    `distance` pixels to its right, left, below or above (the first that holds one), or the sample
     itself where none does. pixels (N,): flat indices into an (H, W) image, one sample per pixel."""
     height, width = shape
     pixels = np.asarray(pixels, np.int64)
@@ -345,7 +350,7 @@ def neighbour_samples(pixels, shape, which=None):
     at[pixels] = np.arange(len(pixels), dtype=np.int32)
     out = np.full(len(which), -1, np.int64)
     row, col = np.divmod(pixels[which], width)
-    for d_row, d_col in ((0, 1), (0, -1), (1, 0), (-1, 0)):
+    for d_row, d_col in ((0, distance), (0, -distance), (distance, 0), (-distance, 0)):
         todo = out < 0
         r, c = row[todo] + d_row, col[todo] + d_col
         inside = (r >= 0) & (r < height) & (c >= 0) & (c < width)
@@ -365,10 +370,10 @@ def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None):
     samples (all of them if there are fewer); then every sample goes to the material whose
     slice explains it best once a flash-coloured highlight term is taken off (_assign_all).
     pixels (N,), shape (H, W): where each sample lies in the photo (flat indices), or None. The
-    tests that decide K (alike, explained) then read, for each sample of the work subsample, an
-    adjacent pixel's sample (neighbour_samples) under the sample's label: where pixel noise is
-    independent from pixel to pixel (raw or rendered photos; demosaicing and JPEG correlate
-    neighbours), that noise is independent of the label. Read on the samples the labels were
+    tests that decide K (alike, explained) then read, for each sample of the work subsample, the
+    sample options.neighbour_px pixels away (neighbour_samples) under the sample's label: its
+    noise, and a demosaic's false colour around an edge, are then nearly independent of the
+    label. Read on the samples the labels were
     chosen from, the noise that chose them passes for a difference of materials (near-black
     pixels of chrome-steel and of a dark blue car paint split off,
     benchmarks/results/segment_sweep.md).
@@ -379,7 +384,7 @@ def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None):
             np.random.default_rng(options.seed).choice(n, options.work_samples, replace=False))
     check = None
     if pixels is not None:
-        neighbours = neighbour_samples(pixels, shape, pick)
+        neighbours = neighbour_samples(pixels, shape, pick, options.neighbour_px)
         check = (rho[neighbours], theta_h[neighbours])
     labels, k, criterion = _cluster(rho[pick], theta_h[pick], options, check)
     criterion.update(samples=int(n), work_samples=int(len(pick)))

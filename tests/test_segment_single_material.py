@@ -67,3 +67,5 @@ def test_neighbour_samples_pick_an_adjacent_sample():
     pixels = np.array([0, 1, 7, 8, 9])
     assert neighbour_samples(pixels, (3, 4)).tolist() == [1, 0, 2, 4, 3]
     assert neighbour_samples(pixels, (3, 4), which=[2, 4]).tolist() == [2, 3]  # a subset
+    # 2 px away: (0,0) -> (2,0) below; (0,1) -> (2,1); (2,0) -> (0,0) above; (1,3) none
+    assert neighbour_samples(pixels, (3, 4), distance=2).tolist() == [3, 4, 2, 0, 1]
