@@ -1,7 +1,8 @@
 """Does `segment --materials auto` keep every single-material object whole? A sweep over whole sets.
 
     nice -n 10 python benchmarks/segment_sweep.py --merl-dir /work/data/merl [--merl-dir /work/data/rgl]
-        [--photons N] [--bits B] [--pairs N] [--out NAME] [--work DIR] [--limit N]
+        [--photons N] [--bits B] [--demosaic] [--jpeg Q] [--pairs N] [--out NAME] [--work DIR]
+        [--limit N]
 
 Every table of each folder (MERL (NBRDF proxy), RGL (NBRDF proxy)) is rendered as one material on the
 harder single-material scene of tests/test_segment_single_material.py: a sphere (r = 7 cm) behind a
@@ -59,7 +60,25 @@ def demosaiced(image, _):
     return bgr[..., ::-1]
 
 
-def material_k(table_path, work, seed, photons=PHOTONS, bits=None, demosaic=False):
+def phone_jpeg(quality):
+    """post hook: demosaiced (demosaiced), then stored as a phone stores it: gamma 1/2.2 on the
+    99th-percentile pixel's scale, 8 bits, JPEG at `quality` (OpenCV), read back and linearised
+    with (x/255)^2.2 (as the planar cards' photos are); the top 1% clips at 255."""
+    import cv2
+
+    def post(image, k):
+        image = demosaiced(image, k)
+        lit = image[image > 0]
+        white = float(np.percentile(lit, 99)) if lit.size else 1.0
+        code = np.clip(np.round((np.clip(image / white, 0, 1) ** (1 / 2.2)) * 255), 0, 255)
+        ok, data = cv2.imencode(".jpg", code[..., ::-1].astype(np.uint8),
+                                [cv2.IMWRITE_JPEG_QUALITY, quality])
+        decoded = cv2.imdecode(data, cv2.IMREAD_COLOR)[..., ::-1].astype(np.float64)
+        return (decoded / 255) ** 2.2 * white
+    return post
+
+
+def material_k(table_path, work, seed, photons=PHOTONS, bits=None, demosaic=False, jpeg=None):
     """(K chosen by auto, its criterion dict) for one MERL table on the sphere-and-torus scene."""
     import capture
     from brdf.merl import read_merl
@@ -72,8 +91,8 @@ def material_k(table_path, work, seed, photons=PHOTONS, bits=None, demosaic=Fals
                                    table_brdf(read_merl(table_path)),
                                    pinhole_camera(256, 256, 1000.0), [point_light([0.03, 0, 0])],
                                    photons=photons, seed=seed,
-                                   post=demosaiced if demosaic else
-                                   (None if bits is None else quantiser(bits)))
+                                   post=phone_jpeg(jpeg) if jpeg else demosaiced if demosaic
+                                   else (None if bits is None else quantiser(bits)))
     seg = segment_samples(collect_samples(capture.load_scene(folder), ExtractOptions()))
     return int(seg.k), seg.criterion
 
@@ -118,6 +137,8 @@ def main(argv=None):
     ap.add_argument("--photons", type=int, default=PHOTONS, help="Poisson noise at the mean pixel")
     ap.add_argument("--bits", type=int, default=None, help="quantise the photo to this many bits")
     ap.add_argument("--demosaic", action="store_true", help="through a Bayer mosaic and back")
+    ap.add_argument("--jpeg", type=int, default=None, metavar="QUALITY",
+                    help="demosaiced, then an 8-bit gamma-2.2 JPEG of this quality")
     ap.add_argument("--pairs", type=int, default=0,
                     help="instead: this many seeded random pairs of tables on a sphere's halves")
     ap.add_argument("--out", default="segment_sweep", help="results name in benchmarks/results")
@@ -126,6 +147,7 @@ def main(argv=None):
     work.mkdir(parents=True, exist_ok=True)
     result = {"command": "python benchmarks/segment_sweep.py " + " ".join(argv or sys.argv[1:]),
               "photons": args.photons, "bits": args.bits, "demosaic": args.demosaic,
+              "jpeg": args.jpeg,
               "folders": {}}
     start = time.perf_counter()
     if args.pairs:
@@ -135,7 +157,7 @@ def main(argv=None):
         rows = {}
         for i, path in enumerate(tables):
             k, criterion = material_k(path, work, seed=i, photons=args.photons, bits=args.bits,
-                                      demosaic=args.demosaic)
+                                      demosaic=args.demosaic, jpeg=args.jpeg)
             rows[path.stem] = {"k": k, "criterion": criterion if k != 1 else None}
             print(f"{path.stem}: K = {k}", flush=True)
         result["folders"][folder] = rows
@@ -147,6 +169,8 @@ def main(argv=None):
              f"{args.photons}-photon noise"
              + (f", quantised to {args.bits} bits of the 99th-percentile pixel" if args.bits else "")
              + (", through a Bayer mosaic and bilinear demosaicing" if args.demosaic else "")
+             + (f", demosaiced, then an 8-bit gamma-2.2 JPEG of quality {args.jpeg} (top 1% "
+                "clipped)" if args.jpeg else "")
              + "; K must be 1.", "",
              "| folder | tables | K = 1 | split (K) |", "|---|---|---|---|"]
     for folder, rows in result["folders"].items():
