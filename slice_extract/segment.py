@@ -483,8 +483,9 @@ def _cluster(rho, theta_h, options, check=None):
     # in the criterion is then the neighbours' too
     log_test, bins_test = (log_rho, bins) if check is None else \
         (_log_rho(check[0], floor)[0], _bins(check[1]))
-    one = _residuals(log_test, bins_test,
-                     _slices(log_test, bins_test, np.zeros(n, int), 1))[:, 0].mean()
+    # how badly one slice for the whole object explains each sample (the explained test's base)
+    single = _residuals(log_test, bins_test,
+                        _slices(log_test, bins_test, np.zeros(n, int), 1))[:, 0]
     k = len(groups)
     for _ in range(options.max_materials):  # refine, merge look-alikes, until nothing merges
         labels, k = _refine(log_rho, bins, labels, k, options)
@@ -496,8 +497,6 @@ def _cluster(rho, theta_h, options, check=None):
     criterion["alike_merged_k"] = int(k)
     # each material but the largest must be explained clearly better by its own slice than by
     # the one-slice model; one that is not is given back to the others
-    single = _residuals(log_test, bins_test,
-                        _slices(log_test, bins_test, np.zeros(n, int), 1))[:, 0]
     ratios = {}
     while k > 1:
         tested = _residuals(log_test, bins_test, _slices(log_test, bins_test, labels, k))
@@ -515,7 +514,7 @@ def _cluster(rho, theta_h, options, check=None):
         residual[:, worst] = np.inf
         labels = np.unique(residual.argmin(axis=1), return_inverse=True)[1]
         k -= 1
-    criterion.update(residual_one=float(one), explained=options.explained,
+    criterion.update(residual_one=float(single.mean()), explained=options.explained,
                      own_vs_one_slice=ratios, final_k=int(k))
     if k == 1 and not ratios:
         criterion["reason"] = "the clusters' slices agree: one material"
