@@ -19,6 +19,7 @@ from brdf.atomic import write_text
 from brdf.errors import InputError
 from brdf.merl import read_merl
 from pipeline.albedo_files import albedo_sidecars, read_albedo
+from pipeline.cmd_segment import faces_path, flash_photo_camera
 from pipeline.safety import check_outputs, staged_output_dir
 from render.albedo_map import DiffuseAlbedoMap
 from render.brdf_models import TabulatedBRDF
@@ -56,22 +57,12 @@ def brdf_paths(text):
 def side_inputs(labels_png=None, albedo_exr=None):
     """The files `--labels LABELS.png` and `--albedo ALBEDO.exr` read beside them (LABELS.png,
     LABELS.faces.npy; ALBEDO.exr, ALBEDO.json, ALBEDO.faces.npy): inputs no output may touch."""
-    from pipeline.cmd_segment import faces_path  # it imports this module: a cycle
     found = []
     if labels_png:
         found += [labels_png, faces_path(labels_png)]
     if albedo_exr:
         found += [albedo_exr, *albedo_sidecars(albedo_exr)]
     return found
-
-
-def flash_photo_camera(scene, where):
-    """The first flash photo's camera (the pixel grid of labels and albedo maps)."""
-    flash = scene.photos_with_role("flash")
-    if not flash:
-        raise InputError(f"{scene.json_path}: photos", f"{where} needs the flash photo's camera: "
-                                                       "no photo has role 'flash'")
-    return flash[0].camera
 
 
 def render(args):

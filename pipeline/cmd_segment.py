@@ -18,7 +18,6 @@ import capture
 from brdf.atomic import atomic_path
 from brdf.errors import InputError
 from capture import load_mesh
-from pipeline.cmd_render import flash_photo_camera
 from pipeline.safety import check_outputs
 from slice_extract.extract import ExtractOptions, collect_samples
 from slice_extract.segment import check_labels, face_labels, segment_samples
@@ -37,6 +36,15 @@ def materials_option(text):
         raise InputError("--materials", f"expected auto or a number of materials 1..64, got "
                                         f"{text!r}")
     return k
+
+
+def flash_photo_camera(scene, where):
+    """The first flash photo's camera (the pixel grid of labels and albedo maps)."""
+    flash = scene.photos_with_role("flash")
+    if not flash:
+        raise InputError(f"{scene.json_path}: photos", f"{where} needs the flash photo's camera: "
+                                                       "no photo has role 'flash'")
+    return flash[0].camera
 
 
 def faces_path(labels_png):
