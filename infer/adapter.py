@@ -22,7 +22,7 @@ from infer.blas import one_blas_thread
 from infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
 from infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_combination
 from infer.row_blend import ROW_BLEND_DEG, RowBlendSpace, blend_toward_row
-from infer.slice_fit import SLICE_FIT_WEIGHT, convex_slice_weights, mixed_weights
+from infer.slice_fit import SLICE_FIT_WEIGHT, convex_slice_weights, mixed_weights, slice_fit_share
 from infer.slices import check_slice
 from infer.uncertainty import mixture_spread, weights_disagreement
 
@@ -169,7 +169,8 @@ class DSGPLVMMethod(InferenceMethod):
 
     def _weight_parts(self, feats, view):
         """(the GP's weights (N,) over the training rows, summing to 1; its per-dimension predictive
-        variance in feature units²; the slice fit's weights (N,), or None when not used)."""
+        variance in feature units²; the slice fit's weights (N,), or None when not used; the
+        slice's novelty, DSGPLVM.novelty)."""
         if self.latent == "backprojection":
             w, var = self.model_.predict_weights(feats, view=view)
         else:
@@ -182,16 +183,19 @@ class DSGPLVMMethod(InferenceMethod):
             src = self.model_.view_data_[self.model_.source_view]
             y = (np.asarray(feats, float)[src.keep] - src.mean[src.keep]) / src.scale
             fit = convex_slice_weights(src.data, y)
-        return w, var, fit
+        return w, var, fit, self.model_.novelty(feats)
 
     def _weights(self, feats, view):
         """(weights (N,) over the training rows, summing to 1; the GP's per-dimension predictive
-        variance in feature units²): the GP's weights, mixed with the slice fit's (slice_fit)."""
+        variance in feature units²): the GP's weights, mixed with the slice fit's (slice_fit; all
+        the slice fit's past the out-of-training threshold, infer.slice_fit.slice_fit_share)."""
         return self._mix(self._weight_parts(feats, view))
 
     def _mix(self, parts):
-        w, var, fit = parts
-        return (w if fit is None else mixed_weights(w, fit, self.slice_fit)), var
+        w, var, fit, novelty = parts
+        if fit is None:
+            return w, var
+        return mixed_weights(w, fit, slice_fit_share(novelty, self.slice_fit)), var
 
     def _combination_variance(self, parts):
         """(D_kept,) in feature units², for the anchored method: the spread of the 2D tables the
@@ -199,7 +203,7 @@ class DSGPLVMMethod(InferenceMethod):
         None for the paper's method, whose variance is the GP's alone."""
         if not self.anchor or self.rows_2d_ is None:
             return None
-        w_gp, _, fit = parts
+        w_gp, _, fit, _ = parts
         w, _ = self._mix(parts)
         out = mixture_spread(w, self.rows_2d_, self.rows_2d_squared_)
         if fit is not None:
@@ -236,7 +240,7 @@ class DSGPLVMMethod(InferenceMethod):
         # growing: widen the intervals by the squared novelty (distance over the training
         # slices' own 99th-percentile spacing) beyond 1. On RGL (NBRDF proxy), with the shipped
         # MERL-only model, this took 90% coverage from 70.6% to 80.0% (benchmarks/generalisation.py).
-        var *= max(1.0, self.model_.novelty(feats)) ** 2
+        var *= max(1.0, parts[3]) ** 2
         var[invalid] = np.nan
         return table, var
 
