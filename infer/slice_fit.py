@@ -62,9 +62,8 @@ def slice_fit_share(novelty, share=SLICE_FIT_WEIGHT):
     the slice's; the warning then also says which prediction the user got. Measured (2D LAB-log
     mean / median, README "Generalisation"): RGL (NBRDF proxy) from a MERL-only model, 18 of 22
     slices past the threshold, 12.99 / 12.42 → 11.51 / 9.73 (noll 11.62 / 10.02); held-out MERL
-    (NBRDF proxy), 0 of 60 past it, unchanged. The GP's weights still enter the variance
-    (infer.uncertainty.weights_disagreement at `share`): their disagreement with the fit is what
-    the switch stops averaging, not what it resolves."""
+    (NBRDF proxy), 0 of 60 past it, unchanged. The variance stays the λ = `share` combination's
+    (DSGPLVMMethod._combination_variance): the switch moves the mean, not what is known."""
     if novelty is not None and np.isfinite(novelty) and novelty > OUT_OF_TRAINING_NOVELTY:
         return 1.0
     return share

@@ -110,6 +110,5 @@ def test_an_out_of_training_slice_is_predicted_by_the_slice_fit_alone(materials,
     ok = np.isfinite(got_out).all(-1)
     # the two weight vectors differ there: the λ = 0.5 mixture moves ln ρ by more than 1%
     assert np.nanmax(np.abs(np.log((mixed_out[ok] + 1e-3) / (got_out[ok] + 1e-3)))) > 0.01
-    # the GP-vs-fit disagreement stays in the variance at the nominal share
-    fin = np.isfinite(var_out)
-    assert np.all(var_out[fin] > 0)
+    # the switch moves the mean only: the variance is the λ = 0.5 combination's, bit for bit
+    np.testing.assert_array_equal(var_out, var_mixed)
