@@ -71,7 +71,8 @@ class DSGPLVMMethod(InferenceMethod):
     the 2D prediction, so both views agree.
     slice_fit: our addition, applied with anchor=True: the share λ of the prediction's weights over
     the training tables that comes from a direct convex fit of the training slices to the observed
-    one rather than from the GP (infer.slice_fit; 0: the GP's weights alone, as in the paper).
+    one rather than from the GP (infer.slice_fit; 0: the GP's weights alone, as in the paper);
+    all of them for a slice past the out-of-training threshold (infer.slice_fit.slice_fit_share).
     A DSGPLVM trained before (read from a model file) is used through `from_model`, not `fit`.
     """
     name = "dsgplvm"
