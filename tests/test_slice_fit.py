@@ -1,6 +1,7 @@
 """Slice-fit weights (infer.slice_fit) and their use in the DS-GPLVM's prediction: known mixtures are
-recovered, the weights stay convex off the training hull, and a material that is an exact mixture of
-training materials is predicted exactly when the weights come from the fit alone."""
+recovered, the weights stay convex off the training hull, a material that is an exact mixture of
+training materials is predicted exactly when the weights come from the fit alone, and a slice past
+the out-of-training threshold is predicted by the fit alone."""
 
 import numpy as np
 import pytest
@@ -8,7 +9,9 @@ import pytest
 from brdf import colour
 from infer import DSGPLVMMethod
 from infer.adapter import table_features
-from infer.slice_fit import convex_slice_weights, mixed_weights
+import infer.adapter
+from infer.slice_fit import (OUT_OF_TRAINING_NOVELTY, convex_slice_weights, mixed_weights,
+                             slice_fit_share)
 from tests.test_infer_baselines import ap_material, training_set
 
 
@@ -74,3 +77,38 @@ def test_a_material_mixed_from_training_materials_is_predicted_exactly_by_the_fi
         method.model_, materials, **(method.get_params() | {"slice_fit": 0.0})).predict(
         flash_slice, "2d")[0], rtol=1e-12)
 
+
+
+def test_the_share_is_the_fit_alone_past_the_out_of_training_threshold_only():
+    assert OUT_OF_TRAINING_NOVELTY == 1.0          # the threshold of infer's warning
+    for novelty in (0.0, 0.3, 1.0, None, float("nan")):  # inside, at the threshold, unknown
+        assert slice_fit_share(novelty, 0.5) == 0.5
+    for novelty in (1.0001, 1.5, 40.0):
+        assert slice_fit_share(novelty, 0.5) == 1.0
+    assert slice_fit_share(2.0, 0.0) == 1.0        # even a GP-only share switches (the caller
+                                                   # then has no fit: anchor=False never asks)
+
+
+def test_an_out_of_training_slice_is_predicted_by_the_slice_fit_alone(materials, monkeypatch):
+    """A training material's own slice (novelty 0) keeps the λ = 0.5 mixture; the same slice with
+    its channels scaled 30× and 1/30× lies far outside the six materials (novelty > 1) and is
+    predicted exactly as with slice_fit = 1, which differs from the λ = 0.5 mixture."""
+    method = DSGPLVMMethod(max_cycles=3, anchor=True, feature_space="rgb",
+                           row_blend_deg=0.0).fit(materials)
+    inside = materials.slices[2]
+    outside = inside * np.array([30.0, 1.0, 1.0 / 30.0])
+    assert method.novelty(inside) < 1.0 < method.novelty(outside)
+    fit_alone = method.set_params(slice_fit=1.0)
+    want_out = fit_alone.predict(outside, "2d")[0]
+    method.set_params(slice_fit=0.5)
+    got_out, var_out = method.predict(outside, "2d")
+    np.testing.assert_allclose(got_out, want_out, rtol=1e-12)   # same weights, same arithmetic
+    got_in = method.predict(inside, "2d")[0]
+    monkeypatch.setattr(infer.adapter, "slice_fit_share", lambda novelty, share: share)
+    np.testing.assert_array_equal(method.predict(inside, "2d")[0], got_in)  # inside: no change
+    mixed_out, var_mixed = method.predict(outside, "2d")
+    ok = np.isfinite(got_out).all(-1)
+    # the two weight vectors differ there: the λ = 0.5 mixture moves ln ρ by more than 1%
+    assert np.nanmax(np.abs(np.log((mixed_out[ok] + 1e-3) / (got_out[ok] + 1e-3)))) > 0.01
+    # the switch moves the mean only: the variance is the λ = 0.5 combination's, bit for bit
+    np.testing.assert_array_equal(var_out, var_mixed)
