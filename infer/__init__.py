@@ -16,6 +16,7 @@ from infer.estimator import InferenceMethod
 from infer.training_set import TrainingSet
 from infer.model_file import load_method, read_model, save_model
 from infer.relative import RelativeDSGPLVMMethod
+from infer.slice_fit import OUT_OF_TRAINING_NOVELTY
 
 
 def dsgplvm_method(representation="absolute", **params):
@@ -48,7 +49,7 @@ def novelty_warning(method, flash_slice, source="slice"):
     seen = np.isfinite(rho).all(axis=1)
     score = method.novelty(rho)
     reasons = []
-    if score is not None and np.isfinite(score) and score > 1.0:
+    if score is not None and np.isfinite(score) and score > OUT_OF_TRAINING_NOVELTY:
         reasons.append(f"novelty {score:.2f}: farther from every training slice than 99% of them "
                        f"are from their nearest neighbour")
     theta_h = np.degrees(merl.theta_h_centres())
