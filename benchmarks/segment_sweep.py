@@ -1,8 +1,8 @@
 """Does `segment --materials auto` keep every single-material object whole? A sweep over whole sets.
 
     nice -n 10 python benchmarks/segment_sweep.py --merl-dir /work/data/merl [--merl-dir /work/data/rgl]
-        [--photons N] [--bits B] [--demosaic] [--jpeg Q] [--pairs N] [--out NAME] [--work DIR]
-        [--limit N]
+        [--photons N] [--bits B] [--demosaic] [--jpeg Q] [--pairs N [--pair-seed S]] [--out NAME]
+        [--work DIR] [--limit N]
 
 Every table of each folder (MERL (NBRDF proxy), RGL (NBRDF proxy)) is rendered as one material on the
 harder single-material scene of tests/test_segment_single_material.py: a sphere (r = 7 cm) behind a
@@ -141,6 +141,8 @@ def main(argv=None):
                     help="demosaiced, then an 8-bit gamma-2.2 JPEG of this quality")
     ap.add_argument("--pairs", type=int, default=0,
                     help="instead: this many seeded random pairs of tables on a sphere's halves")
+    ap.add_argument("--pair-seed", type=int, default=0,
+                    help="seed of the pair draw (0: the committed set; others: held-out sets)")
     ap.add_argument("--out", default="segment_sweep", help="results name in benchmarks/results")
     args = ap.parse_args(argv)
     work = args.work or Path(tempfile.mkdtemp(prefix="segment_sweep_"))
@@ -185,11 +187,13 @@ def main(argv=None):
 def _pairs(args, work, result, start):
     """The --pairs sweep: K = 2 expected wherever the two slices differ by >= 0.1."""
     tables = sorted(p for folder in args.merl_dir for p in Path(folder).glob("*.binary"))
-    rng = np.random.default_rng(0)
+    rng = np.random.default_rng(args.pair_seed)
     rows = []
     for i in range(args.pairs):
         pair = [tables[j] for j in rng.choice(len(tables), 2, replace=False)]
-        row = {"tables": [p.stem for p in pair], **pair_result(pair, work, i, args.photons)}
+        noise_seed = i + 1000 * args.pair_seed  # seed 0 keeps the committed set's noise
+        row = {"tables": [p.stem for p in pair],
+               **pair_result(pair, work, noise_seed, args.photons)}
         rows.append(row)
         print(row, flush=True)
     result.update(pairs=rows, seconds=time.perf_counter() - start)

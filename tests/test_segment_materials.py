@@ -112,6 +112,29 @@ def test_relit_with_inferred_brdfs_is_within_1_3_of_the_known_ones(two_materials
     assert swapped_de > 3 * 1.3 * known_de
 
 
+def test_auto_keeps_a_photon_starved_black_beside_a_bright_wood(merl_proxy, tmp_path):
+    """Two materials that share the theta_h bins about equally (the sphere's two halves), one of
+    them black-obsidian (rho ~1e-4, a few photons a pixel): one slice for the object then
+    follows whichever holds more samples in each bin and fits half the black's samples as well
+    as their own slice does, so the black's own test alone gave 0.63-0.65 against 0.6 on noise
+    seeds 0-5 (K = 1), while the wood, its partner, fits its own slice 0.03 x as badly as the
+    two's joint one. K must be 2, with the issue's 98% of object pixels labelled right
+    (measured 98.5%: the black half's zero-photon pixels take the nearest label)."""
+    tables = [read_merl(p) for p in merl_proxy("black-obsidian", "pickled-oak-260")]
+    mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
+    folder = write_synthetic_scene(tmp_path / "scene", mesh,
+                                   by_region([table_brdf(t) for t in tables], _region), cam,
+                                   [point_light([0.03, 0, 0])], photons=PHOTONS, seed=0)
+    out = tmp_path / "labels.png"
+    assert main(["segment", str(folder), "--out", str(out)]) == 0
+    labels = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
+    truth = region_image(mesh, cam, _region)
+    on = truth > 0
+    assert labels.max() == 2
+    right = max(np.mean(labels[on] == truth[on]), np.mean(labels[on] == 3 - truth[on]))
+    assert right >= 0.98
+
+
 def test_auto_picks_one_material_on_the_sample_capture(tmp_path):
     from pathlib import Path
     sample = Path(__file__).resolve().parents[1] / "sample_data" / "capture"
