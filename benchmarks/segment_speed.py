@@ -51,9 +51,12 @@ def main(argv=None):
     lobe = 2.0 * np.cos(theta_h) ** 200
     rho = np.where(red[:, None], [0.20, 0.05, 0.03], [0.03, 0.06, 0.18]) + lobe[:, None] * 0.5
     rho = rho * (1 + 0.02 * rng.standard_normal(rho.shape))
+    # the photo (the resolution floor reads it): rho cos(theta_i), theta_i = theta_h at the flash
+    radiance = np.zeros((height, width, 3), np.float32)
+    radiance[mask] = rho * np.cos(theta_h)[:, None]
     samples = SimpleNamespace(rho=rho, theta_h=theta_h, pixels=np.flatnonzero(mask),
                               photo=np.zeros(len(rho), int), censored=np.zeros(len(rho), bool),
-                              shape=(height, width), object_mask=mask)
+                              shape=(height, width), object_mask=mask, radiance=radiance)
     walls, cpus = [], []
     for _ in range(args.repeats):
         start, cpu = time.perf_counter(), time.process_time()

@@ -24,58 +24,15 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from benchmarks._real_common import RESULTS, write_json  # noqa: E402
+from synthetic import demosaiced, phone_jpeg, quantiser  # noqa: E402
 
 PHOTONS = 2000
 
 
-def quantiser(bits):
-    """post hook for tests/synthetic.write_synthetic_scene: the photo quantised in steps of
-    1/(2^bits - 1) of the 99th percentile of its positive channel values (object and occluder):
-    the step an exposure that keeps the body in range would have. Unlike a real 8-bit photo the
-    top 1% (the highlight) is not clipped: it keeps its value, quantised in the same steps."""
-    levels = 2 ** bits - 1
-
-    def post(image, _):
-        image = np.asarray(image)
-        lit = image[image > 0]
-        white = float(np.percentile(lit, 99)) if lit.size else 1.0
-        return np.round(image / white * levels) / levels * white
-    return post
-
-
-def demosaiced(image, _):
-    """post hook: the photo sampled through an RGGB Bayer mosaic and demosaiced bilinearly
-    (OpenCV), as a camera's developed photo is: adjacent pixels then share noise."""
-    import cv2
-    image = np.asarray(image, np.float32)
-    scale = float(image.max()) or 1.0
-    mosaic = np.zeros(image.shape[:2], np.float32)
-    mosaic[0::2, 0::2] = image[0::2, 0::2, 0]     # R
-    mosaic[0::2, 1::2] = image[0::2, 1::2, 1]     # G
-    mosaic[1::2, 0::2] = image[1::2, 0::2, 1]     # G
-    mosaic[1::2, 1::2] = image[1::2, 1::2, 2]     # B
-    # OpenCV names Bayer patterns from the second row; its output is BGR
-    code = np.clip(mosaic / scale * 65535, 0, 65535).astype(np.uint16)
-    bgr = cv2.cvtColor(code, cv2.COLOR_BayerBG2BGR).astype(np.float64) / 65535 * scale
-    return bgr[..., ::-1]
-
-
-def phone_jpeg(quality):
-    """post hook: demosaiced (demosaiced), then stored as a phone stores it: gamma 1/2.2 on the
-    99th-percentile pixel's scale, 8 bits, JPEG at `quality` (OpenCV), read back and linearised
-    with (x/255)^2.2 (as the planar cards' photos are); the top 1% clips at 255."""
-    import cv2
-
-    def post(image, k):
-        image = demosaiced(image, k)
-        lit = image[image > 0]
-        white = float(np.percentile(lit, 99)) if lit.size else 1.0
-        code = np.clip(np.round((np.clip(image / white, 0, 1) ** (1 / 2.2)) * 255), 0, 255)
-        ok, data = cv2.imencode(".jpg", code[..., ::-1].astype(np.uint8),
-                                [cv2.IMWRITE_JPEG_QUALITY, quality])
-        decoded = cv2.imdecode(data, cv2.IMREAD_COLOR)[..., ::-1].astype(np.float64)
-        return (decoded / 255) ** 2.2 * white
-    return post
+def camera_post(bits=None, demosaic=False, jpeg=None):
+    """The post hook (tests/synthetic.py) for the sweep's camera options, or None."""
+    return (phone_jpeg(jpeg) if jpeg else demosaiced if demosaic
+            else None if bits is None else quantiser(bits))
 
 
 def material_k(table_path, work, seed, photons=PHOTONS, bits=None, demosaic=False, jpeg=None):
@@ -91,13 +48,12 @@ def material_k(table_path, work, seed, photons=PHOTONS, bits=None, demosaic=Fals
                                    table_brdf(read_merl(table_path)),
                                    pinhole_camera(256, 256, 1000.0), [point_light([0.03, 0, 0])],
                                    photons=photons, seed=seed,
-                                   post=phone_jpeg(jpeg) if jpeg else demosaiced if demosaic
-                                   else (None if bits is None else quantiser(bits)))
+                                   post=camera_post(bits, demosaic, jpeg))
     seg = segment_samples(collect_samples(capture.load_scene(folder), ExtractOptions()))
     return int(seg.k), seg.criterion
 
 
-def pair_result(paths, work, seed, photons=PHOTONS):
+def pair_result(paths, work, seed, photons=PHOTONS, post=None):
     """{"k", "accuracy", "slice_gap"} for two MERL tables on the two halves of a sphere: K chosen
     by auto; where K = 2, the share of object pixels whose label is their true half under the
     better of the two one-to-one matchings of labels to halves (None for another K); and the
@@ -115,7 +71,8 @@ def pair_result(paths, work, seed, photons=PHOTONS):
     mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
     folder = write_synthetic_scene(work / f"pair_{seed:03d}", mesh,
                                    by_region([table_brdf(t) for t in tables], half), cam,
-                                   [point_light([0.03, 0, 0])], photons=photons, seed=seed)
+                                   [point_light([0.03, 0, 0])], photons=photons, seed=seed,
+                                   post=post)
     seg = segment_samples(collect_samples(capture.load_scene(folder), ExtractOptions()))
     truth = region_image(mesh, cam, half)
     both = (truth > 0) & (seg.labels > 0)
@@ -193,7 +150,8 @@ def _pairs(args, work, result, start):
         pair = [tables[j] for j in rng.choice(len(tables), 2, replace=False)]
         noise_seed = i + 1000 * args.pair_seed  # seed 0 keeps the committed set's noise
         row = {"tables": [p.stem for p in pair],
-               **pair_result(pair, work, noise_seed, args.photons)}
+               **pair_result(pair, work, noise_seed, args.photons,
+                             camera_post(args.bits, args.demosaic, args.jpeg))}
         rows.append(row)
         print(row, flush=True)
     result.update(pairs=rows, seconds=time.perf_counter() - start)
@@ -202,10 +160,13 @@ def _pairs(args, work, result, start):
     found = [r for r in distinct if r["k"] == 2]
     lines = ["# `segment --materials auto` on two-material spheres, seeded random pairs", "",
              f"Command: `{result['command']}` ({result['seconds']:.0f} s). Two tables on the halves "
-             f"of a sphere, flash 3 cm off the lens, {args.photons}-photon noise.", "",
+             f"of a sphere, flash 3 cm off the lens, {args.photons}-photon noise"
+             + (f", quantised to {args.bits} bits" if args.bits else "")
+             + (", demosaiced" if args.demosaic else "")
+             + (f", a phone's JPEG of quality {args.jpeg}" if args.jpeg else "") + ".", "",
              f"- pairs: {len(rows)}; with a slice gap >= 0.1 (distinct by the segmenter's own "
              f"measure): {len(distinct)}; of those K = 2: {len(found)}",
-             f"- label accuracy where K = 2 (median, worst): "
+             "- label accuracy where K = 2 (median, worst): "
              + (f"{np.median([r['accuracy'] for r in found]):.4f}, "
                 f"{min(r['accuracy'] for r in found):.4f}" if found else "–"), "",
              "| pair | slice gap | K | accuracy |", "|---|---|---|---|"]

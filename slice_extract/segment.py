@@ -29,7 +29,9 @@ What separates materials is what the photo says about the material, not about sh
   slice at most `explained`/2 times as badly as by the two's joint slice (_partner_ratio).
   This test and the alike merge read, for each pixel of the work subsample, the sample 2 px away
   (neighbour_samples) under the pixel's label, so the noise that chose a label is not read back
-  as a difference.
+  as a difference; and they read ln rho above the photo's resolution floor (resolution_floor:
+  where an 8-bit or JPEG file holds a channel in a few codes), so quantisation and block
+  errors in a metal's dark pixels are not read as colour.
 - the last assignment of every pixel (_assign_all) first takes off a flash-coloured (white)
   highlight term where the pixel is brighter than a coloured material's slice (_added_white,
   dichromatic model): a foil's highlight no longer passes for a paler material.
@@ -65,6 +67,10 @@ GREY_SPREAD = 0.1
 # that channel at the log floor, where ln rho measures the floor, not the pixel (planar cards:
 # labels in their all-view cluster 96.2% with 1.0, 96.8% with 0.9; results/cards_labels.md)
 WHITE_CAP = 0.9
+# a photo resolves a value when the step to its next level is at most this share of it
+# (resolution_floor). 20%: 10% (the alike threshold) took pot2's 8-bit linear materials to a
+# slice gap of 0.14 against 0.1 (0.34 without the floor); 30% left a phone-JPEG nickel split
+RESOLVED_GAP = 0.2
 
 
 @dataclass(frozen=True)
@@ -156,6 +162,36 @@ def specular_lobe_bins(log_total, bins, rise=np.log(1.5)):
         elif np.isfinite(median[i]):
             break
     return lobe, median
+
+
+def resolution_floor(rho, values, resolved=RESOLVED_GAP):
+    """Brightness (rho channel sum, 1/sr) below which the photo does not resolve a sample: per
+    channel, the lowest of the photo's levels (its distinct values among the samples) from which
+    on the step to the next level is at most `resolved` of the level, summed over the channels
+    and taken to rho by the samples' median rho / pixel ratio. rho (N, 3) the samples (a
+    subsample of ~50,000 is enough), values (N, 3) their pixels in the photo. An 8-bit gamma file (a phone's JPEG) resolves 20% from
+    code ~11 (~0.1% of its white), an 8-bit linear one from code 5 (2%), photon counts from 5
+    photons; a float photo (distinct values all through) gives 0. Why: below it a channel is a few
+    codes, and a JPEG's block error or the rounding of a code moves it by tens of per cent, so
+    dark pixels of one metal took different colours and split it (phone-JPEG sweep: chrome,
+    nickel, tungsten-carbide; benchmarks/results/segment_sweep_jpeg90.md)."""
+    values = np.asarray(values, float)
+    total = values.sum(axis=1)
+    lit = total > 0
+    if not lit.any():
+        return 0.0
+    floor = 0.0
+    for c in range(3):
+        levels = np.unique(values[:, c][values[:, c] > 0])
+        if len(levels) < 2:
+            continue
+        fine = np.flatnonzero(np.diff(levels) <= resolved * levels[:-1])
+        if not len(fine):      # no level resolved: the channel is coarse throughout
+            floor += levels[-1]
+        elif fine[0] > 0:      # coarse below levels[fine[0]]; a float photo is fine from its
+            floor += levels[fine[0]]  # lowest value on and adds nothing
+    ratio = rho.sum(axis=1)[lit] / total[lit]
+    return floor * float(np.median(ratio))
 
 
 def material_features(rho, theta_h):
@@ -364,7 +400,7 @@ def neighbour_samples(pixels, shape, which=None, distance=1):
     return out
 
 
-def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None):
+def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None, at_least=0.0):
     """Material of each sample: (labels (N,) int 0..K-1, K, criterion dict).
 
     rho (N, 3) 1/sr, finite; theta_h (N,) radians. See the module docstring for the method.
@@ -378,7 +414,7 @@ def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None):
     label. Read on the samples the labels were
     chosen from, the noise that chose them passes for a difference of materials (near-black
     pixels of chrome-steel and of a dark blue car paint split off,
-    benchmarks/results/segment_sweep.md).
+    benchmarks/results/segment_sweep.md). at_least: the photo's resolution_floor.
     """
     options = options or SegmentOptions()
     n = len(rho)
@@ -388,7 +424,7 @@ def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None):
     if pixels is not None:
         neighbours = neighbour_samples(pixels, shape, pick, options.neighbour_px)
         check = (rho[neighbours], theta_h[neighbours])
-    labels, k, criterion = _cluster(rho[pick], theta_h[pick], options, check)
+    labels, k, criterion = _cluster(rho[pick], theta_h[pick], options, check, at_least)
     criterion.update(samples=int(n), work_samples=int(len(pick)))
     if k == 1:
         return np.zeros(n, int), 1, criterion
@@ -446,7 +482,7 @@ def _assign_all(rho, theta_h, pick, labels, k):
     return out
 
 
-def _cluster(rho, theta_h, options, check=None):
+def _cluster(rho, theta_h, options, check=None, at_least=0.0):
     """cluster_samples on the samples given, all of them; check: (rho, theta_h) of the samples'
     neighbours, which the alike and explained tests read (None: the samples themselves)."""
     from sklearn.mixture import GaussianMixture  # lazy: +2.4 s on every import of slice_extract
@@ -482,9 +518,12 @@ def _cluster(rho, theta_h, options, check=None):
     log_rho, _, floor = _log_rho(rho)
     bins = _bins(theta_h)
     # the tests read the neighbours (same floor: one brightness scale for both); residual_one
-    # in the criterion is then the neighbours' too
-    log_test, bins_test = (log_rho, bins) if check is None else \
-        (_log_rho(check[0], floor)[0], _bins(check[1]))
+    # in the criterion is then the neighbours' too. They read ln rho above the photo's
+    # resolution floor when it is the higher: what a coarse photo does not resolve is no
+    # evidence of a material (resolution_floor)
+    test_floor = max(floor, at_least)
+    log_test, bins_test = (_log_rho(rho, test_floor)[0], bins) if check is None else \
+        (_log_rho(check[0], test_floor)[0], _bins(check[1]))
     # how badly one slice for the whole object explains each sample (the explained test's base)
     single = _residuals(log_test, bins_test,
                         _slices(log_test, bins_test, np.zeros(n, int), 1))[:, 0]
@@ -684,7 +723,10 @@ def _segment_samples(samples, materials, options):
     if not len(rho):  # nothing to segment: the error extracting a slice would give
         raise samples.no_sample_error()
     if materials == "auto":
-        labels, k, criterion = cluster_samples(rho, theta_h, options, pixels, samples.shape)
+        every = slice(None, None, max(1, len(rho) // 50000))  # no 12-MP gather for a floor
+        at_least = resolution_floor(rho[every], samples.radiance.reshape(-1, 3)[pixels[every]])
+        labels, k, criterion = cluster_samples(rho, theta_h, options, pixels, samples.shape,
+                                               at_least)
     else:
         k = int(materials)
         if k > 1 and len(rho) < 2 * k:  # a K-component mixture needs 2K samples at least

@@ -268,6 +268,58 @@ def write_png16(path, image, white=1.0):
     cv2.imwrite(str(path), codes[..., ::-1])
 
 
+# camera post hooks for write_synthetic_scene(post=...): what a camera's file does to a photo
+def quantiser(bits):
+    """post hook for tests/synthetic.write_synthetic_scene: the photo quantised in steps of
+    1/(2^bits - 1) of the 99th percentile of its positive channel values (object and occluder):
+    the step an exposure that keeps the body in range would have. Unlike a real 8-bit photo the
+    top 1% (the highlight) is not clipped: it keeps its value, quantised in the same steps."""
+    levels = 2 ** bits - 1
+
+    def post(image, _):
+        image = np.asarray(image)
+        lit = image[image > 0]
+        white = float(np.percentile(lit, 99)) if lit.size else 1.0
+        return np.round(image / white * levels) / levels * white
+    return post
+
+
+def demosaiced(image, _):
+    """post hook: the photo sampled through an RGGB Bayer mosaic and demosaiced bilinearly
+    (OpenCV), as a camera's developed photo is: adjacent pixels then share noise."""
+    import cv2
+    image = np.asarray(image, np.float32)
+    scale = float(image.max()) or 1.0
+    mosaic = np.zeros(image.shape[:2], np.float32)
+    mosaic[0::2, 0::2] = image[0::2, 0::2, 0]     # R
+    mosaic[0::2, 1::2] = image[0::2, 1::2, 1]     # G
+    mosaic[1::2, 0::2] = image[1::2, 0::2, 1]     # G
+    mosaic[1::2, 1::2] = image[1::2, 1::2, 2]     # B
+    # OpenCV names Bayer patterns from the second row; its output is BGR
+    code = np.clip(mosaic / scale * 65535, 0, 65535).astype(np.uint16)
+    bgr = cv2.cvtColor(code, cv2.COLOR_BayerBG2BGR).astype(np.float64) / 65535 * scale
+    return bgr[..., ::-1]
+
+
+def phone_jpeg(quality):
+    """post hook: demosaiced (demosaiced), then stored as a phone stores it: gamma 1/2.2 on the
+    99th-percentile pixel's scale, 8 bits, JPEG at `quality` (OpenCV), read back and linearised
+    with (x/255)^2.2 (as the planar cards' photos are); the top 1% clips at 255."""
+    import cv2
+
+    def post(image, k):
+        image = demosaiced(image, k)
+        lit = image[image > 0]
+        white = float(np.percentile(lit, 99)) if lit.size else 1.0
+        code = np.clip(np.round((np.clip(image / white, 0, 1) ** (1 / 2.2)) * 255), 0, 255)
+        ok, data = cv2.imencode(".jpg", code[..., ::-1].astype(np.uint8),
+                                [cv2.IMWRITE_JPEG_QUALITY, quality])
+        decoded = cv2.imdecode(data, cv2.IMREAD_COLOR)[..., ::-1].astype(np.float64)
+        return (decoded / 255) ** 2.2 * white
+    return post
+
+
+
 def write_synthetic_scene(folder, mesh, brdf_fn, camera, lights, ambient=0.0, photons=None,
                           seed=0, photo_format="exr", white=None, scale=1.0, shadows=True,
                           mesh_name="object.ply", post=None, ambient_photo=True):

@@ -15,18 +15,20 @@ import pytest
 import capture
 from brdf.merl import read_merl
 from slice_extract.extract import ExtractOptions, collect_samples
-from slice_extract.segment import SegmentOptions, neighbour_samples, segment_samples
-from synthetic import (combine, pinhole_camera, point_light, sphere_mesh, table_brdf, torus_mesh,
-                       write_synthetic_scene)
+from slice_extract.segment import (RESOLVED_GAP, SegmentOptions, neighbour_samples,
+                                   resolution_floor, segment_samples)
+from synthetic import (combine, phone_jpeg, pinhole_camera, point_light, sphere_mesh, table_brdf,
+                       torus_mesh, write_synthetic_scene)
 
 
-def shadowed_samples(table_path, folder, seed):
-    """FlashSamples of one MERL table on the sphere-behind-a-torus scene (module docstring)."""
+def shadowed_samples(table_path, folder, seed, post=None):
+    """FlashSamples of one MERL table on the sphere-behind-a-torus scene (module docstring);
+    post: a camera post hook of tests/synthetic.py."""
     mesh = combine(sphere_mesh(radius=0.07, centre=(0, 0, 1.1)),
                    torus_mesh(centre=(0.0, 0.0, 0.98)))
     folder = write_synthetic_scene(folder, mesh, table_brdf(read_merl(table_path)),
                                    pinhole_camera(256, 256, 1000.0), [point_light([0.03, 0, 0])],
-                                   photons=2000, seed=seed)
+                                   photons=2000, seed=seed, post=post)
     return collect_samples(capture.load_scene(folder), ExtractOptions())
 
 
@@ -59,6 +61,32 @@ def test_near_black_chrome_stays_one_material(merl_proxy, tmp_path):
     samples = shadowed_samples(merl_proxy("chrome-steel"), tmp_path / "chrome", 17)
     seg = segment_samples(samples)
     assert seg.k == 1, seg.criterion
+
+
+@pytest.mark.parametrize("name, seed", [("nickel", 47), ("chrome", 18)])
+def test_a_phone_jpeg_of_a_dark_metal_stays_one_material(merl_proxy, tmp_path, name, seed):
+    # a phone's file (demosaiced, gamma 2.2, 8 bits, JPEG quality 90): a metal is dark but for
+    # its highlights, and there a channel is a few codes, which the JPEG's 8x8 blocks move by
+    # tens of per cent together, so a pixel 2 px away shares the error. Those blocks passed the
+    # explained test (nickel 0.45, chrome 0.54 and 0.60 against 0.6: K = 2 and 3); with the
+    # tests reading ln rho above the photo's resolution floor (resolution_floor: 2^-8 of the
+    # 99th-percentile brightness, an 8-bit file having at most 256 levels) they do not.
+    # Seeds: the ones benchmarks/segment_sweep.py gave these tables (their index in MERL).
+    samples = shadowed_samples(merl_proxy(name), tmp_path / name, seed, post=phone_jpeg(90))
+    seg = segment_samples(samples)
+    assert seg.k == 1, seg.criterion
+
+
+def test_resolution_floor_of_an_8_bit_file_and_of_a_float_photo():
+    # 8-bit linear: levels c/255; the step 1/c is at most RESOLVED_GAP (20%) from c = 5 on, in
+    # each channel, so the floor is 3 x 5/255 in pixel units, times rho / pixel (here 2)
+    assert RESOLVED_GAP == 0.2
+    rng = np.random.default_rng(0)
+    values = rng.integers(0, 256, (20000, 3)) / 255.0
+    assert resolution_floor(2 * values, values) == pytest.approx(2 * 15 / 255, rel=1e-12)
+    # a float photo: 20,000 distinct values a channel, resolved from the lowest on: no floor
+    values = rng.uniform(0.01, 1.0, (20000, 3))
+    assert resolution_floor(2 * values, values) == 0.0
 
 
 def test_neighbour_samples_pick_an_adjacent_sample():
