@@ -169,12 +169,13 @@ def resolution_floor(rho, values, resolved=RESOLVED_GAP):
     channel, the lowest of the photo's levels (its distinct values among the samples) from which
     on the step to the next level is at most `resolved` of the level, summed over the channels
     and taken to rho by the samples' median rho / pixel ratio. rho (N, 3) the samples (a
-    subsample of ~50,000 is enough), values (N, 3) their pixels in the photo. An 8-bit gamma file (a phone's JPEG) resolves 20% from
-    code ~11 (~0.1% of its white), an 8-bit linear one from code 5 (2%), photon counts from 5
-    photons; a float photo (distinct values all through) gives 0. Why: below it a channel is a few
-    codes, and a JPEG's block error or the rounding of a code moves it by tens of per cent, so
-    dark pixels of one metal took different colours and split it (phone-JPEG sweep: chrome,
-    nickel, tungsten-carbide; benchmarks/results/segment_sweep_jpeg90.md)."""
+    subsample of ~50,000 is enough), values (N, 3) their pixels in the photo. An 8-bit gamma
+    file (a phone's JPEG) resolves 20% from code ~11 (~0.1% of its white), an 8-bit linear one
+    from code 5 (2%), photon counts from 5 photons; a float photo (distinct values all
+    through) gives 0. Why: below it a channel is a few codes, and a JPEG's block error or the
+    rounding of a code moves it by tens of per cent, so dark pixels of one metal took
+    different colours and split it (phone-JPEG sweep: chrome, nickel, tungsten-carbide;
+    benchmarks/results/segment_sweep_jpeg90.md)."""
     values = np.asarray(values, float)
     total = values.sum(axis=1)
     lit = total > 0
@@ -522,6 +523,7 @@ def _cluster(rho, theta_h, options, check=None, at_least=0.0):
     # resolution floor when it is the higher: what a coarse photo does not resolve is no
     # evidence of a material (resolution_floor)
     test_floor = max(floor, at_least)
+    criterion["resolution_floor"] = float(at_least)
     log_test, bins_test = (_log_rho(rho, test_floor)[0], bins) if check is None else \
         (_log_rho(check[0], test_floor)[0], _bins(check[1]))
     # how badly one slice for the whole object explains each sample (the explained test's base)
