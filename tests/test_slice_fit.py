@@ -78,7 +78,6 @@ def test_a_material_mixed_from_training_materials_is_predicted_exactly_by_the_fi
         flash_slice, "2d")[0], rtol=1e-12)
 
 
-
 def test_the_share_is_the_fit_alone_past_the_out_of_training_threshold_only():
     assert OUT_OF_TRAINING_NOVELTY == 1.0          # the threshold of infer's warning
     for novelty in (0.0, 0.3, 1.0, None, float("nan")):  # inside, at the threshold, unknown
