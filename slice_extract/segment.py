@@ -609,14 +609,20 @@ def _partner_ratio(log_test, bins_test, labels, j, tested, own):
     return float(own[theirs].mean() / max(joint_residual.mean(), 1e-12))
 
 
+# a patch of a material under this many pixels is speckle whatever the material's shape: the
+# clean-up's floor (clean_label_image)
+MIN_PATCH_PX = 4
+
+
 def clean_label_image(labels, object_mask, min_area_fraction):
     """Spatial clean-up of a label image (H, W) int (0 = no sample) over object_mask (H, W).
 
-    Connected patches smaller than min_area_fraction of the object (at least 4 pixels) are
-    cleared, unless they touch the photo's frame: such a patch continues outside the photo, so
-    its visible area does not say it is noise (an object larger than the frame: the planar
-    cards' scales cut by the frame). Then every object pixel takes the label of the nearest
-    labelled pixel. Labels are renumbered 1..K by decreasing area. Returns (H, W) uint16.
+    Connected patches smaller than min_area_fraction of the object (at least MIN_PATCH_PX
+    pixels) are cleared, unless they touch the photo's frame: such a patch continues outside the
+    photo, so its visible area does not say it is noise (an object larger than the frame: the
+    planar cards' scales cut by the frame). A material that lies mostly in such small patches is
+    a pattern (dots, print), not speckle round a larger region of it, so only its patches under
+    MIN_PATCH_PX go. Then every object pixel takes the label of the nearest labelled pixel. Labels are renumbered 1..K by decreasing area. Returns (H, W) uint16.
     Works on the object's bounding box only (the rest stays 0): the same result, less image.
     """
     object_mask = np.asarray(object_mask, bool)
@@ -636,7 +642,7 @@ def _clean_labels(labels, object_mask, min_area_fraction, object_pixels, frame):
     """clean_label_image on a crop holding the whole object; frame (crop) bool: the photo's
     outermost pixels."""
     labels = labels.astype(np.int32)
-    min_area = max(4, int(min_area_fraction * max(object_pixels, 1)))
+    min_area = max(MIN_PATCH_PX, int(min_area_fraction * max(object_pixels, 1)))
     for k in range(1, int(labels.max()) + 1):
         count, comp, stats, _ = cv2.connectedComponentsWithStats(
             (labels == k).view(np.uint8), connectivity=8)
@@ -646,7 +652,9 @@ def _clean_labels(labels, object_mask, min_area_fraction, object_pixels, frame):
         clear = area < min_area
         clear[0] = False                      # the background of this label's mask
         clear[np.unique(comp[frame])] = False  # cut by the frame: its size is unknown
-        if clear[1:].all():                   # all small: keep the largest
+        if area[1:][clear[1:]].sum() > 0.5 * area[1:].sum():  # a pattern of small patches
+            clear &= area < MIN_PATCH_PX
+        if clear[1:].all():                   # all tiny: keep the largest
             clear[1 + int(np.argmax(area[1:]))] = False
         if clear.any():
             labels[clear[comp]] = 0           # a lookup table: no per-patch pass

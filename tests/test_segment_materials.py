@@ -135,6 +135,32 @@ def test_auto_keeps_a_photon_starved_black_beside_a_bright_wood(merl_proxy, tmp_
     assert right >= 0.98
 
 
+def _dots(points, spacing=0.012, radius=0.004):
+    """1 inside a dot: within `radius` of a point of a cubic lattice of pitch `spacing` (m)."""
+    q = (points - np.array([0, 0, 1.0])) / spacing
+    return (np.linalg.norm(q - np.round(q), axis=1) * spacing < radius).astype(int)
+
+
+def test_a_material_in_small_dots_keeps_its_dots(merl_proxy, tmp_path):
+    """blue-acrylic dots (4 mm radius, ~4 px here, each ~50 px: under the clean-up's 0.2% of
+    the object, 63 px) on red-specular-plastic, 16% of the sphere, with --materials 2. Each dot
+    alone looks like speckle; together they are the material, so the clean-up must keep them.
+    Measured 99.3% of object pixels right; 84.2% before, when every dot but the largest was
+    cleared (the blue then held one dot). 98%: the issue's label target."""
+    tables = [read_merl(p) for p in merl_proxy(*MATERIALS)]
+    mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
+    folder = write_synthetic_scene(tmp_path / "scene", mesh,
+                                   by_region([table_brdf(t) for t in tables], _dots), cam,
+                                   [point_light([0.03, 0, 0])], photons=PHOTONS, seed=0)
+    out = tmp_path / "labels.png"
+    assert main(["segment", str(folder), "--out", str(out), "--materials", "2"]) == 0
+    labels = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
+    truth = region_image(mesh, cam, _dots)
+    on = truth > 0
+    assert labels.max() == 2
+    assert max(np.mean(labels[on] == truth[on]), np.mean(labels[on] == 3 - truth[on])) >= 0.98
+
+
 def test_auto_picks_one_material_on_the_sample_capture(tmp_path):
     from pathlib import Path
     sample = Path(__file__).resolve().parents[1] / "sample_data" / "capture"
