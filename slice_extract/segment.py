@@ -622,7 +622,8 @@ def clean_label_image(labels, object_mask, min_area_fraction):
     photo, so its visible area does not say it is noise (an object larger than the frame: the
     planar cards' scales cut by the frame). A material that lies mostly in such small patches is
     a pattern (dots, print), not speckle round a larger region of it, so only its patches under
-    MIN_PATCH_PX go. Then every object pixel takes the label of the nearest labelled pixel. Labels are renumbered 1..K by decreasing area. Returns (H, W) uint16.
+    MIN_PATCH_PX go. Then every object pixel takes the label of the nearest labelled pixel.
+    Labels are renumbered 1..K by decreasing area. Returns (H, W) uint16.
     Works on the object's bounding box only (the rest stays 0): the same result, less image.
     """
     object_mask = np.asarray(object_mask, bool)
