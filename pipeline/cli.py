@@ -126,6 +126,9 @@ def _parser():
     s.add_argument("--test-dir", metavar="DIR",
                    help="train on every --merl-dir table, score every method on these tables")
     s.add_argument("--render", action="store_true")
+    s.add_argument("--envmap", action="append", metavar="FILE",
+                   help="with --render: a lat-long map for Table 2 (repeat it for several; "
+                        "default pisa, grace and uffizi from ../shared/data/envmaps)")
     s.add_argument("--quick", action="store_true")
     s.add_argument("--experiments", type=int, help="number of experiments (default 25)")
     s.add_argument("--time-budget", type=float, metavar="SECONDS",
