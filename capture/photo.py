@@ -51,10 +51,13 @@ def _to_rgb(img, path):
 
 def read_float_image(path):
     """Read an image through OpenImageIO as float32 (H, W, 3) RGB (channels R, G, B by name when
-    present). InputError naming the file when missing or unreadable."""
+    present); a .pfm through read_pfm, top row first. InputError naming the file when missing or
+    unreadable."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
+    if path.suffix.lower() == ".pfm":  # OpenImageIO gives PFM rows bottom first
+        return read_pfm(path)
     inp = oiio.ImageInput.open(str(path))
     if inp is None:
         raise InputError(path, f"cannot read image: {oiio.geterror() or 'unknown format'}")
