@@ -140,6 +140,10 @@ def _parser():
     s.add_argument("--out", required=True, metavar="DIR")
     s.add_argument("--formats", default="mitsuba,principled,gltf",
                    help="comma-separated, some of mitsuba,principled,gltf (default: all three)")
+    s.add_argument("--envmap", metavar="FILE",
+                   help="a lat-long map: render a sphere with the table and with its Principled "
+                        "fit under it, and record their Delta E in principled.json (default: no "
+                        "render check)")
     s.add_argument("--force", action="store_true",
                    help="replace OUT_DIR if an earlier flashbrdf command made it")
 
