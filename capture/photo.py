@@ -191,8 +191,8 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
     Other brackets, and 8-bit ones whose `encoding` ("srgb" or "linear") says how to linearise
     them (the contract's photo formats): each is linearised as load_photo does, then per pixel
     the maximum-likelihood radiance for Poisson counts, sum(value) / sum(exposure) over the
-    brackets where the pixel is usable. A merged pixel is usable when at least one bracket saw it usable, clipped when every
-    bracket saw it clipped.
+    brackets where the pixel is usable. A merged pixel is usable when at least one bracket saw
+    it usable, clipped when every bracket saw it clipped.
     Returns rgb (H, W, 3) float32 in units per second of exposure, usable (H, W) bool (and
     clipped (H, W) bool with return_clipped).
     """
