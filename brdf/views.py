@@ -100,7 +100,7 @@ def read_slice_csv(path):
     """
     path = os.fspath(path)
     try:
-        with open(path, encoding="utf-8") as f:
+        with open(path, encoding="utf-8-sig") as f:  # a byte-order mark (spreadsheets) is no text
             lines = [(k + 1, line) for k, line in enumerate(f)
                      if line.strip() and not line.lstrip().startswith("#")]
     except (OSError, UnicodeDecodeError) as err:
@@ -114,6 +114,9 @@ def read_slice_csv(path):
     if len(rows) != N_THETA_H:
         raise InputError(path, f"expected {N_THETA_H} data rows, found {len(rows)}")
     centres = np.degrees(theta_h_centres())
+    # a centre printed with a few decimals is still that centre (0.0028 for bin 0's 0.0027778):
+    # allow a tenth of the bin's width, far from any other bin's centre
+    slack = 0.1 * np.diff(theta_h_from_bin_coordinate(np.arange(N_THETA_H + 1), 90.0))
     rho = np.full((N_THETA_H, 3), np.nan)
     n = np.zeros(N_THETA_H, dtype=np.int64)
     for i, (lineno, line) in enumerate(rows):
@@ -127,7 +130,7 @@ def read_slice_csv(path):
             values = [float(v) if v.strip() else np.nan for v in fields[1:4]]
         except ValueError:
             raise InputError(path, f"{where}: not a number") from None
-        if not abs(theta - centres[i]) <= 1e-6 * max(1.0, centres[i]):
+        if not abs(theta - centres[i]) <= slack[i]:
             raise InputError(path, f"{where}: theta_h_deg {theta} is not bin {i}'s centre "
                                    f"{centres[i]:.6f}")
         present = [bool(v.strip()) for v in fields[1:4]]

@@ -72,11 +72,11 @@ def load_mesh(path):
         loaded = trimesh.load(str(path), process=False)
     except Exception as err:  # trimesh raises many types for bad files
         raise InputError(path, f"cannot read mesh: {err}") from None
-    # loaders hand file normals to the constructor, which caches them (force="mesh" and
-    # Trimesh.copy() drop that cache, so read it before anything else touches the mesh)
+    # loaders hand file normals to the constructor, which caches them (force="mesh",
+    # Scene.dump() and Trimesh.copy() drop that cache, so read it before anything else touches
+    # the mesh)
     parts = ([loaded] if isinstance(loaded, trimesh.Trimesh) else
-             [g for g in loaded.dump() if isinstance(g, trimesh.Trimesh)]
-             if isinstance(loaded, trimesh.Scene) else [])
+             _scene_parts(loaded) if isinstance(loaded, trimesh.Scene) else [])
     parts = [g for g in parts if len(g.faces)]
     if not parts:
         raise InputError(path, "no triangles in the mesh")
@@ -93,6 +93,29 @@ def load_mesh(path):
     if not np.all(np.isfinite(mesh.vertices)):
         raise InputError(path, "mesh has non-finite vertex coordinates")
     return mesh, has_normals
+
+
+def _scene_parts(scene):
+    """The triangle meshes of a trimesh.Scene (glTF, GLB, multi-object files) placed by the scene
+    graph, as Scene.dump() places them, but keeping each file's vertex normals (transformed by the
+    inverse transpose of the node's matrix and renormalised), which dump() drops."""
+    import trimesh
+    parts = []
+    for node in scene.graph.nodes_geometry:
+        transform, name = scene.graph[node]
+        geometry = scene.geometry[name]
+        if not isinstance(geometry, trimesh.Trimesh):
+            continue
+        normals = geometry._cache.cache.get("vertex_normals")
+        part = geometry.copy()
+        part.apply_transform(transform)
+        if normals is not None:
+            normals = np.asarray(normals, dtype=np.float64) @ np.linalg.inv(transform[:3, :3])
+            normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
+            part = trimesh.Trimesh(part.vertices, part.faces, vertex_normals=normals,
+                                   process=False)
+        parts.append(part)
+    return parts
 
 
 class MeshIntersector:

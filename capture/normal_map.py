@@ -30,7 +30,11 @@ def load_normal_map(geometry, camera):
             raise InputError(path, f"cannot read normal map: {err}") from None
     else:
         normals = read_float_image(path)
-    normals = np.asarray(normals, dtype=np.float64)
+    try:
+        normals = np.asarray(normals, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise InputError(path, f"expected a numeric normal map, got {np.asarray(normals).dtype} "
+                               "values") from None
     if normals.ndim != 3 or normals.shape[2] < 3:
         raise InputError(path, f"expected an H x W x 3 normal map, got shape {normals.shape}")
     normals = normals[..., :3]

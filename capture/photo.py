@@ -51,10 +51,13 @@ def _to_rgb(img, path):
 
 def read_float_image(path):
     """Read an image through OpenImageIO as float32 (H, W, 3) RGB (channels R, G, B by name when
-    present). InputError naming the file when missing or unreadable."""
+    present); a .pfm through read_pfm, top row first. InputError naming the file when missing or
+    unreadable."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
+    if path.suffix.lower() == ".pfm":  # OpenImageIO gives PFM rows bottom first
+        return read_pfm(path)
     inp = oiio.ImageInput.open(str(path))
     if inp is None:
         raise InputError(path, f"cannot read image: {oiio.geterror() or 'unknown format'}")
@@ -183,12 +186,13 @@ def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=
 def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_clipped=False):
     """Merge an exposure bracket [(path, exposure_s), ...] into one HDR photo.
 
-    8-bit brackets: OpenCV's Debevec camera-response calibration and a Debevec log-domain merge
-    (relative radiance: OpenCV normalises the response to 1 at code 128). Other (linear)
-    brackets: per pixel, the maximum-likelihood
-    radiance for Poisson counts, sum(value) / sum(exposure) over the brackets where the pixel is
-    usable. A merged pixel is usable when at least one bracket saw it usable, clipped when every
-    bracket saw it clipped.
+    8-bit brackets without an `encoding`: OpenCV's Debevec camera-response calibration and a
+    Debevec log-domain merge (relative radiance: OpenCV normalises the response to 1 at code 128).
+    Other brackets, and 8-bit ones whose `encoding` ("srgb" or "linear") says how to linearise
+    them (the contract's photo formats): each is linearised as load_photo does, then per pixel
+    the maximum-likelihood radiance for Poisson counts, sum(value) / sum(exposure) over the
+    brackets where the pixel is usable. A merged pixel is usable when at least one bracket saw
+    it usable, clipped when every bracket saw it clipped.
     Returns rgb (H, W, 3) float32 in units per second of exposure, usable (H, W) bool (and
     clipped (H, W) bool with return_clipped).
     """
@@ -199,7 +203,7 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
         for p, img in zip(paths, raw):
             if img is None:
                 raise InputError(p, "file not found" if not p.is_file() else "cannot read image")
-        if all(img.dtype == np.uint8 for img in raw):
+        if encoding is None and all(img.dtype == np.uint8 for img in raw):
             out = _merge_debevec(paths, raw, times, shape)
             return out if return_clipped else out[:2]
     loaded = [load_photo(p, encoding, saturation, shape, return_clipped=True) for p in paths]

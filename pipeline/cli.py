@@ -126,6 +126,9 @@ def _parser():
     s.add_argument("--test-dir", metavar="DIR",
                    help="train on every --merl-dir table, score every method on these tables")
     s.add_argument("--render", action="store_true")
+    s.add_argument("--envmap", action="append", metavar="FILE",
+                   help="with --render: a lat-long map for Table 2 (repeat it for several; "
+                        "default pisa, grace and uffizi from ../shared/data/envmaps)")
     s.add_argument("--quick", action="store_true")
     s.add_argument("--experiments", type=int, help="number of experiments (default 25)")
     s.add_argument("--time-budget", type=float, metavar="SECONDS",
@@ -137,6 +140,10 @@ def _parser():
     s.add_argument("--out", required=True, metavar="DIR")
     s.add_argument("--formats", default="mitsuba,principled,gltf",
                    help="comma-separated, some of mitsuba,principled,gltf (default: all three)")
+    s.add_argument("--envmap", metavar="FILE",
+                   help="a lat-long map: render a sphere with the table and with its Principled "
+                        "fit under it, and record their Delta E in principled.json (default: no "
+                        "render check)")
     s.add_argument("--force", action="store_true",
                    help="replace OUT_DIR if an earlier flashbrdf command made it")
 

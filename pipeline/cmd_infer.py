@@ -129,6 +129,22 @@ def _check_protocol_options(args):
         raise InputError("--time-budget", f"must be a positive number of seconds, got {budget}")
 
 
+def _render_envmaps(args):
+    """Table 2's lat-long maps: every --envmap FILE, else render.envmap.default_envmaps() (pisa,
+    grace and uffizi in ../shared/data/envmaps or $FLASHBRDF_SHARED). Each is read once here,
+    before the long run, so a missing or malformed map is bad input at once (InputError)."""
+    from render.envmap import default_envmaps, read_envmap_pixels
+    given = getattr(args, "envmap", None)
+    if given and not getattr(args, "render", False):
+        raise InputError("--envmap", "names Table 2's maps: give it with --render")
+    if not getattr(args, "render", False):
+        return None
+    paths = [Path(p) for p in given] if given else default_envmaps()
+    for path in paths:
+        read_envmap_pixels(path)
+    return paths
+
+
 def evaluate(args):
     """The paper's Table 1 protocol on --merl-dir (see experiments.evaluate); with --render also its
     Table 2 (experiments.table2) on the mean-performing experiment's test materials, 2D predictions.
@@ -152,7 +168,9 @@ def evaluate(args):
         raise InputError("--merl-dir", "the cross-validation protocol takes one folder; give "
                                        "--test-dir to train on several")
     merl_dir = folders[0]
-    check_outputs(inputs=_merl_inputs(folders), outputs=[args.out], folders=[args.out])
+    envmaps = _render_envmaps(args)
+    check_outputs(inputs=_merl_inputs(folders) + (envmaps or []), outputs=[args.out],
+                  folders=[args.out])
     options = dict(quick=args.quick, experiments=getattr(args, "experiments", None),
                    time_budget=getattr(args, "time_budget", None))
     with staged_output_dir(args.out, force=getattr(args, "force", False),
@@ -166,7 +184,7 @@ def evaluate(args):
             # experiments.table2 (renderer, figures) adds 1.7-2.2 s to import (python -X importtime)
             from experiments.table2 import table2
             names, predict = experiment_predictor(merl_dir, result)
-            table2(merl_dir, out, predict, names=names)
+            table2(merl_dir, out, predict, names=names, envmaps=envmaps)
     return 0
 
 

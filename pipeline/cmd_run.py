@@ -35,7 +35,7 @@ from pipeline.cmd_extract import write_extraction
 from pipeline.cmd_render import photo_exists, samples_per_pixel
 from pipeline.cmd_segment import materials_option, segment_scene, write_labels
 from pipeline.report import write_report
-from pipeline.run_export import export_for_report, export_method
+from pipeline.run_export import export_for_report, export_method, scene_envmap
 from pipeline.safety import check_outputs, staged_output_dir
 from render import (MaterialMap, TabulatedBRDF, render_scene, write_comparison, write_exr,
                     write_preview)
@@ -230,7 +230,8 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
 
     exported = None
     if export:
-        exported = stages.run("export", export_for_report, out, export_method(methods))
+        exported = stages.run("export", export_for_report, out, export_method(methods),
+                              scene_envmap(references))
         notes.append(exported[2])
     if two_d:
         notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "

@@ -16,15 +16,22 @@ def export_method(methods):
     return "dsgplvm" if "dsgplvm" in methods else methods[0]
 
 
-def export_for_report(out, method):
-    """Export OUT/<method>/brdf.binary into OUT/export; returns (label, fitted table
-    (90, 90, 180, 3), a note for the report)."""
+def scene_envmap(references):
+    """The map of the first envmap-lit reference photo (a file the scene names), or None: the
+    export's sphere render check uses it (nothing outside the capture is read)."""
+    return next((p.light.file for p in references
+                 if p.light is not None and p.light.type == "envmap"), None)
+
+
+def export_for_report(out, method, envmap=None):
+    """Export OUT/<method>/brdf.binary into OUT/export, with the sphere render check under
+    `envmap` when given; returns (label, fitted table (90, 90, 180, 3), a note for the report)."""
     out = Path(out)
-    result = export_brdf(out / method / "brdf.binary", out / "export")
+    result = export_brdf(out / method / "brdf.binary", out / "export", envmap=envmap)
     fit = result["fit"]
     note = (f"--export: {method}'s BRDF exported to export/ (Mitsuba 3, principled.json, glTF). "
             f"Its Principled fit has 2D LAB-log error {fit['lab_log_2d']:.2f} against the table"
-            + (f" and sphere Delta E log {fit['render_delta_e_log']:.2f} under pisa"
-               if fit["render_delta_e_log"] is not None else "")
+            + (f" and sphere Delta E log {fit['render_delta_e_log']:.2f} under "
+               f"{Path(envmap).name}" if fit["render_delta_e_log"] is not None else "")
             + f"; its renders are the method `{method}-principled`.")
     return f"{method}-principled", tabulate_principled(result["params"]), note

@@ -111,6 +111,19 @@ def test_slice_csv_roundtrip_keeps_empty_bins_empty(tmp_path):
     np.testing.assert_array_equal(n2, n)
 
 
+def test_slice_csv_reads_rounded_centres_and_a_byte_order_mark(tmp_path):
+    """An outside slice.csv may print theta_h_deg with 4 decimals (bin 0's centre 0.0027778 as
+    0.0028) and start with a UTF-8 byte-order mark; it is still the contract's file."""
+    centres = 90.0 * ((np.arange(90) + 0.5) / 90) ** 2
+    lines = ["theta_h_deg,r,g,b,n"] + [f"{c:.4f},{0.1 * (k + 1)},0.2,0.3,{k}"
+                                       for k, c in enumerate(centres)]
+    path = tmp_path / "s.csv"
+    path.write_text("\ufeff" + "\n".join(lines) + "\n", encoding="utf-8")
+    rho, n = read_slice_csv(path)
+    assert rho[0, 0] == pytest.approx(0.1) and rho[89, 0] == pytest.approx(9.0)
+    assert n[89] == 89 and n.sum() == 4005
+
+
 @pytest.mark.parametrize("mutate, words", [
     (lambda lines: lines[:-1], "expected 90 data rows"),
     (lambda lines: ["theta,r,g,b,n"] + lines[1:], "header"),

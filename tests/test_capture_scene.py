@@ -170,6 +170,51 @@ def test_mesh_file_normals_are_used(tmp_path):
         capture.load_mesh(tmp_path / "bad.ply")
 
 
+def test_gltf_file_normals_are_used_and_placed_by_the_scene_graph(tmp_path):
+    """A GLB loads as a trimesh Scene; its NORMAL attribute is the file's vertex normals and is
+    the shading normal (contract geometry.mesh), transformed with the node. One flat triangle in
+    z = 1 whose file normals all tilt 30 deg about y, in a node turned 90 deg about z: a ray down
+    the optical axis must see the tilted normal turned about z (sin 30, 0, -cos 30) -> (0, sin 30,
+    -cos 30), not the face normal (0, 0, -1) (which Scene.dump() gave: it drops file normals)."""
+    import trimesh
+    tilt = np.radians(30.0)
+    normal = [np.sin(tilt), 0.0, -np.cos(tilt)]
+    triangle = trimesh.Trimesh([[-1.0, -1.0, 0.0], [0.0, 2.0, 0.0], [2.0, -1.0, 0.0]], [[0, 1, 2]],
+                               vertex_normals=[normal] * 3, process=False)
+    node = trimesh.transformations.rotation_matrix(np.pi / 2, [0, 0, 1])
+    node[2, 3] = 1.0
+    scene = trimesh.Scene()
+    scene.add_geometry(triangle, transform=node)
+    scene.export(tmp_path / "t.glb")
+    mesh, has_normals = capture.load_mesh(tmp_path / "t.glb")
+    assert has_normals
+    mi = capture.MeshIntersector(mesh, use_vertex_normals=has_normals)
+    hits = capture.intersect(mi, np.array([[0.1, 0.1, 0.0]]), np.array([[0.0, 0.0, 1.0]]))
+    assert hits.hit[0] and abs(hits.points[0, 2] - 1.0) < 1e-6
+    assert np.allclose(hits.normals[0], [0.0, np.sin(tilt), -np.cos(tilt)], atol=1e-5)
+
+
+def test_non_numeric_normal_map_is_bad_input(tmp_path, capsys):
+    """A normals.npy of strings is bad input (exit 2, one line naming the file), not a
+    traceback (exit 1)."""
+    from pipeline.cli import main
+    from synthetic import write_exr
+    np.save(tmp_path / "normals.npy", np.full((4, 4, 3), "a"))
+    cv2.imwrite(str(tmp_path / "mask.png"), np.full((4, 4), 255, np.uint8))
+    write_exr(tmp_path / "flash.exr", np.full((4, 4, 3), 0.5))
+    (tmp_path / "scene.json").write_text(json.dumps({
+        "camera": {"model": "orthographic", "width": 4, "height": 4, "pixel_size": 1.0,
+                   "world_from_camera": np.eye(4).tolist()},
+        "geometry": {"normal_map": "normals.npy", "mask": "mask.png"},
+        "photos": [{"file": "flash.exr", "role": "flash",
+                    "light": {"type": "directional", "direction": [0, 0, -1],
+                              "irradiance_rgb": [1, 1, 1]}}]}))
+    assert main(["extract", str(tmp_path), "--out", str(tmp_path / "out" / "s.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "normals.npy: expected a numeric normal map" in err[0]
+    assert not (tmp_path / "out").exists()
+
+
 def test_occluded_and_convexity():
     sphere = sphere_mesh(radius=0.1, centre=(0, 0, 1))
     blocker = box_mesh((0.1, 0.1, 0.02), (0, 0, 0.5))

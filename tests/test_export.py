@@ -165,3 +165,26 @@ def test_export_bad_input_exits_2_with_one_line(paint_table, tmp_path, capsys, c
 
 def test_formats_are_the_contracts():
     assert FORMATS == ("mitsuba", "principled", "gltf")
+
+
+def test_export_reads_an_envmap_only_when_a_flag_names_it(tmp_path):
+    """Nothing may depend on files outside the project unless a flag names them: without
+    --envmap principled.json's render check is null (it used ../shared's pisa when present); with
+    --envmap FILE the check renders under FILE."""
+    import OpenImageIO as oiio
+    table = tmp_path / "lambert.binary"
+    write_merl(table, np.broadcast_to([0.1, 0.2, 0.3], (90, 90, 180, 3)))
+    assert main(["export", str(table), "--out", str(tmp_path / "plain"), "--formats",
+                 "principled"]) == 0
+    doc = json.loads((tmp_path / "plain" / "principled.json").read_text())
+    assert doc["fit"]["render"] is None and doc["fit"]["render_delta_e_log"] is None
+    sky = str(tmp_path / "sky_latlong.exr")
+    out = oiio.ImageOutput.create(sky)
+    out.open(sky, oiio.ImageSpec(16, 8, 3, oiio.FLOAT))
+    out.write_image(np.ones((8, 16, 3), np.float32))
+    out.close()
+    assert main(["export", str(table), "--out", str(tmp_path / "lit"), "--formats", "principled",
+                 "--envmap", sky]) == 0
+    doc = json.loads((tmp_path / "lit" / "principled.json").read_text())
+    assert doc["fit"]["render"]["envmap"] == "sky_latlong.exr"
+    assert doc["fit"]["render_delta_e_log"] == pytest.approx(0.0, abs=0.5)

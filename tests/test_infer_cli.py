@@ -174,3 +174,27 @@ def test_infer_3d_with_one_of_two_training_folders(merl_proxy, trained, tmp_path
     empty.mkdir()
     shutil.copy(merl_proxy("black-obsidian"), empty / "black-obsidian.binary")
     assert main(common + ["--merl-dir", str(empty), "--out", str(tmp_path / "x.binary")]) == 2
+
+
+def test_evaluate_render_takes_its_envmaps_from_a_flag(tmp_path, capsys, monkeypatch):
+    """Nothing may depend on files outside the project unless a flag names them: `evaluate
+    --render --envmap FILE` renders Table 2 under FILE, and reads it (exit 2 naming it when it is
+    missing) before any training, without ../shared's maps."""
+    import argparse
+
+    from synthetic import write_exr
+    monkeypatch.setenv("FLASHBRDF_SHARED", str(tmp_path / "no_shared"))
+    folder = tmp_path / "merl"
+    folder.mkdir()
+    (folder / "a.binary").write_bytes(b"")
+    missing = tmp_path / "gone_latlong.hdr"
+    assert main(["evaluate", "--merl-dir", str(folder), "--out", str(tmp_path / "ev"), "--render",
+                 "--envmap", str(missing)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{missing}: file not found" in err[0]
+    assert not (tmp_path / "ev").exists()
+    from pipeline.cmd_infer import _render_envmaps
+    mine = tmp_path / "mine_latlong.exr"
+    write_exr(mine, np.ones((4, 8, 3)))
+    args = argparse.Namespace(render=True, envmap=[str(mine)])
+    assert _render_envmaps(args) == [mine]

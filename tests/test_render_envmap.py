@@ -106,3 +106,37 @@ def test_read_envmap_file(tmp_path):
         read_envmap_pixels(bad)
     with pytest.raises(InputError):
         read_envmap_pixels(str(tmp_path / "missing.hdr"))
+
+
+def test_pfm_envmap_and_compare_images_are_top_row_first(tmp_path):
+    """PFM stores rows bottom to top. A .pfm envmap's top row is +y (contract: "The top edge is
+    +y"), and `compare` reads .pfm images the way photos are read; OpenImageIO alone gave the rows
+    bottom first, so the sky lit the object from below."""
+    from pipeline.cli import main
+    sky = np.zeros((8, 16, 3), np.float32)
+    sky[0] = [2.0, 3.0, 4.0]                       # top row: light from straight above (+y)
+
+    def write_pfm(path, image):
+        with open(path, "wb") as f:
+            f.write(f"PF\n{image.shape[1]} {image.shape[0]}\n-1.0\n".encode()
+                    + image[::-1].astype("<f4").tobytes())
+
+    write_pfm(tmp_path / "sky.pfm", sky)
+    env = EnvMap.from_file(tmp_path / "sky.pfm")
+    assert np.allclose(env.radiance(np.array([[0.0, 1.0, 0.0]]))[0], [2.0, 3.0, 4.0])
+    assert np.allclose(env.radiance(np.array([[0.0, -1.0, 0.0]]))[0], 0.0)
+    # compare over a mask of the top row only: pred equals ref there, differs below
+    ref = np.ones((4, 5, 3), np.float32)
+    pred = ref.copy()
+    pred[1:] = 3.0
+    write_pfm(tmp_path / "pred.pfm", pred)
+    write_pfm(tmp_path / "ref.pfm", ref)
+    import cv2
+    mask = np.zeros((4, 5), np.uint8)
+    mask[0] = 255
+    cv2.imwrite(str(tmp_path / "mask.png"), mask)
+    assert main(["compare", str(tmp_path / "pred.pfm"), str(tmp_path / "ref.pfm"), "--mask",
+                 str(tmp_path / "mask.png"), "--out", str(tmp_path / "cmp")]) == 0
+    import json
+    result = json.loads((tmp_path / "cmp" / "compare.json").read_text())
+    assert result["pixels"] == 5 and result["delta_e_log_mean"] == pytest.approx(0.0, abs=1e-9)
