@@ -633,22 +633,25 @@ def align_bin_labels(labels, bins, pixels, shape, present=0.05):
     k = int(labels.max()) + 1 if len(labels) else 1
     if k < 2:
         return labels, 0
-    height, width = shape
-    at = np.full(height * width, -1, np.int64)
-    at[pixels] = np.arange(len(pixels))
-    at = at.reshape(height, width)
-    lower, upper = [], []
-    for a, b in ((at[:, :-1], at[:, 1:]), (at[:-1, :], at[1:, :])):  # right and down neighbours
-        both = (a >= 0) & (b >= 0)
-        p, q = a[both], b[both]
-        step = bins[q] - bins[p]
-        lower += [p[step == 1], q[step == -1]]
-        upper += [q[step == 1], p[step == -1]]
-    lower, upper = np.concatenate(lower), np.concatenate(upper)
+    # bins and labels as small-integer images (no sample: a bin far from every other), so the
+    # pairs across a bin's edge come from whole-image differences, not 12-MP index gathers
+    bin_image = np.full(shape[0] * shape[1], -1000, np.int16)
+    bin_image[pixels] = bins
+    bin_image = bin_image.reshape(shape)
+    label_image = np.zeros(shape[0] * shape[1], np.int16)
+    label_image[pixels] = labels
+    label_image = label_image.reshape(shape)
+    codes = []
+    for here, there in ((np.s_[:, :-1], np.s_[:, 1:]), (np.s_[:-1, :], np.s_[1:, :])):
+        step = bin_image[there] - bin_image[here]
+        for sign, low, high in ((1, here, there), (-1, there, here)):
+            edge = step == sign
+            codes.append((bin_image[low][edge].astype(np.int64) * k + label_image[low][edge]) * k
+                         + label_image[high][edge])
+    codes = np.concatenate(codes)
     n_bins = N_THETA_H
     # pairs[b, i, j]: adjacent pixels, the one in bin b labelled i, the one in bin b + 1 labelled j
-    pairs = np.bincount((bins[lower] * k + labels[lower]) * k + labels[upper],
-                        minlength=n_bins * k * k).reshape(n_bins, k, k).astype(float)
+    pairs = np.bincount(codes, minlength=n_bins * k * k).reshape(n_bins, k, k).astype(float)
     counts = np.bincount(bins * k + labels, minlength=n_bins * k).reshape(n_bins, k)
     names = np.tile(np.arange(k), (n_bins, 1))  # names[b, i]: what label i of bin b becomes
     reference = int(np.argmax(counts.sum(axis=1)))
