@@ -177,7 +177,7 @@ def test_materials_keep_their_names_from_one_theta_h_ring_to_the_next(merl_proxy
     """fruitwood-241 and dark-specular-fabric in blobs: the k-slice assignment decides bin by
     bin, and over some theta_h rings the two materials' names came out exchanged (each ring split
     right, named wrong: 86.9% of pixels right). The pixels adjacent across the rings' edges put
-    the names back (align_bin_labels): measured 97.6%. 95%: between the two; what is left is
+    the names back (align_bin_labels): measured 96.4%. 95%: between the two; what is left is
     rings where one name holds both materials, which renaming cannot split."""
     tables = [read_merl(p) for p in merl_proxy("fruitwood-241", "dark-specular-fabric")]
     mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
