@@ -118,6 +118,15 @@ def scene_copy(w, tmp, edit=None):
     return folder
 
 
+def scene_with_literal(w, tmp, path, literal):
+    """A copy of the world's scene whose scene.json holds the JSON text `literal` at doc[path...]
+    (json.dumps cannot write an integer no float holds)."""
+    folder = scene_copy(w, tmp, set_field(path, "@literal@"))
+    text = (folder / "scene.json").read_text()
+    (folder / "scene.json").write_text(text.replace('"@literal@"', literal))
+    return folder
+
+
 def scene_with_file(w, tmp, name, data):
     folder = scene_copy(w, tmp)
     (folder / name).write_bytes(data)
@@ -282,6 +291,15 @@ CASES = [
     ("extract", "NaN in an unknown field", lambda w, t: ["extract", str(scene_copy(
         w, t, set_field(("provenance",), {"x": [1, float("nan")]}))), "--out", _out(t, "s.csv")],
      "provenance.x[1]"),
+    ("extract", "camera.fx an integer of 400 digits", lambda w, t: ["extract", str(
+        scene_with_literal(w, t, ("camera", "fx"), "1" + "0" * 400)), "--out", _out(t, "s.csv")],
+     "scene.json: camera.fx"),
+    ("extract", "light position an integer of 400 digits", lambda w, t: ["extract", str(
+        scene_with_literal(w, t, ("photos", 0, "light", "position", 0), "-1" + "0" * 400)),
+        "--out", _out(t, "s.csv")], "photos[0].light.position[0]"),
+    ("extract", "an integer of 5000 digits (over Python's limit)", lambda w, t: [
+        "extract", str(scene_with_literal(w, t, ("camera", "width"), "4" * 5000)), "--out",
+        _out(t, "s.csv")], "scene.json"),
     ("extract", "camera pose not a rotation", lambda w, t: ["extract", str(scene_copy(
         w, t, set_field(("camera", "world_from_camera"), (2 * np.eye(4)).tolist()))), "--out",
         _out(t, "s.csv")], "camera.world_from_camera"),
