@@ -143,6 +143,13 @@ def set_field(path, value):
     return edit
 
 
+def ply_triangle(face):
+    """An ASCII PLY of three vertices and one face of vertex indices `face` ("0 1 2")."""
+    return ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+            f"end_header\n0 0 1\n0.1 0 1\n0 0.1 1\n3 {face}\n").encode()
+
+
 def truncated(path, fraction=0.5):
     data = Path(path).read_bytes()
     return data[:int(len(data) * fraction)]
@@ -312,6 +319,10 @@ CASES = [
     ("extract", "mesh is garbage", lambda w, t: ["extract", str(scene_with_file(
         w, t, "object.ply", b"ply\nformat nonsense\n")), "--out", _out(t, "s.csv")],
      "object.ply"),
+    ("extract", "mesh face past the last vertex", lambda w, t: ["extract", str(scene_with_file(
+        w, t, "object.ply", ply_triangle("0 1 99"))), "--out", _out(t, "s.csv")], "object.ply"),
+    ("extract", "mesh face of a negative vertex", lambda w, t: ["extract", str(scene_with_file(
+        w, t, "object.ply", ply_triangle("0 1 -7"))), "--out", _out(t, "s.csv")], "object.ply"),
     ("extract", "out is scene.json", lambda w, t: ["extract", str(w.scene), "--out",
                                                    str(w.scene / "scene.json")], "scene.json"),
     ("extract", "out is the flash photo", lambda w, t: ["extract", str(w.scene), "--out",
