@@ -28,6 +28,10 @@ def load_normal_map(geometry, camera):
             normals = np.load(path, allow_pickle=False)
         except DECODE_ERRORS as err:
             raise InputError(path, f"cannot read normal map: {err}") from None
+        if not isinstance(normals, np.ndarray):  # a .npz archive under a .npy name
+            raise InputError(path, "is a .npz archive, not a .npy array")
+        if normals.dtype.kind not in "biuf":  # strings, complex, structured
+            raise InputError(path, f"holds {normals.dtype} values; normals are real numbers")
     else:
         normals = read_float_image(path)
     normals = np.asarray(normals, dtype=np.float64)

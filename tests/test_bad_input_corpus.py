@@ -150,6 +150,21 @@ def ply_triangle(face):
             f"end_header\n0 0 1\n0.1 0 1\n0 0.1 1\n3 {face}\n").encode()
 
 
+def normal_map_scene(w, tmp, save):
+    """A copy of the world's scene with normal-map geometry (save(path) writes n.npy; the mask
+    is all object) and only its flash photo, lit by a directional light."""
+    import cv2
+
+    def edit(doc):
+        doc["geometry"] = {"normal_map": "n.npy", "mask": "m.png"}
+        doc["photos"] = [{**doc["photos"][0], "light": {
+            "type": "directional", "direction": [0, 0, -1], "irradiance_rgb": [1, 1, 1]}}]
+    folder = scene_copy(w, tmp, edit)
+    save(folder / "n.npy")
+    cv2.imwrite(str(folder / "m.png"), np.full((40, 40), 255, np.uint8))
+    return folder
+
+
 def truncated(path, fraction=0.5):
     data = Path(path).read_bytes()
     return data[:int(len(data) * fraction)]
@@ -323,6 +338,15 @@ CASES = [
         w, t, "object.ply", ply_triangle("0 1 99"))), "--out", _out(t, "s.csv")], "object.ply"),
     ("extract", "mesh face of a negative vertex", lambda w, t: ["extract", str(scene_with_file(
         w, t, "object.ply", ply_triangle("0 1 -7"))), "--out", _out(t, "s.csv")], "object.ply"),
+    ("extract", "normal map of strings", lambda w, t: ["extract", str(normal_map_scene(
+        w, t, lambda f: np.save(f, np.full((40, 40, 3), "a")))), "--out", _out(t, "s.csv")],
+     "n.npy"),
+    ("extract", "normal map complex", lambda w, t: ["extract", str(normal_map_scene(
+        w, t, lambda f: np.save(f, np.ones((40, 40, 3), complex)))), "--out", _out(t, "s.csv")],
+     "n.npy"),
+    ("extract", "normal map an .npz", lambda w, t: ["extract", str(normal_map_scene(
+        w, t, lambda f: (np.savez(f.with_suffix(".npz"), n=np.ones((40, 40, 3))),
+                         f.with_suffix(".npz").rename(f)))), "--out", _out(t, "s.csv")], "n.npy"),
     ("extract", "out is scene.json", lambda w, t: ["extract", str(w.scene), "--out",
                                                    str(w.scene / "scene.json")], "scene.json"),
     ("extract", "out is the flash photo", lambda w, t: ["extract", str(w.scene), "--out",
