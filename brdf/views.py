@@ -127,6 +127,11 @@ def read_slice_csv(path):
             values = [float(v) if v.strip() else np.nan for v in fields[1:4]]
         except ValueError:
             raise InputError(path, f"{where}: not a number") from None
+        except OverflowError:  # n beyond int64
+            raise InputError(path, f"{where}: sample count {fields[4].strip()[:20]} is too "
+                                   "large") from None
+        if n[i] < 0:
+            raise InputError(path, f"{where}: negative sample count")
         if not abs(theta - centres[i]) <= 1e-6 * max(1.0, centres[i]):
             raise InputError(path, f"{where}: theta_h_deg {theta} is not bin {i}'s centre "
                                    f"{centres[i]:.6f}")
@@ -138,8 +143,6 @@ def read_slice_csv(path):
                 raise InputError(path, f"{where}: NaN or Inf value")
             if min(values) < 0:
                 raise InputError(path, f"{where}: negative BRDF value")
-            if n[i] < 0:
-                raise InputError(path, f"{where}: negative sample count")
             rho[i] = values
     if not np.any(np.isfinite(rho[:, 0])):
         raise InputError(path, "the slice has no sample in any bin")

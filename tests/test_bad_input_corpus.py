@@ -389,6 +389,12 @@ CASES = [
         _out(t, "b.binary")], "s.csv"),
     ("infer", "slice holds NaN", lambda w, t: ["infer", "--method", "chandraker", "--slice", str(
         write(t, "s.csv", nan_slice(w))), "--out", _out(t, "b.binary")], "s.csv"),
+    ("infer", "slice n beyond int64", lambda w, t: ["infer", "--method", "chandraker", "--slice",
+                                                    str(write(t, "s.csv", slice_n(w, "9" * 30))),
+                                                    "--out", _out(t, "b.binary")], "s.csv"),
+    ("infer", "slice n negative in an empty bin", lambda w, t: [
+        "infer", "--method", "chandraker", "--slice", str(write(t, "s.csv", slice_n(
+            w, "-1", empty_bin=True))), "--out", _out(t, "b.binary")], "s.csv"),
     ("infer", "out is the slice", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                 str(w.slice), "--out", str(w.slice)], "slice.csv"),
     ("infer", "out is the model", lambda w, t: ["infer", "--model", str(w.model), "--slice",
@@ -721,6 +727,17 @@ def nan_slice(w):
     fields = lines[k].split(",")
     fields[1] = "nan"
     lines[k] = ",".join(fields)
+    return "".join(lines)
+
+
+def slice_n(w, count, empty_bin=False):
+    """The world's slice with `count` as n of its first filled bin (or its first bin, emptied)."""
+    lines = w.slice.read_text().splitlines(True)
+    k = next(i for i, line in enumerate(lines) if line[0].isdigit())
+    fields = lines[k].rstrip("\n").split(",")
+    if empty_bin:
+        fields[1:4] = ["", "", ""]
+    lines[k] = ",".join(fields[:4] + [count]) + "\n"
     return "".join(lines)
 
 
