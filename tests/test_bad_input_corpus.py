@@ -238,6 +238,12 @@ def merl_header(w, values):
     return bytes(data)
 
 
+def merl_body(w, edit):
+    """The world's table with its stored values (file units, flat) replaced by edit(values)."""
+    body = np.fromfile(w.brdf, dtype="<f8", offset=12)
+    return w.brdf.read_bytes()[:12] + edit(body).astype("<f8").tobytes()
+
+
 def nan_table(w):
     data = bytearray(w.brdf.read_bytes())
     data[12 + 8 * 1000:12 + 8 * 1001] = np.array([np.nan]).tobytes()
@@ -283,6 +289,15 @@ CASES = [
         t, "m.binary", merl_header(w, [90, 90, 90]))), "--out", _out(t, "s.csv")], "m.binary"),
     ("merl-slice", "NaN in the table", lambda w, t: ["merl-slice", str(write(
         t, "m.binary", nan_table(w))), "--out", _out(t, "s.csv")], "m.binary"),
+    ("merl-slice", "every value negative (no data)", lambda w, t: ["merl-slice", str(write(
+        t, "m.binary", merl_body(w, lambda body: -np.ones_like(body)))), "--out",
+        _out(t, "s.csv")], "m.binary"),
+    ("merl-slice", "values of 1e300", lambda w, t: ["merl-slice", str(write(
+        t, "m.binary", merl_body(w, lambda body: body * 1e300))), "--out", _out(t, "s.csv")],
+     "m.binary"),
+    ("export", "values of 1e300 (the fit's render check overflowed)", lambda w, t: [
+        "export", str(write(t, "m.binary", merl_body(w, lambda body: body * 1e300))), "--out",
+        _out(t)], "m.binary"),
     ("merl-slice", "out is the table", lambda w, t: ["merl-slice", str(w.brdf), "--out",
                                                      str(w.brdf)], TABLES[0]),
     ("merl-slice", "out is a link to the table", lambda w, t: [
@@ -413,6 +428,10 @@ CASES = [
                                                   _out(t, "m.npz")], "slice.csv"),
     ("train", "a truncated table", lambda w, t: ["train", "--merl-dir", str(merl_copy(
         w, t, truncated(w.brdf, 0.1))), "--out", _out(t, "m.npz")], "bad.binary"),
+    ("train", "a table of no data in a second folder", lambda w, t: [
+        "train", "--merl-dir", str(w.merl_dir), "--merl-dir", str(write(
+            empty(t), "none.binary", merl_body(w, lambda body: -np.ones_like(body))).parent),
+        "--out", _out(t, "m.npz")], "none.binary"),
     ("train", "out is a table", lambda w, t: ["train", "--merl-dir", str(w.merl_dir), "--out",
                                               str(w.merl_dir / f"{TABLES[1]}.binary")], TABLES[1]),
     ("train", "out is the merl-dir", lambda w, t: ["train", "--merl-dir", str(w.merl_dir),
@@ -754,7 +773,8 @@ def test_corpus_size_and_spread():
         by_command[command] = by_command.get(command, 0) + 1
     assert len(CASES) >= 60 and len({name for _, name, *_ in CASES}) > 50
     assert set(by_command) == {"merl-slice", "extract", "infer", "train", "render", "compare",
-                               "run", "evaluate", "import-diligent", "segment", "batch"}
+                               "run", "evaluate", "import-diligent", "segment", "batch",
+                               "export"}
 
 
 @pytest.mark.parametrize("command,name,argv,names", CASES,
