@@ -16,7 +16,7 @@ import numpy as np
 
 import capture
 from brdf.atomic import atomic_path
-from brdf.errors import InputError
+from brdf.errors import DECODE_ERRORS, InputError
 from capture import load_mesh
 from pipeline.safety import check_outputs
 from slice_extract.extract import ExtractOptions, collect_samples
@@ -110,8 +110,10 @@ def material_map_inputs(scene, labels_png, count):
     if npy.is_file():
         try:
             faces = np.load(npy, allow_pickle=False)
-        except (OSError, ValueError) as err:
+        except DECODE_ERRORS as err:  # EOFError for an empty file
             raise InputError(npy, f"cannot be read as a .npy array ({err})") from None
+        if not isinstance(faces, np.ndarray):  # np.load opened a .npz archive
+            raise InputError(npy, "is a .npz archive, not a .npy array")
         if faces.ndim != 1 or faces.dtype.kind not in "iu" or (
                 len(faces) and (faces.min() < 1 or faces.max() > count)):
             raise InputError(npy, f"must be one label 1..{count} per face (int)")

@@ -612,6 +612,27 @@ def tiny_scene(tmp, radius):
                                  [point_light([0.02, 0, 0])])
 
 
+def beside(path, suffix, data):
+    """Write `data` as the sidecar of `path` with `suffix` (labels.png -> labels.faces.npy);
+    return `path`."""
+    write(path.parent, path.stem + suffix, data)
+    return path
+
+
+def npz_bytes(tmp):
+    np.savez(tmp / "x.npz", faces=np.ones(3, np.int32))
+    data = (tmp / "x.npz").read_bytes()
+    (tmp / "x.npz").unlink()
+    return data
+
+
+def rgb_exr(tmp, shape=(40, 40, 3)):
+    from render.images import write_exr
+    path = tmp / "albedo.exr"
+    write_exr(path, np.full(shape, 0.5, np.float32))
+    return path
+
+
 def one_channel_exr(tmp, shape=(40, 40)):
     import OpenImageIO as oiio
     path = tmp / "albedo.exr"
@@ -683,6 +704,23 @@ SWEEP_CASES = [
     ("render", "label faces of another mesh", lambda w, t: _render(
         w.scene, _two_tables(w), _out(t), "--labels", str(with_faces(labels_png(w, t), np.ones(
             7, np.int32)))), "labels.faces.npy"),
+    ("render", "label faces an empty file", lambda w, t: _render(
+        w.scene, _two_tables(w), _out(t), "--labels", str(beside(labels_png(w, t), ".faces.npy",
+                                                              b""))), "labels.faces.npy"),
+    ("render", "label faces an .npz archive", lambda w, t: _render(
+        w.scene, _two_tables(w), _out(t), "--labels", str(beside(labels_png(w, t), ".faces.npy",
+                                                              npz_bytes(t)))),
+     "labels.faces.npy"),
+    ("render", "albedo faces an empty file", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--albedo", str(beside(rgb_exr(t), ".faces.npy", b""))),
+     "albedo.faces.npy"),
+    ("render", "albedo faces an .npz archive", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--albedo", str(beside(rgb_exr(t), ".faces.npy",
+                                                         npz_bytes(t)))), "albedo.faces.npy"),
+    ("render", "albedo floors an integer of 400 digits", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--albedo", str(beside(rgb_exr(t), ".json", '{"floors": [[1' +
+                                                         "0" * 400 + ', 1, 1]]}'))),
+     "albedo.json"),
     ("render", "--force onto a folder holding a listed table", lambda w, t: _render(
         w.scene, f"{w.brdf},{marked_holding(t, w.brdf) / w.brdf.name}", t / "old", "--labels",
         str(labels_png(w, t)), "--force"), "old"),
