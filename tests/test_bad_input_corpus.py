@@ -473,6 +473,8 @@ CASES = [
     ("render", "reference photo wrong size", lambda w, t: _render(scene_with_file(
         w, t, "ref_env.exr", small_exr(t).read_bytes()), w.brdf, _out(t)), "ref_env.exr"),
     ("render", "spp 0", lambda w, t: _render(w.scene, w.brdf, _out(t), "--spp", "0"), "--spp"),
+    ("render", "spp 10**11 (out of memory)", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--spp", str(10 ** 11)), "--spp"),
     # compare
     ("compare", "pred missing", lambda w, t: ["compare", str(t / "none.exr"), str(w.ref),
                                               "--out", _out(t)], "none.exr"),
@@ -731,6 +733,8 @@ SWEEP_CASES = [
         w.scene, w.brdf, _out(t), "--albedo", str(one_channel_exr(t))), "albedo.exr"),
     ("run", "materials abc", lambda w, t: _run(w.scene, _out(t), "--materials", "abc"),
      "--materials"),
+    ("run", "spp 10**11 (out of memory)", lambda w, t: _run(w.scene, _out(t)) + [
+        "--spp", str(10 ** 11)], "--spp"),
     ("run", "spp not a number (argparse, one line)", lambda w, t: _run(w.scene, _out(t)) + [
         "--spp", "x"], "--spp"),
     ("batch", "empty folder", lambda w, t: _batch(empty(t), _out(t)), "empty"),
