@@ -404,6 +404,9 @@ CASES = [
         _out(t, "b.binary")], "s.csv"),
     ("infer", "slice holds NaN", lambda w, t: ["infer", "--method", "chandraker", "--slice", str(
         write(t, "s.csv", nan_slice(w))), "--out", _out(t, "b.binary")], "s.csv"),
+    ("infer", "slice value 1e300 (its prediction overflowed the table)", lambda w, t: [
+        "infer", "--method", "chandraker", "--slice", str(write(t, "s.csv", nan_slice(w).replace(
+            "nan", "1e300"))), "--out", _out(t, "b.binary")], "s.csv"),
     ("infer", "slice n beyond int64", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                     str(write(t, "s.csv", slice_n(w, "9" * 30))),
                                                     "--out", _out(t, "b.binary")], "s.csv"),
