@@ -25,6 +25,7 @@ import OpenImageIO as oiio
 from brdf.errors import InputError
 
 SATURATION_FRACTION = 0.98
+MAX_IMAGE_PIXELS = 1 << 28  # 268 M: above any camera's sensor or a 16K x 8K envmap
 FLOAT_EXTENSIONS = (".exr", ".hdr", ".pfm")
 CV_EXTENSIONS = (".png", ".tif", ".tiff", ".jpg", ".jpeg")
 RAW_EXTENSIONS = (".dng", ".cr2", ".cr3", ".crw", ".nef", ".nrw", ".arw", ".srf", ".sr2", ".orf",
@@ -60,6 +61,11 @@ def read_float_image(path):
         raise InputError(path, f"cannot read image: {oiio.geterror() or 'unknown format'}")
     try:
         spec = inp.spec()
+        for what, width, height in (("image", spec.width, spec.height),
+                                    ("display window", spec.full_width, spec.full_height)):
+            if width * height > MAX_IMAGE_PIXELS:
+                raise InputError(path, f"{what} of {width}x{height} pixels is larger than any "
+                                       f"photo or map read here ({MAX_IMAGE_PIXELS} pixels)")
         data = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
         if data is None:
             raise InputError(path, f"cannot read image: {inp.geterror() or 'corrupt data'}")

@@ -256,6 +256,19 @@ def png8(folder):
     cv2.imwrite(str(folder / "002.png"), (png16 // 257).astype(np.uint8))
 
 
+def window_bomb(tmp, name="bomb.exr"):
+    """A 4x4 EXR whose display window is 60000x60000: placing it there took 40 GiB."""
+    import OpenImageIO as oiio
+    path = tmp / name
+    spec = oiio.ImageSpec(4, 4, 3, oiio.FLOAT)
+    spec.full_width = spec.full_height = 60000
+    out = oiio.ImageOutput.create(str(path))
+    out.open(str(path), spec)
+    out.write_image(np.ones((4, 4, 3), np.float32))
+    out.close()
+    return path
+
+
 def small_exr(tmp, name="small.exr"):
     from render.images import write_exr
     path = tmp / name
@@ -346,6 +359,9 @@ CASES = [
     ("extract", "flash photo truncated", lambda w, t: ["extract", str(scene_with_file(
         w, t, "flash0.exr", truncated(w.scene / "flash0.exr"))), "--out", _out(t, "s.csv")],
      "flash0.exr"),
+    ("extract", "flash photo's display window 60000x60000", lambda w, t: ["extract", str(
+        scene_with_file(w, t, "flash0.exr", window_bomb(t).read_bytes())), "--out",
+        _out(t, "s.csv")], "flash0.exr"),
     ("extract", "mesh is garbage", lambda w, t: ["extract", str(scene_with_file(
         w, t, "object.ply", b"ply\nformat nonsense\n")), "--out", _out(t, "s.csv")],
      "object.ply"),
@@ -461,6 +477,8 @@ CASES = [
         _out(t)), "gone.hdr"),
     ("render", "envmap garbage", lambda w, t: _render(scene_with_file(
         w, t, "env.hdr", b"#?RADIANCE\nnonsense"), w.brdf, _out(t)), "env.hdr"),
+    ("render", "envmap's display window 60000x60000", lambda w, t: _render(scene_with_file(
+        w, t, "env.hdr", window_bomb(t).read_bytes()), w.brdf, _out(t)), "env.hdr"),
     ("render", "world_from_envmap zero", lambda w, t: _render(scene_copy(
         w, t, lambda d: d["photos"][1]["light"].__setitem__("world_from_envmap",
                                                             np.zeros((3, 3)).tolist())),
@@ -485,6 +503,8 @@ CASES = [
         t, "r.exr", b"\x76\x2f\x31\x01garbage")), "--out", _out(t)], "r.exr"),
     ("compare", "sizes differ", lambda w, t: ["compare", str(w.pred), str(small_exr(t)),
                                               "--out", _out(t)], "small.exr"),
+    ("compare", "pred's display window 60000x60000", lambda w, t: [
+        "compare", str(window_bomb(t, "p.exr")), str(w.ref), "--out", _out(t)], "p.exr"),
     ("compare", "mask wrong size", lambda w, t: ["compare", str(w.pred), str(w.ref), "--mask",
                                                  str(small_exr(t, "m.exr")), "--out", _out(t)],
      "m.exr"),
