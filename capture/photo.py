@@ -132,8 +132,17 @@ def _float_masks(rgb, saturation):
     return usable, clipped
 
 
+def imread_unchanged(path):
+    """cv2.imread(path, IMREAD_UNCHANGED), or None when OpenCV cannot read the file (it raises,
+    rather than returning None, for an image over its 2^30-pixel limit)."""
+    try:
+        return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    except cv2.error:
+        return None
+
+
 def _read_cv(path, encoding):
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    img = imread_unchanged(path)
     if img is None:
         raise InputError(path, "cannot read image (corrupt or unsupported)")
     if img.ndim == 3 and img.shape[2] >= 3:
@@ -201,7 +210,7 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
     paths = [Path(p) for p, _ in brackets]
     times = np.array([t for _, t in brackets], dtype=np.float32)
     if all(p.suffix.lower() in CV_EXTENSIONS for p in paths):
-        raw = [cv2.imread(str(p), cv2.IMREAD_UNCHANGED) if p.is_file() else None for p in paths]
+        raw = [imread_unchanged(p) if p.is_file() else None for p in paths]
         for p, img in zip(paths, raw):
             if img is None:
                 raise InputError(p, "file not found" if not p.is_file() else "cannot read image")

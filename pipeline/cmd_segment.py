@@ -18,6 +18,7 @@ import capture
 from brdf.atomic import atomic_path
 from brdf.errors import DECODE_ERRORS, InputError
 from capture import load_mesh
+from capture.photo import imread_unchanged
 from pipeline.safety import check_outputs
 from slice_extract.extract import ExtractOptions, collect_samples
 from slice_extract.segment import check_labels, face_labels, segment_samples
@@ -88,7 +89,7 @@ def read_labels(path, shape):
     if not path.is_file():
         raise InputError(path, "is a folder, not a label image" if path.is_dir() else
                          "label image not found")
-    labels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    labels = imread_unchanged(path)
     if labels is None or labels.ndim != 2:
         raise InputError(path, "is not a single-channel (16-bit) label PNG")
     if labels.dtype.kind not in "iu":  # a float TIFF: 1.5 or NaN is no label

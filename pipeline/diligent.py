@@ -98,7 +98,10 @@ def read_png_rgb(path):
     InputError for any other pixel type or channel count.
     """
     import cv2
-    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    try:
+        image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    except cv2.error:  # over OpenCV's 2^30-pixel limit
+        image = None
     if image is None:
         raise InputError(path, "cannot be read as an image")
     if image.dtype not in (np.uint16, np.uint8):
@@ -114,7 +117,10 @@ def read_png_rgb(path):
 
 def _read_mask(path):
     import cv2
-    mask = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    try:
+        mask = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    except cv2.error:  # over OpenCV's 2^30-pixel limit
+        mask = None
     if mask is None:
         raise InputError(path, "cannot be read as an image")
     return mask.reshape(mask.shape[0], mask.shape[1], -1).max(axis=2) > 0

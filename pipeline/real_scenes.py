@@ -84,7 +84,10 @@ def plane_point_from_pixel(u, v, side_m, width, height):
 def read_srgb8_as_linear(path, gamma=2.2):
     """8-bit PNG -> (H, W, 3) float32 linear RGB by (x/255)^gamma; clipped (255) pixels -> NaN."""
     import cv2
-    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    try:
+        image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    except cv2.error:  # over OpenCV's 2^30-pixel limit
+        image = None
     if image is None:
         raise InputError(path, "cannot be read as an image")
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] < 3:

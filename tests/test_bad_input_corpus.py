@@ -133,6 +133,14 @@ def scene_with_file(w, tmp, name, data):
     return folder
 
 
+def scene_with_flash(w, tmp, name, data, **fields):
+    """A copy of the world's scene whose flash photo is `data` as `name` (fields: photos[0]'s
+    others, e.g. encoding)."""
+    folder = scene_copy(w, tmp, lambda doc: doc["photos"][0].update(file=name, **fields))
+    (folder / name).write_bytes(data)
+    return folder
+
+
 def set_field(path, value):
     """An edit setting doc[path...] = value, path like ("camera", "width")."""
     def edit(doc):
@@ -269,6 +277,19 @@ def window_bomb(tmp, name="bomb.exr"):
     return path
 
 
+def png_bomb(side=40000):
+    """A PNG header of side x side 16-bit RGB pixels and a little data: over OpenCV's 2^30-pixel
+    limit, where cv2.imread raises instead of returning None."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(
+            ">I", zlib.crc32(kind + data))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", side, side, 16, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(bytes(1000))) + chunk(b"IEND", b""))
+
+
 def small_exr(tmp, name="small.exr"):
     from render.images import write_exr
     path = tmp / name
@@ -362,6 +383,12 @@ CASES = [
     ("extract", "flash photo's display window 60000x60000", lambda w, t: ["extract", str(
         scene_with_file(w, t, "flash0.exr", window_bomb(t).read_bytes())), "--out",
         _out(t, "s.csv")], "flash0.exr"),
+    ("extract", "flash photo a PNG of 40000x40000", lambda w, t: ["extract", str(
+        scene_with_flash(w, t, "big.png", png_bomb(), encoding="linear")), "--out",
+        _out(t, "s.csv")], "big.png"),
+    ("extract", "normal map's mask a PNG of 40000x40000", lambda w, t: [
+        "extract", str(write(normal_map_scene(w, t, lambda f: np.save(f, np.ones((40, 40, 3)))),
+                             "m.png", png_bomb()).parent), "--out", _out(t, "s.csv")], "m.png"),
     ("extract", "mesh is garbage", lambda w, t: ["extract", str(scene_with_file(
         w, t, "object.ply", b"ply\nformat nonsense\n")), "--out", _out(t, "s.csv")],
      "object.ply"),
@@ -589,6 +616,9 @@ CASES = [
         "import-diligent", str(diligent_copy(w, t, lambda f: (f / "light_directions.txt")
                                              .write_text("nan 0 1\n0 0 1\n0 0 1\n0 0 1\n"))),
         "--flash", "1", "--out", _out(t)], "light_directions.txt"),
+    ("import-diligent", "a photo of 40000x40000", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "003.png").write_bytes(
+            png_bomb()))), "--flash", "1", "--out", _out(t)], "003.png"),
     ("import-diligent", "8-bit among 16-bit", lambda w, t: [
         "import-diligent", str(diligent_copy(w, t, png8)), "--flash", "1", "--out", _out(t)],
      "002.png"),
@@ -702,6 +732,9 @@ SWEEP_CASES = [
      "l.png"),
     ("extract", "labels is a folder", lambda w, t: [
         "extract", str(w.scene), "--labels", str(empty(t)), "--out", _out(t)], "empty"),
+    ("extract", "labels a PNG of 40000x40000", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(write(t, "l.png", png_bomb())), "--out",
+        _out(t)], "l.png"),
     ("extract", "labels float TIFF", lambda w, t: [
         "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.tif", 1, dtype=np.float32)),
         "--out", _out(t)], "l.tif"),
