@@ -206,6 +206,17 @@ def npz_of_wrong_shapes(tmp):
     return path
 
 
+def model_with_valid_3d(w, tmp, bins):
+    """A copy of the shipped model with stored 3D rows of `bins` bins per material (a whole
+    model has one per valid MERL bin)."""
+    path = tmp / "model.npz"
+    with np.load(w.model, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["valid_3d"] = np.zeros((len(arrays["names"]), bins, 3), np.float32)
+    np.savez(path, **arrays)
+    return path
+
+
 def marked_folder(tmp):
     folder = tmp / "old"
     folder.mkdir()
@@ -439,6 +450,9 @@ CASES = [
     ("infer", "model arrays of the wrong shape", lambda w, t: [
         "infer", "--model", str(npz_of_wrong_shapes(t)), "--method", "pca", "--slice",
         str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
+    ("infer", "model valid_3d of the wrong shape", lambda w, t: [
+        "infer", "--model", str(model_with_valid_3d(w, t, 2)),
+        "--method", "pca", "--slice", str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
     ("infer", "slice header wrong", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                   str(write(t, "s.csv", "a,b,c\n")), "--out",
                                                   _out(t, "b.binary")], "s.csv"),
