@@ -351,6 +351,8 @@ CASES = [
      HERE),
     ("merl-slice", "out under a file", lambda w, t: [
         "merl-slice", str(w.brdf), "--out", str(write(t, "f.txt", "x") / "s.csv")], "f.txt"),
+    ("merl-slice", "out ends in a slash", lambda w, t: ["merl-slice", str(w.brdf), "--out",
+                                                    str(t / "s.csv") + "/"], "s.csv/"),
     ("merl-slice", "table is a folder", lambda w, t: ["merl-slice", str(t), "--out",
                                                       _out(t, "s.csv")], HERE),
     # extract
@@ -426,6 +428,9 @@ CASES = [
      HERE),
     ("extract", "out is the scene folder", lambda w, t: ["extract", str(w.scene), "--out",
                                                          str(w.scene)], "scene"),
+    ("extract", "out ends in a slash", lambda w, t: ["extract", str(w.scene), "--out",
+                                                 str(t / "s.csv") + "/"], "s.csv/"),
+    ("extract", "out empty", lambda w, t: ["extract", str(w.scene), "--out", ""], "--out"),
     ("extract", "max-theta-d 0", lambda w, t: ["extract", str(w.scene), "--out", _out(t, "s.csv"),
                                                "--max-theta-d", "0"], "--max-theta-d"),
     # infer
@@ -477,6 +482,11 @@ CASES = [
     ("infer", "sidecar would replace the slice", lambda w, t: [
         "infer", "--method", "chandraker", "--slice",
         str(write(t, "s.json", w.slice.read_bytes())), "--out", _out(t, "s.binary")], "s.json"),
+    ("infer", "out ends in a slash", lambda w, t: ["infer", "--method", "chandraker", "--slice",
+                                               str(w.slice), "--out", str(t / "b.binary") + "/"],
+     "b.binary/"),
+    ("infer", "out empty", lambda w, t: ["infer", "--method", "chandraker", "--slice",
+                                         str(w.slice), "--out", ""], "--out"),
     ("infer", "out is a folder", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                str(w.slice), "--out", str(t)], HERE),
     # train
@@ -597,6 +607,7 @@ CASES = [
      "old"),
     ("run", "out under a file", lambda w, t: _run(w.scene, write(t, "f.txt", "x") / "out"),
      "f.txt"),
+    ("run", "out empty", lambda w, t: _run(w.scene, ""), "--out"),
     ("run", "unknown method", lambda w, t: ["run", str(w.scene), "--out", _out(t), "--methods",
                                             "magic"], "--methods"),
     # evaluate
@@ -808,6 +819,7 @@ SWEEP_CASES = [
     ("run", "spp not a number (argparse, one line)", lambda w, t: _run(w.scene, _out(t)) + [
         "--spp", "x"], "--spp"),
     ("batch", "empty folder", lambda w, t: _batch(empty(t), _out(t)), "empty"),
+    ("batch", "out empty", lambda w, t: _batch(captures(w, t, "a"), ""), "--out"),
     ("batch", "workers abc", lambda w, t: _batch(captures(w, t, "a"), _out(t), "--workers",
                                                  "abc"), "--workers"),
     ("batch", "materials 0", lambda w, t: _batch(captures(w, t, "a"), _out(t), "--materials",
