@@ -487,6 +487,12 @@ CASES = [
      "b.binary/"),
     ("infer", "out empty", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                          str(w.slice), "--out", ""], "--out"),
+    ("infer", "slice empty (it named no file)", lambda w, t: [
+        "infer", "--method", "chandraker", "--slice", "", "--out", _out(t, "b.binary")],
+     "--slice"),
+    ("infer", "merl-dir empty (it named no folder)", lambda w, t: [
+        "infer", "--model", str(w.model), "--slice", str(w.slice), "--merl-dir", "", "--out",
+        _out(t, "b.binary")], "--merl-dir"),
     ("infer", "out is a folder", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                str(w.slice), "--out", str(t)], HERE),
     # train
@@ -778,6 +784,11 @@ SWEEP_CASES = [
     ("extract", "labelled earlier output without --force", lambda w, t: [
         "extract", str(w.scene), "--labels", str(labels_png(w, t)), "--out", str(marked_folder(t))],
      "old"),
+    ("render", "labels empty (read as not given)", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--labels", ""), "--labels"),
+    ("evaluate", "test-dir empty (read as not given)", lambda w, t: [
+        "evaluate", "--merl-dir", str(w.merl_dir), "--test-dir", "", "--out", _out(t)],
+     "--test-dir"),
     ("render", "only commas in --brdf", lambda w, t: _render(w.scene, ",,", _out(t)), "--brdf"),
     ("render", "an empty item in --brdf", lambda w, t: _render(
         w.scene, f"{w.brdf},,{w.brdf}", _out(t), "--labels", str(labels_png(w, t))), "--brdf"),
