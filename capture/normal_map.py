@@ -33,11 +33,7 @@ def load_normal_map(geometry, camera):
             raise InputError(path, f"holds {normals.dtype} values; normals are real numbers")
     else:
         normals = read_float_image(path)
-    try:
-        normals = np.asarray(normals, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(path, f"expected a numeric normal map, got {np.asarray(normals).dtype} "
-                               "values") from None
+    normals = np.asarray(normals, dtype=np.float64)
     if normals.ndim != 3 or normals.shape[2] < 3:
         raise InputError(path, f"expected an H x W x 3 normal map, got shape {normals.shape}")
     normals = normals[..., :3]
