@@ -22,6 +22,9 @@ N_THETA_H, N_THETA_D, N_PHI_D = 90, 90, 180
 MERL_SHAPE = (N_THETA_H, N_THETA_D, N_PHI_D)
 MERL_SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 MERL_FILE_SIZE = 12 + 8 * 3 * N_THETA_H * N_THETA_D * N_PHI_D  # 34,992,012 bytes
+# Largest stored value read (file units): 20 orders of magnitude above the largest in the MERL
+# and RGL tables (~7e9), well below where float32 renders overflow (3.4e38)
+MAX_STORED_VALUE = 1e30
 
 
 def theta_h_bin_coordinate(theta_h):
@@ -87,6 +90,12 @@ def _read_raw(path):
     if not np.all(np.isfinite(body)):
         bad = int(np.count_nonzero(~np.isfinite(body)))
         raise InputError(path, f"{bad} NaN/Inf values in the table")
+    top = body.max()
+    if top < 0:
+        raise InputError(path, "the table has no valid bin (every value is negative: no data)")
+    if top > MAX_STORED_VALUE:
+        raise InputError(path, f"value {top:.3g} is not a BRDF (stored values above "
+                               f"{MAX_STORED_VALUE:g} overflow the renders)")
     return body.reshape(3, -1)
 
 
@@ -94,8 +103,8 @@ def read_merl(path):
     """Read a MERL `.binary` file.
 
     Returns a (90, 90, 180, 3) float64 table in 1/sr with NaN where the file has no data
-    (negative values). Raises InputError naming the file for a wrong size, a wrong header or
-    NaN/Inf values.
+    (negative values). Raises InputError naming the file for a wrong size, a wrong header,
+    NaN/Inf values, no valid value or a value above MAX_STORED_VALUE.
     """
     raw = _read_raw(path).reshape(3, *MERL_SHAPE)
     table = np.moveaxis(raw, 0, -1) * MERL_SCALE

@@ -18,6 +18,9 @@ from brdf.errors import InputError
 from brdf.merl import N_THETA_H, merl_valid_mask, theta_h_centres, theta_h_from_bin_coordinate
 
 SLICE_HEADER = ["theta_h_deg", "r", "g", "b", "n"]
+# Largest slice value read (1/sr): 17 orders above the largest in MERL (~3e3 at theta_h = 0);
+# a prediction from a larger one would not fit in a MERL table (brdf.merl.MAX_STORED_VALUE)
+MAX_SLICE_VALUE = 1e20
 
 
 def _nanmean(values, axis):
@@ -130,6 +133,11 @@ def read_slice_csv(path):
             values = [float(v) if v.strip() else np.nan for v in fields[1:4]]
         except ValueError:
             raise InputError(path, f"{where}: not a number") from None
+        except OverflowError:  # n beyond int64
+            raise InputError(path, f"{where}: sample count {fields[4].strip()[:20]} is too "
+                                   "large") from None
+        if n[i] < 0:
+            raise InputError(path, f"{where}: negative sample count")
         if not abs(theta - centres[i]) <= slack[i]:
             raise InputError(path, f"{where}: theta_h_deg {theta} is not bin {i}'s centre "
                                    f"{centres[i]:.6f}")
@@ -141,8 +149,9 @@ def read_slice_csv(path):
                 raise InputError(path, f"{where}: NaN or Inf value")
             if min(values) < 0:
                 raise InputError(path, f"{where}: negative BRDF value")
-            if n[i] < 0:
-                raise InputError(path, f"{where}: negative sample count")
+            if max(values) > MAX_SLICE_VALUE:
+                raise InputError(path, f"{where}: value {max(values):.3g} is not a BRDF (above "
+                                       f"{MAX_SLICE_VALUE:g} 1/sr)")
             rho[i] = values
     if not np.any(np.isfinite(rho[:, 0])):
         raise InputError(path, "the slice has no sample in any bin")

@@ -92,6 +92,10 @@ def load_mesh(path):
                             if has_normals else None), process=False)
     if not np.all(np.isfinite(mesh.vertices)):
         raise InputError(path, "mesh has non-finite vertex coordinates")
+    faces, count = np.asarray(mesh.faces), len(mesh.vertices)
+    if faces.min() < 0 or faces.max() >= count:
+        bad = int(faces.min() if faces.min() < 0 else faces.max())
+        raise InputError(path, f"a face refers to vertex {bad}, but the mesh has {count} vertices")
     return mesh, has_normals
 
 

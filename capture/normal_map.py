@@ -6,13 +6,12 @@ view directions are the reversed pixel rays.
 
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from brdf.errors import DECODE_ERRORS, InputError
 from capture.camera import pixel_rays
 from capture.geometry import Surface
-from capture.photo import read_float_image
+from capture.photo import imread_unchanged, read_float_image
 from capture.scene import Scene
 
 
@@ -28,13 +27,13 @@ def load_normal_map(geometry, camera):
             normals = np.load(path, allow_pickle=False)
         except DECODE_ERRORS as err:
             raise InputError(path, f"cannot read normal map: {err}") from None
+        if not isinstance(normals, np.ndarray):  # a .npz archive under a .npy name
+            raise InputError(path, "is a .npz archive, not a .npy array")
+        if normals.dtype.kind not in "biuf":  # strings, complex, structured
+            raise InputError(path, f"holds {normals.dtype} values; normals are real numbers")
     else:
         normals = read_float_image(path)
-    try:
-        normals = np.asarray(normals, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise InputError(path, f"expected a numeric normal map, got {np.asarray(normals).dtype} "
-                               "values") from None
+    normals = np.asarray(normals, dtype=np.float64)
     if normals.ndim != 3 or normals.shape[2] < 3:
         raise InputError(path, f"expected an H x W x 3 normal map, got shape {normals.shape}")
     normals = normals[..., :3]
@@ -44,7 +43,7 @@ def load_normal_map(geometry, camera):
     mpath = Path(geometry.mask)
     if not mpath.is_file():
         raise InputError(mpath, "mask not found")
-    mask = cv2.imread(str(mpath), cv2.IMREAD_UNCHANGED)
+    mask = imread_unchanged(mpath)
     if mask is None:
         raise InputError(mpath, "cannot read mask image")
     if mask.ndim == 3:

@@ -25,6 +25,7 @@ import OpenImageIO as oiio
 from brdf.errors import InputError
 
 SATURATION_FRACTION = 0.98
+MAX_IMAGE_PIXELS = 1 << 28  # 268 M: above any camera's sensor or a 16K x 8K envmap
 FLOAT_EXTENSIONS = (".exr", ".hdr", ".pfm")
 CV_EXTENSIONS = (".png", ".tif", ".tiff", ".jpg", ".jpeg")
 RAW_EXTENSIONS = (".dng", ".cr2", ".cr3", ".crw", ".nef", ".nrw", ".arw", ".srf", ".sr2", ".orf",
@@ -63,6 +64,11 @@ def read_float_image(path):
         raise InputError(path, f"cannot read image: {oiio.geterror() or 'unknown format'}")
     try:
         spec = inp.spec()
+        for what, width, height in (("image", spec.width, spec.height),
+                                    ("display window", spec.full_width, spec.full_height)):
+            if width * height > MAX_IMAGE_PIXELS:
+                raise InputError(path, f"{what} of {width}x{height} pixels is larger than any "
+                                       f"photo or map read here ({MAX_IMAGE_PIXELS} pixels)")
         data = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
         if data is None:
             raise InputError(path, f"cannot read image: {inp.geterror() or 'corrupt data'}")
@@ -129,8 +135,17 @@ def _float_masks(rgb, saturation):
     return usable, clipped
 
 
+def imread_unchanged(path):
+    """cv2.imread(path, IMREAD_UNCHANGED), or None when OpenCV cannot read the file (it raises,
+    rather than returning None, for an image over its 2^30-pixel limit)."""
+    try:
+        return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    except cv2.error:
+        return None
+
+
 def _read_cv(path, encoding):
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    img = imread_unchanged(path)
     if img is None:
         raise InputError(path, "cannot read image (corrupt or unsupported)")
     if img.ndim == 3 and img.shape[2] >= 3:
@@ -199,7 +214,7 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
     paths = [Path(p) for p, _ in brackets]
     times = np.array([t for _, t in brackets], dtype=np.float32)
     if all(p.suffix.lower() in CV_EXTENSIONS for p in paths):
-        raw = [cv2.imread(str(p), cv2.IMREAD_UNCHANGED) if p.is_file() else None for p in paths]
+        raw = [imread_unchanged(p) if p.is_file() else None for p in paths]
         for p, img in zip(paths, raw):
             if img is None:
                 raise InputError(p, "file not found" if not p.is_file() else "cannot read image")

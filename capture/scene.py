@@ -12,6 +12,7 @@ Additive fields (beyond the contract) accepted here:
 
 import json
 import math
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -322,12 +323,17 @@ def _photo(f, index, folder, camera):
 def _check_finite(value, json_path, where):
     """InputError naming the field (e.g. "camera.width") of the first NaN or +-Infinity.
 
-    Python's json reads NaN, Infinity and 1e999 as floats; the contract's JSON has none, and one
-    check over the whole document keeps every reader below from meeting them.
+    Python's json reads NaN, Infinity and 1e999 as floats, and 1 followed by 400 zeros as an int
+    no float holds; the contract's JSON has none, and one check over the whole document keeps
+    every reader below from meeting them.
     """
     if isinstance(value, float) and not math.isfinite(value):
         raise InputError(f"{json_path}: {where or '(document)'}",
                          f"expected a finite number, got {value!r}")
+    if isinstance(value, int) and abs(value) > sys.float_info.max:
+        raise InputError(f"{json_path}: {where or '(document)'}",
+                         f"expected a finite number, got an integer of {len(str(abs(value)))} "
+                         "digits")
     if isinstance(value, dict):
         for key, item in value.items():
             _check_finite(item, json_path, f"{where}.{key}" if where else str(key))
@@ -349,7 +355,10 @@ def load_scene(scene_dir):
     try:
         doc = json.loads(json_path.read_text(encoding="utf-8"))
         _check_finite(doc, str(json_path), "")
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as err:
+    except InputError:
+        raise
+    except (OSError, UnicodeDecodeError, ValueError, RecursionError) as err:
+        # ValueError: json.JSONDecodeError, or an integer literal of over 4300 digits
         raise InputError(json_path, f"not valid JSON: {err}") from None
     root = _Fields(str(json_path), "", doc)
     camera = _camera(root.sub("camera"))

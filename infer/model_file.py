@@ -96,9 +96,10 @@ def read_model(path, merl_dir=None):
         training = TrainingSet(names, slices, tables_2d)
         if "valid_3d" in z.files:
             training.valid_3d = z["valid_3d"]
-            if training.valid_3d.ndim != 3 or len(training.valid_3d) != n:
+            shape = (n, int(np.count_nonzero(merl.merl_valid_mask())), 3)
+            if training.valid_3d.shape != shape:
                 raise InputError(path, f"damaged model: valid_3d has shape "
-                                       f"{training.valid_3d.shape} for {n} materials")
+                                       f"{training.valid_3d.shape}, expected {shape}")
         params = json.loads(str(z["params"]))
         if not isinstance(params, dict):
             raise InputError(path, "damaged model: params is not a JSON object")

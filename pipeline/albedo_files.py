@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from brdf.atomic import atomic_path
-from brdf.errors import InputError
+from brdf.errors import DECODE_ERRORS, InputError
 from capture import load_mesh
 from render.albedo_map import table_floor
 from render.images import image_channel_names, read_image, write_exr
@@ -91,7 +91,7 @@ def read_albedo(path, scene, camera, tables):
     if js_path.is_file():
         try:
             floors = np.asarray(json.loads(js_path.read_text())["floors"], float)
-        except (ValueError, KeyError, TypeError) as err:
+        except (ValueError, KeyError, TypeError, OverflowError) as err:
             raise InputError(js_path, f"needs \"floors\": [[r, g, b], ...] ({err})") from None
         if floors.shape != (len(tables), 3) or not np.all(np.isfinite(floors)):
             raise InputError(js_path, f"\"floors\" must be {len(tables)} finite [r, g, b] "
@@ -102,8 +102,10 @@ def read_albedo(path, scene, camera, tables):
     if npy_path.is_file():
         try:
             faces = np.load(npy_path, allow_pickle=False)
-        except (OSError, ValueError) as err:
+        except DECODE_ERRORS as err:  # EOFError for an empty file
             raise InputError(npy_path, f"cannot be read as a .npy array ({err})") from None
+        if not isinstance(faces, np.ndarray):  # np.load opened a .npz archive
+            raise InputError(npy_path, "is a .npz archive, not a .npy array")
         if faces.ndim != 2 or faces.shape[1] != 3 or faces.dtype.kind != "f" or not np.all(
                 np.isfinite(faces)):
             raise InputError(npy_path, "must be one finite [r, g, b] albedo per face (F, 3)")

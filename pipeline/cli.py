@@ -22,6 +22,20 @@ class _OneLineParser(argparse.ArgumentParser):
     def error(self, message):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} -h)\n")
 
+    def add_argument(self, *args, **kwargs):
+        """Every text argument (a path, a list, a name) must be non-empty: `--slice ""` would
+        otherwise read as the current folder, or as the option not given."""
+        if kwargs.get("action", "store") in ("store", "append") and "type" not in kwargs \
+                and "choices" not in kwargs:
+            kwargs["type"] = _nonempty
+        return super().add_argument(*args, **kwargs)
+
+
+def _nonempty(text):
+    if not text:
+        raise argparse.ArgumentTypeError("is empty")
+    return text
+
 
 def _parser():
     p = _OneLineParser(

@@ -27,6 +27,8 @@ from render.compare import write_comparison
 from render.images import read_image, read_mask, write_exr, write_preview
 from render.scene_render import MaterialMap, render_scene
 
+MAX_SPP = 1 << 20  # samples per pixel; 16,384 times the default
+
 
 def photo_exists(photo):
     """Whether a photo entry's file (or every bracket) is on disk; a reference may be absent."""
@@ -36,11 +38,12 @@ def photo_exists(photo):
 
 
 def samples_per_pixel(args):
-    """--spp of `render` and `run`: 64 when absent; InputError below 1 (never silently 64)."""
+    """--spp of `render` and `run`: 64 when absent; InputError below 1 (never silently 64) or
+    above MAX_SPP (the sample pattern alone would not fit in memory)."""
     spp = getattr(args, "spp", None)
     spp = 64 if spp is None else int(spp)
-    if spp < 1:
-        raise InputError("--spp", f"must be >= 1, got {spp}")
+    if not 1 <= spp <= MAX_SPP:
+        raise InputError("--spp", f"must be in 1..{MAX_SPP}, got {spp}")
     return spp
 
 

@@ -16,8 +16,9 @@ import numpy as np
 
 import capture
 from brdf.atomic import atomic_path
-from brdf.errors import InputError
+from brdf.errors import DECODE_ERRORS, InputError
 from capture import load_mesh
+from capture.photo import imread_unchanged
 from pipeline.safety import check_outputs
 from slice_extract.extract import ExtractOptions, collect_samples
 from slice_extract.segment import check_labels, face_labels, segment_samples
@@ -88,7 +89,7 @@ def read_labels(path, shape):
     if not path.is_file():
         raise InputError(path, "is a folder, not a label image" if path.is_dir() else
                          "label image not found")
-    labels = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    labels = imread_unchanged(path)
     if labels is None or labels.ndim != 2:
         raise InputError(path, "is not a single-channel (16-bit) label PNG")
     if labels.dtype.kind not in "iu":  # a float TIFF: 1.5 or NaN is no label
@@ -110,8 +111,10 @@ def material_map_inputs(scene, labels_png, count):
     if npy.is_file():
         try:
             faces = np.load(npy, allow_pickle=False)
-        except (OSError, ValueError) as err:
+        except DECODE_ERRORS as err:  # EOFError for an empty file
             raise InputError(npy, f"cannot be read as a .npy array ({err})") from None
+        if not isinstance(faces, np.ndarray):  # np.load opened a .npz archive
+            raise InputError(npy, "is a .npz archive, not a .npy array")
         if faces.ndim != 1 or faces.dtype.kind not in "iu" or (
                 len(faces) and (faces.min() < 1 or faces.max() > count)):
             raise InputError(npy, f"must be one label 1..{count} per face (int)")

@@ -97,8 +97,8 @@ def read_png_rgb(path):
     linear 8-bit (the 16-bit value / 257), which import_diligent reads as linear with a note.
     InputError for any other pixel type or channel count.
     """
-    import cv2
-    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    from capture.photo import imread_unchanged  # None also over OpenCV's pixel limit
+    image = imread_unchanged(path)
     if image is None:
         raise InputError(path, "cannot be read as an image")
     if image.dtype not in (np.uint16, np.uint8):
@@ -113,8 +113,8 @@ def read_png_rgb(path):
 
 
 def _read_mask(path):
-    import cv2
-    mask = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    from capture.photo import imread_unchanged  # None also over OpenCV's pixel limit
+    mask = imread_unchanged(path)
     if mask is None:
         raise InputError(path, "cannot be read as an image")
     return mask.reshape(mask.shape[0], mask.shape[1], -1).max(axis=2) > 0

@@ -66,6 +66,9 @@ def check_output_kind(path, folder):
     """InputError when `path` exists as the wrong kind: a folder where a file is to be written, or
     a file (or anything else) where a folder is to be written."""
     path = os.fspath(path)
+    if not folder and path.endswith(tuple({"/", os.sep})):
+        raise InputError(path, "ends in a path separator, as a folder would (--out names an "
+                               "output file here)")
     if folder and os.path.exists(path) and not os.path.isdir(path):
         raise InputError(path, "exists and is not a folder (--out names an output folder here)")
     if not folder and os.path.isdir(path):
@@ -85,6 +88,8 @@ def check_outputs(inputs, outputs, folders=()):
     folder_set = {os.fspath(p) for p in folders}
     written = {}
     for out in (os.fspath(p) for p in outputs):
+        if not out:  # would be the current folder
+            raise InputError("--out", "is empty; give an output path")
         is_folder = out in folder_set
         out_forms = _forms(out)
         # two outputs at one path (`segment --out x.png --albedo x.exr`: both write x.json): the

@@ -118,8 +118,25 @@ def scene_copy(w, tmp, edit=None):
     return folder
 
 
+def scene_with_literal(w, tmp, path, literal):
+    """A copy of the world's scene whose scene.json holds the JSON text `literal` at doc[path...]
+    (json.dumps cannot write an integer no float holds)."""
+    folder = scene_copy(w, tmp, set_field(path, "@literal@"))
+    text = (folder / "scene.json").read_text()
+    (folder / "scene.json").write_text(text.replace('"@literal@"', literal))
+    return folder
+
+
 def scene_with_file(w, tmp, name, data):
     folder = scene_copy(w, tmp)
+    (folder / name).write_bytes(data)
+    return folder
+
+
+def scene_with_flash(w, tmp, name, data, **fields):
+    """A copy of the world's scene whose flash photo is `data` as `name` (fields: photos[0]'s
+    others, e.g. encoding)."""
+    folder = scene_copy(w, tmp, lambda doc: doc["photos"][0].update(file=name, **fields))
     (folder / name).write_bytes(data)
     return folder
 
@@ -132,6 +149,28 @@ def set_field(path, value):
             target = target[key]
         target[path[-1]] = value
     return edit
+
+
+def ply_triangle(face):
+    """An ASCII PLY of three vertices and one face of vertex indices `face` ("0 1 2")."""
+    return ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+            "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+            f"end_header\n0 0 1\n0.1 0 1\n0 0.1 1\n3 {face}\n").encode()
+
+
+def normal_map_scene(w, tmp, save):
+    """A copy of the world's scene with normal-map geometry (save(path) writes n.npy; the mask
+    is all object) and only its flash photo, lit by a directional light."""
+    import cv2
+
+    def edit(doc):
+        doc["geometry"] = {"normal_map": "n.npy", "mask": "m.png"}
+        doc["photos"] = [{**doc["photos"][0], "light": {
+            "type": "directional", "direction": [0, 0, -1], "irradiance_rgb": [1, 1, 1]}}]
+    folder = scene_copy(w, tmp, edit)
+    save(folder / "n.npy")
+    cv2.imwrite(str(folder / "m.png"), np.full((40, 40), 255, np.uint8))
+    return folder
 
 
 def truncated(path, fraction=0.5):
@@ -164,6 +203,17 @@ def npz_of_wrong_shapes(tmp):
     np.savez(path, format=np.array(FORMAT), names=np.array(["a", "b"]),
              slices=np.zeros((2, 90)), tables_2d=np.zeros((2, 90, 90, 3)),
              params=np.array("{}"), merl_dir=np.array(""))
+    return path
+
+
+def model_with_valid_3d(w, tmp, bins):
+    """A copy of the shipped model with stored 3D rows of `bins` bins per material (a whole
+    model has one per valid MERL bin)."""
+    path = tmp / "model.npz"
+    with np.load(w.model, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["valid_3d"] = np.zeros((len(arrays["names"]), bins, 3), np.float32)
+    np.savez(path, **arrays)
     return path
 
 
@@ -207,6 +257,12 @@ def merl_header(w, values):
     return bytes(data)
 
 
+def merl_body(w, edit):
+    """The world's table with its stored values (file units, flat) replaced by edit(values)."""
+    body = np.fromfile(w.brdf, dtype="<f8", offset=12)
+    return w.brdf.read_bytes()[:12] + edit(body).astype("<f8").tobytes()
+
+
 def nan_table(w):
     data = bytearray(w.brdf.read_bytes())
     data[12 + 8 * 1000:12 + 8 * 1001] = np.array([np.nan]).tobytes()
@@ -217,6 +273,32 @@ def png8(folder):
     import cv2
     png16 = cv2.imread(str(folder / "002.png"), cv2.IMREAD_UNCHANGED)
     cv2.imwrite(str(folder / "002.png"), (png16 // 257).astype(np.uint8))
+
+
+def window_bomb(tmp, name="bomb.exr"):
+    """A 4x4 EXR whose display window is 60000x60000: placing it there took 40 GiB."""
+    import OpenImageIO as oiio
+    path = tmp / name
+    spec = oiio.ImageSpec(4, 4, 3, oiio.FLOAT)
+    spec.full_width = spec.full_height = 60000
+    out = oiio.ImageOutput.create(str(path))
+    out.open(str(path), spec)
+    out.write_image(np.ones((4, 4, 3), np.float32))
+    out.close()
+    return path
+
+
+def png_bomb(side=40000):
+    """A PNG header of side x side 16-bit RGB pixels and a little data: over OpenCV's 2^30-pixel
+    limit, where cv2.imread raises instead of returning None."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(
+            ">I", zlib.crc32(kind + data))
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", side, side, 16, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(bytes(1000))) + chunk(b"IEND", b""))
 
 
 def small_exr(tmp, name="small.exr"):
@@ -252,6 +334,15 @@ CASES = [
         t, "m.binary", merl_header(w, [90, 90, 90]))), "--out", _out(t, "s.csv")], "m.binary"),
     ("merl-slice", "NaN in the table", lambda w, t: ["merl-slice", str(write(
         t, "m.binary", nan_table(w))), "--out", _out(t, "s.csv")], "m.binary"),
+    ("merl-slice", "every value negative (no data)", lambda w, t: ["merl-slice", str(write(
+        t, "m.binary", merl_body(w, lambda body: -np.ones_like(body)))), "--out",
+        _out(t, "s.csv")], "m.binary"),
+    ("merl-slice", "values of 1e300", lambda w, t: ["merl-slice", str(write(
+        t, "m.binary", merl_body(w, lambda body: body * 1e300))), "--out", _out(t, "s.csv")],
+     "m.binary"),
+    ("export", "values of 1e300 (the fit's render check overflowed)", lambda w, t: [
+        "export", str(write(t, "m.binary", merl_body(w, lambda body: body * 1e300))), "--out",
+        _out(t)], "m.binary"),
     ("merl-slice", "out is the table", lambda w, t: ["merl-slice", str(w.brdf), "--out",
                                                      str(w.brdf)], TABLES[0]),
     ("merl-slice", "out is a link to the table", lambda w, t: [
@@ -260,6 +351,8 @@ CASES = [
      HERE),
     ("merl-slice", "out under a file", lambda w, t: [
         "merl-slice", str(w.brdf), "--out", str(write(t, "f.txt", "x") / "s.csv")], "f.txt"),
+    ("merl-slice", "out ends in a slash", lambda w, t: ["merl-slice", str(w.brdf), "--out",
+                                                    str(t / "s.csv") + "/"], "s.csv/"),
     ("merl-slice", "table is a folder", lambda w, t: ["merl-slice", str(t), "--out",
                                                       _out(t, "s.csv")], HERE),
     # extract
@@ -282,6 +375,15 @@ CASES = [
     ("extract", "NaN in an unknown field", lambda w, t: ["extract", str(scene_copy(
         w, t, set_field(("provenance",), {"x": [1, float("nan")]}))), "--out", _out(t, "s.csv")],
      "provenance.x[1]"),
+    ("extract", "camera.fx an integer of 400 digits", lambda w, t: ["extract", str(
+        scene_with_literal(w, t, ("camera", "fx"), "1" + "0" * 400)), "--out", _out(t, "s.csv")],
+     "scene.json: camera.fx"),
+    ("extract", "light position an integer of 400 digits", lambda w, t: ["extract", str(
+        scene_with_literal(w, t, ("photos", 0, "light", "position", 0), "-1" + "0" * 400)),
+        "--out", _out(t, "s.csv")], "photos[0].light.position[0]"),
+    ("extract", "an integer of 5000 digits (over Python's limit)", lambda w, t: [
+        "extract", str(scene_with_literal(w, t, ("camera", "width"), "4" * 5000)), "--out",
+        _out(t, "s.csv")], "scene.json"),
     ("extract", "camera pose not a rotation", lambda w, t: ["extract", str(scene_copy(
         w, t, set_field(("camera", "world_from_camera"), (2 * np.eye(4)).tolist()))), "--out",
         _out(t, "s.csv")], "camera.world_from_camera"),
@@ -291,9 +393,31 @@ CASES = [
     ("extract", "flash photo truncated", lambda w, t: ["extract", str(scene_with_file(
         w, t, "flash0.exr", truncated(w.scene / "flash0.exr"))), "--out", _out(t, "s.csv")],
      "flash0.exr"),
+    ("extract", "flash photo's display window 60000x60000", lambda w, t: ["extract", str(
+        scene_with_file(w, t, "flash0.exr", window_bomb(t).read_bytes())), "--out",
+        _out(t, "s.csv")], "flash0.exr"),
+    ("extract", "flash photo a PNG of 40000x40000", lambda w, t: ["extract", str(
+        scene_with_flash(w, t, "big.png", png_bomb(), encoding="linear")), "--out",
+        _out(t, "s.csv")], "big.png"),
+    ("extract", "normal map's mask a PNG of 40000x40000", lambda w, t: [
+        "extract", str(write(normal_map_scene(w, t, lambda f: np.save(f, np.ones((40, 40, 3)))),
+                             "m.png", png_bomb()).parent), "--out", _out(t, "s.csv")], "m.png"),
     ("extract", "mesh is garbage", lambda w, t: ["extract", str(scene_with_file(
         w, t, "object.ply", b"ply\nformat nonsense\n")), "--out", _out(t, "s.csv")],
      "object.ply"),
+    ("extract", "mesh face past the last vertex", lambda w, t: ["extract", str(scene_with_file(
+        w, t, "object.ply", ply_triangle("0 1 99"))), "--out", _out(t, "s.csv")], "object.ply"),
+    ("extract", "mesh face of a negative vertex", lambda w, t: ["extract", str(scene_with_file(
+        w, t, "object.ply", ply_triangle("0 1 -7"))), "--out", _out(t, "s.csv")], "object.ply"),
+    ("extract", "normal map of strings", lambda w, t: ["extract", str(normal_map_scene(
+        w, t, lambda f: np.save(f, np.full((40, 40, 3), "a")))), "--out", _out(t, "s.csv")],
+     "n.npy"),
+    ("extract", "normal map complex", lambda w, t: ["extract", str(normal_map_scene(
+        w, t, lambda f: np.save(f, np.ones((40, 40, 3), complex)))), "--out", _out(t, "s.csv")],
+     "n.npy"),
+    ("extract", "normal map an .npz", lambda w, t: ["extract", str(normal_map_scene(
+        w, t, lambda f: (np.savez(f.with_suffix(".npz"), n=np.ones((40, 40, 3))),
+                         f.with_suffix(".npz").rename(f)))), "--out", _out(t, "s.csv")], "n.npy"),
     ("extract", "out is scene.json", lambda w, t: ["extract", str(w.scene), "--out",
                                                    str(w.scene / "scene.json")], "scene.json"),
     ("extract", "out is the flash photo", lambda w, t: ["extract", str(w.scene), "--out",
@@ -304,6 +428,9 @@ CASES = [
      HERE),
     ("extract", "out is the scene folder", lambda w, t: ["extract", str(w.scene), "--out",
                                                          str(w.scene)], "scene"),
+    ("extract", "out ends in a slash", lambda w, t: ["extract", str(w.scene), "--out",
+                                                 str(t / "s.csv") + "/"], "s.csv/"),
+    ("extract", "out empty", lambda w, t: ["extract", str(w.scene), "--out", ""], "--out"),
     ("extract", "max-theta-d 0", lambda w, t: ["extract", str(w.scene), "--out", _out(t, "s.csv"),
                                                "--max-theta-d", "0"], "--max-theta-d"),
     # infer
@@ -328,6 +455,9 @@ CASES = [
     ("infer", "model arrays of the wrong shape", lambda w, t: [
         "infer", "--model", str(npz_of_wrong_shapes(t)), "--method", "pca", "--slice",
         str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
+    ("infer", "model valid_3d of the wrong shape", lambda w, t: [
+        "infer", "--model", str(model_with_valid_3d(w, t, 2)),
+        "--method", "pca", "--slice", str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
     ("infer", "slice header wrong", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                   str(write(t, "s.csv", "a,b,c\n")), "--out",
                                                   _out(t, "b.binary")], "s.csv"),
@@ -336,6 +466,15 @@ CASES = [
         _out(t, "b.binary")], "s.csv"),
     ("infer", "slice holds NaN", lambda w, t: ["infer", "--method", "chandraker", "--slice", str(
         write(t, "s.csv", nan_slice(w))), "--out", _out(t, "b.binary")], "s.csv"),
+    ("infer", "slice value 1e300 (its prediction overflowed the table)", lambda w, t: [
+        "infer", "--method", "chandraker", "--slice", str(write(t, "s.csv", nan_slice(w).replace(
+            "nan", "1e300"))), "--out", _out(t, "b.binary")], "s.csv"),
+    ("infer", "slice n beyond int64", lambda w, t: ["infer", "--method", "chandraker", "--slice",
+                                                    str(write(t, "s.csv", slice_n(w, "9" * 30))),
+                                                    "--out", _out(t, "b.binary")], "s.csv"),
+    ("infer", "slice n negative in an empty bin", lambda w, t: [
+        "infer", "--method", "chandraker", "--slice", str(write(t, "s.csv", slice_n(
+            w, "-1", empty_bin=True))), "--out", _out(t, "b.binary")], "s.csv"),
     ("infer", "out is the slice", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                 str(w.slice), "--out", str(w.slice)], "slice.csv"),
     ("infer", "out is the model", lambda w, t: ["infer", "--model", str(w.model), "--slice",
@@ -343,6 +482,17 @@ CASES = [
     ("infer", "sidecar would replace the slice", lambda w, t: [
         "infer", "--method", "chandraker", "--slice",
         str(write(t, "s.json", w.slice.read_bytes())), "--out", _out(t, "s.binary")], "s.json"),
+    ("infer", "out ends in a slash", lambda w, t: ["infer", "--method", "chandraker", "--slice",
+                                               str(w.slice), "--out", str(t / "b.binary") + "/"],
+     "b.binary/"),
+    ("infer", "out empty", lambda w, t: ["infer", "--method", "chandraker", "--slice",
+                                         str(w.slice), "--out", ""], "--out"),
+    ("infer", "slice empty (it named no file)", lambda w, t: [
+        "infer", "--method", "chandraker", "--slice", "", "--out", _out(t, "b.binary")],
+     "--slice"),
+    ("infer", "merl-dir empty (it named no folder)", lambda w, t: [
+        "infer", "--model", str(w.model), "--slice", str(w.slice), "--merl-dir", "", "--out",
+        _out(t, "b.binary")], "--merl-dir"),
     ("infer", "out is a folder", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                str(w.slice), "--out", str(t)], HERE),
     # train
@@ -354,6 +504,10 @@ CASES = [
                                                   _out(t, "m.npz")], "slice.csv"),
     ("train", "a truncated table", lambda w, t: ["train", "--merl-dir", str(merl_copy(
         w, t, truncated(w.brdf, 0.1))), "--out", _out(t, "m.npz")], "bad.binary"),
+    ("train", "a table of no data in a second folder", lambda w, t: [
+        "train", "--merl-dir", str(w.merl_dir), "--merl-dir", str(write(
+            empty(t), "none.binary", merl_body(w, lambda body: -np.ones_like(body))).parent),
+        "--out", _out(t, "m.npz")], "none.binary"),
     ("train", "out is a table", lambda w, t: ["train", "--merl-dir", str(w.merl_dir), "--out",
                                               str(w.merl_dir / f"{TABLES[1]}.binary")], TABLES[1]),
     ("train", "out is the merl-dir", lambda w, t: ["train", "--merl-dir", str(w.merl_dir),
@@ -380,6 +534,8 @@ CASES = [
         _out(t)), "gone.hdr"),
     ("render", "envmap garbage", lambda w, t: _render(scene_with_file(
         w, t, "env.hdr", b"#?RADIANCE\nnonsense"), w.brdf, _out(t)), "env.hdr"),
+    ("render", "envmap's display window 60000x60000", lambda w, t: _render(scene_with_file(
+        w, t, "env.hdr", window_bomb(t).read_bytes()), w.brdf, _out(t)), "env.hdr"),
     ("render", "world_from_envmap zero", lambda w, t: _render(scene_copy(
         w, t, lambda d: d["photos"][1]["light"].__setitem__("world_from_envmap",
                                                             np.zeros((3, 3)).tolist())),
@@ -395,6 +551,8 @@ CASES = [
     ("render", "reference photo wrong size", lambda w, t: _render(scene_with_file(
         w, t, "ref_env.exr", small_exr(t).read_bytes()), w.brdf, _out(t)), "ref_env.exr"),
     ("render", "spp 0", lambda w, t: _render(w.scene, w.brdf, _out(t), "--spp", "0"), "--spp"),
+    ("render", "spp 10**11 (out of memory)", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--spp", str(10 ** 11)), "--spp"),
     # compare
     ("compare", "pred missing", lambda w, t: ["compare", str(t / "none.exr"), str(w.ref),
                                               "--out", _out(t)], "none.exr"),
@@ -402,6 +560,8 @@ CASES = [
         t, "r.exr", b"\x76\x2f\x31\x01garbage")), "--out", _out(t)], "r.exr"),
     ("compare", "sizes differ", lambda w, t: ["compare", str(w.pred), str(small_exr(t)),
                                               "--out", _out(t)], "small.exr"),
+    ("compare", "pred's display window 60000x60000", lambda w, t: [
+        "compare", str(window_bomb(t, "p.exr")), str(w.ref), "--out", _out(t)], "p.exr"),
     ("compare", "mask wrong size", lambda w, t: ["compare", str(w.pred), str(w.ref), "--mask",
                                                  str(small_exr(t, "m.exr")), "--out", _out(t)],
      "m.exr"),
@@ -453,6 +613,7 @@ CASES = [
      "old"),
     ("run", "out under a file", lambda w, t: _run(w.scene, write(t, "f.txt", "x") / "out"),
      "f.txt"),
+    ("run", "out empty", lambda w, t: _run(w.scene, ""), "--out"),
     ("run", "unknown method", lambda w, t: ["run", str(w.scene), "--out", _out(t), "--methods",
                                             "magic"], "--methods"),
     # evaluate
@@ -486,6 +647,9 @@ CASES = [
         "import-diligent", str(diligent_copy(w, t, lambda f: (f / "light_directions.txt")
                                              .write_text("nan 0 1\n0 0 1\n0 0 1\n0 0 1\n"))),
         "--flash", "1", "--out", _out(t)], "light_directions.txt"),
+    ("import-diligent", "a photo of 40000x40000", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "003.png").write_bytes(
+            png_bomb()))), "--flash", "1", "--out", _out(t)], "003.png"),
     ("import-diligent", "8-bit among 16-bit", lambda w, t: [
         "import-diligent", str(diligent_copy(w, t, png8)), "--flash", "1", "--out", _out(t)],
      "002.png"),
@@ -534,6 +698,27 @@ def tiny_scene(tmp, radius):
                                  [point_light([0.02, 0, 0])])
 
 
+def beside(path, suffix, data):
+    """Write `data` as the sidecar of `path` with `suffix` (labels.png -> labels.faces.npy);
+    return `path`."""
+    write(path.parent, path.stem + suffix, data)
+    return path
+
+
+def npz_bytes(tmp):
+    np.savez(tmp / "x.npz", faces=np.ones(3, np.int32))
+    data = (tmp / "x.npz").read_bytes()
+    (tmp / "x.npz").unlink()
+    return data
+
+
+def rgb_exr(tmp, shape=(40, 40, 3)):
+    from render.images import write_exr
+    path = tmp / "albedo.exr"
+    write_exr(path, np.full(shape, 0.5, np.float32))
+    return path
+
+
 def one_channel_exr(tmp, shape=(40, 40)):
     import OpenImageIO as oiio
     path = tmp / "albedo.exr"
@@ -578,6 +763,9 @@ SWEEP_CASES = [
      "l.png"),
     ("extract", "labels is a folder", lambda w, t: [
         "extract", str(w.scene), "--labels", str(empty(t)), "--out", _out(t)], "empty"),
+    ("extract", "labels a PNG of 40000x40000", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(write(t, "l.png", png_bomb())), "--out",
+        _out(t)], "l.png"),
     ("extract", "labels float TIFF", lambda w, t: [
         "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.tif", 1, dtype=np.float32)),
         "--out", _out(t)], "l.tif"),
@@ -596,6 +784,11 @@ SWEEP_CASES = [
     ("extract", "labelled earlier output without --force", lambda w, t: [
         "extract", str(w.scene), "--labels", str(labels_png(w, t)), "--out", str(marked_folder(t))],
      "old"),
+    ("render", "labels empty (read as not given)", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--labels", ""), "--labels"),
+    ("evaluate", "test-dir empty (read as not given)", lambda w, t: [
+        "evaluate", "--merl-dir", str(w.merl_dir), "--test-dir", "", "--out", _out(t)],
+     "--test-dir"),
     ("render", "only commas in --brdf", lambda w, t: _render(w.scene, ",,", _out(t)), "--brdf"),
     ("render", "an empty item in --brdf", lambda w, t: _render(
         w.scene, f"{w.brdf},,{w.brdf}", _out(t), "--labels", str(labels_png(w, t))), "--brdf"),
@@ -605,6 +798,23 @@ SWEEP_CASES = [
     ("render", "label faces of another mesh", lambda w, t: _render(
         w.scene, _two_tables(w), _out(t), "--labels", str(with_faces(labels_png(w, t), np.ones(
             7, np.int32)))), "labels.faces.npy"),
+    ("render", "label faces an empty file", lambda w, t: _render(
+        w.scene, _two_tables(w), _out(t), "--labels", str(beside(labels_png(w, t), ".faces.npy",
+                                                              b""))), "labels.faces.npy"),
+    ("render", "label faces an .npz archive", lambda w, t: _render(
+        w.scene, _two_tables(w), _out(t), "--labels", str(beside(labels_png(w, t), ".faces.npy",
+                                                              npz_bytes(t)))),
+     "labels.faces.npy"),
+    ("render", "albedo faces an empty file", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--albedo", str(beside(rgb_exr(t), ".faces.npy", b""))),
+     "albedo.faces.npy"),
+    ("render", "albedo faces an .npz archive", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--albedo", str(beside(rgb_exr(t), ".faces.npy",
+                                                         npz_bytes(t)))), "albedo.faces.npy"),
+    ("render", "albedo floors an integer of 400 digits", lambda w, t: _render(
+        w.scene, w.brdf, _out(t), "--albedo", str(beside(rgb_exr(t), ".json", '{"floors": [[1' +
+                                                         "0" * 400 + ', 1, 1]]}'))),
+     "albedo.json"),
     ("render", "--force onto a folder holding a listed table", lambda w, t: _render(
         w.scene, f"{w.brdf},{marked_holding(t, w.brdf) / w.brdf.name}", t / "old", "--labels",
         str(labels_png(w, t)), "--force"), "old"),
@@ -615,9 +825,12 @@ SWEEP_CASES = [
         w.scene, w.brdf, _out(t), "--albedo", str(one_channel_exr(t))), "albedo.exr"),
     ("run", "materials abc", lambda w, t: _run(w.scene, _out(t), "--materials", "abc"),
      "--materials"),
+    ("run", "spp 10**11 (out of memory)", lambda w, t: _run(w.scene, _out(t)) + [
+        "--spp", str(10 ** 11)], "--spp"),
     ("run", "spp not a number (argparse, one line)", lambda w, t: _run(w.scene, _out(t)) + [
         "--spp", "x"], "--spp"),
     ("batch", "empty folder", lambda w, t: _batch(empty(t), _out(t)), "empty"),
+    ("batch", "out empty", lambda w, t: _batch(captures(w, t, "a"), ""), "--out"),
     ("batch", "workers abc", lambda w, t: _batch(captures(w, t, "a"), _out(t), "--workers",
                                                  "abc"), "--workers"),
     ("batch", "materials 0", lambda w, t: _batch(captures(w, t, "a"), _out(t), "--materials",
@@ -671,6 +884,17 @@ def nan_slice(w):
     return "".join(lines)
 
 
+def slice_n(w, count, empty_bin=False):
+    """The world's slice with `count` as n of its first filled bin (or its first bin, emptied)."""
+    lines = w.slice.read_text().splitlines(True)
+    k = next(i for i, line in enumerate(lines) if line[0].isdigit())
+    fields = lines[k].rstrip("\n").split(",")
+    if empty_bin:
+        fields[1:4] = ["", "", ""]
+    lines[k] = ",".join(fields[:4] + [count]) + "\n"
+    return "".join(lines)
+
+
 def flipped_byte(path):
     data = bytearray(Path(path).read_bytes())
     data[len(data) // 2] ^= 0xFF
@@ -684,7 +908,8 @@ def test_corpus_size_and_spread():
         by_command[command] = by_command.get(command, 0) + 1
     assert len(CASES) >= 60 and len({name for _, name, *_ in CASES}) > 50
     assert set(by_command) == {"merl-slice", "extract", "infer", "train", "render", "compare",
-                               "run", "evaluate", "import-diligent", "segment", "batch"}
+                               "run", "evaluate", "import-diligent", "segment", "batch",
+                               "export"}
 
 
 @pytest.mark.parametrize("command,name,argv,names", CASES,
