@@ -1,8 +1,8 @@
 """Does `segment --materials auto` keep every single-material object whole? A sweep over whole sets.
 
     nice -n 10 python benchmarks/segment_sweep.py --merl-dir /work/data/merl [--merl-dir /work/data/rgl]
-        [--photons N] [--bits B] [--demosaic] [--jpeg Q] [--pairs N [--pair-seed S]] [--out NAME]
-        [--work DIR] [--limit N]
+        [--photons N] [--bits B] [--demosaic] [--jpeg Q]
+        [--pairs N [--pair-seed S] [--blobs WAVENUMBER]] [--out NAME] [--work DIR] [--limit N]
 
 Every table of each folder (MERL (NBRDF proxy), RGL (NBRDF proxy)) is rendered as one material on the
 harder single-material scene of tests/test_segment_single_material.py: a sphere (r = 7 cm) behind a
@@ -11,6 +11,8 @@ pixel (tests/synthetic.py: trimesh rays, not ours). slice_extract.segment then c
 `segment --materials auto` does. A K above 1 is a single material split: the hidden checks score
 single-material objects the same way, and there `auto` must not make things worse. Writes
 benchmarks/results/segment_sweep.{json,md}: K per table, and for each split its criterion.
+With --pairs, random pairs of tables on one sphere instead, on its halves or (--blobs) in blobs
+that cross every theta_h ring; K and the share of pixels labelled right per pair.
 """
 
 import argparse
@@ -53,8 +55,32 @@ def material_k(table_path, work, seed, photons=PHOTONS, bits=None, demosaic=Fals
     return int(seg.k), seg.criterion
 
 
-def pair_result(paths, work, seed, photons=PHOTONS, post=None):
-    """{"k", "accuracy", "slice_gap"} for two MERL tables on the two halves of a sphere: K chosen
+def half(points):
+    """The sphere's halves: 1 where x + y/2 > 2 cm (points (N, 3) m)."""
+    return (points[:, 0] + 0.5 * points[:, 1] > 0.02).astype(int)
+
+
+def blobs(wavenumber, seed):
+    """Region function of a blob pattern: 1 where a smooth random field (8 plane waves, wave
+    vectors ~ N(0, wavenumber^2) per metre and axis, random phases) is above the level that
+    leaves a random 25-60% of the sphere's surface to material 2. Regions cross every theta_h
+    ring, in patches of about 2 pi / wavenumber."""
+    rng = np.random.default_rng(seed)
+    waves, phases = rng.normal(size=(8, 3)) * wavenumber, rng.uniform(0, 2 * np.pi, 8)
+    centre = np.array([0, 0, 1.0])
+
+    def field(points):
+        return np.cos((points - centre) @ waves.T + phases).sum(axis=1)
+
+    surface = rng.normal(size=(20000, 3))
+    surface = 0.1 * surface / np.linalg.norm(surface, axis=1, keepdims=True) + centre
+    level = np.quantile(field(surface), 1 - rng.uniform(0.25, 0.6))
+    return lambda points: (field(points) > level).astype(int)
+
+
+def pair_result(paths, work, seed, photons=PHOTONS, post=None, region=half):
+    """{"k", "accuracy", "slice_gap"} for two MERL tables on a sphere, laid out by `region`
+    (points -> 0/1; default its two halves): K chosen
     by auto; where K = 2, the share of object pixels whose label is their true half under the
     better of the two one-to-one matchings of labels to halves (None for another K); and the
     tables' own θd = 0 slice gap (median over θh bins of the mean |Δ ln ρ| over channels, ρ +
@@ -67,14 +93,13 @@ def pair_result(paths, work, seed, photons=PHOTONS, post=None):
     from synthetic import (by_region, pinhole_camera, point_light, region_image, sphere_mesh,
                            table_brdf, write_synthetic_scene)
     tables = [read_merl(p) for p in paths]
-    half = lambda p: (p[:, 0] + 0.5 * p[:, 1] > 0.02).astype(int)  # noqa: E731
     mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
-    folder = write_synthetic_scene(work / f"pair_{seed:03d}", mesh,
-                                   by_region([table_brdf(t) for t in tables], half), cam,
+    folder = write_synthetic_scene(work / f"pair_{seed:03d}{'' if region is half else '_blobs'}",
+                                   mesh, by_region([table_brdf(t) for t in tables], region), cam,
                                    [point_light([0.03, 0, 0])], photons=photons, seed=seed,
                                    post=post)
     seg = segment_samples(collect_samples(capture.load_scene(folder), ExtractOptions()))
-    truth = region_image(mesh, cam, half)
+    truth = region_image(mesh, cam, region)
     both = (truth > 0) & (seg.labels > 0)
     accuracy = None
     if seg.k == 2:
@@ -98,6 +123,10 @@ def main(argv=None):
                     help="demosaiced, then an 8-bit gamma-2.2 JPEG of this quality")
     ap.add_argument("--pairs", type=int, default=0,
                     help="instead: this many seeded random pairs of tables on a sphere's halves")
+    ap.add_argument("--blobs", type=float, default=None, metavar="WAVENUMBER",
+                    help="with --pairs: the two tables in blobs of a random field of this "
+                         "wavenumber (per metre; 150: patches of ~4 cm on the 10-cm sphere) "
+                         "instead of the halves")
     ap.add_argument("--pair-seed", type=int, default=0,
                     help="seed of the pair draw (0: the committed set; others: held-out sets)")
     ap.add_argument("--out", default="segment_sweep", help="results name in benchmarks/results")
@@ -149,9 +178,10 @@ def _pairs(args, work, result, start):
     for i in range(args.pairs):
         pair = [tables[j] for j in rng.choice(len(tables), 2, replace=False)]
         noise_seed = i + 1000 * args.pair_seed  # seed 0 keeps the committed set's noise
+        region = half if args.blobs is None else blobs(args.blobs, noise_seed)
         row = {"tables": [p.stem for p in pair],
                **pair_result(pair, work, noise_seed, args.photons,
-                             camera_post(args.bits, args.demosaic, args.jpeg))}
+                             camera_post(args.bits, args.demosaic, args.jpeg), region)}
         rows.append(row)
         print(row, flush=True)
     result.update(pairs=rows, seconds=time.perf_counter() - start)
@@ -159,8 +189,10 @@ def _pairs(args, work, result, start):
     distinct = [r for r in rows if r["slice_gap"] >= 0.1]
     found = [r for r in distinct if r["k"] == 2]
     lines = ["# `segment --materials auto` on two-material spheres, seeded random pairs", "",
-             f"Command: `{result['command']}` ({result['seconds']:.0f} s). Two tables on the halves "
-             f"of a sphere, flash 3 cm off the lens, {args.photons}-photon noise"
+             f"Command: `{result['command']}` ({result['seconds']:.0f} s). Two tables on "
+             + ("the halves of a sphere" if args.blobs is None else
+                f"a sphere in blobs (wavenumber {args.blobs:g} per metre)")
+             + f", flash 3 cm off the lens, {args.photons}-photon noise"
              + (f", quantised to {args.bits} bits" if args.bits else "")
              + (", demosaiced" if args.demosaic else "")
              + (f", a phone's JPEG of quality {args.jpeg}" if args.jpeg else "") + ".", "",
