@@ -112,6 +112,23 @@ def test_relit_with_inferred_brdfs_is_within_1_3_of_the_known_ones(two_materials
     assert swapped_de > 3 * 1.3 * known_de
 
 
+def _labelled_right(merl_proxy, folder, names, region, seed, *options):
+    """Two MERL (NBRDF proxy) tables laid out by `region` on the test sphere, `segment` with
+    `options`: (K, share of object pixels labelled right under the better naming)."""
+    tables = [read_merl(p) for p in merl_proxy(*names)]
+    mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
+    scene = write_synthetic_scene(folder / "scene", mesh,
+                                  by_region([table_brdf(t) for t in tables], region), cam,
+                                  [point_light([0.03, 0, 0])], photons=PHOTONS, seed=seed)
+    out = folder / "labels.png"
+    assert main(["segment", str(scene), "--out", str(out), *options]) == 0
+    labels = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
+    truth = region_image(mesh, cam, region)
+    on = truth > 0
+    return int(labels.max()), max(np.mean(labels[on] == truth[on]),
+                                  np.mean(labels[on] == 3 - truth[on]))
+
+
 def test_auto_keeps_a_photon_starved_black_beside_a_bright_wood(merl_proxy, tmp_path):
     """Two materials that share the theta_h bins about equally (the sphere's two halves), one of
     them black-obsidian (rho ~1e-4, a few photons a pixel): one slice for the object then
@@ -120,19 +137,9 @@ def test_auto_keeps_a_photon_starved_black_beside_a_bright_wood(merl_proxy, tmp_
     seeds 0-5 (K = 1), while the wood, its partner, fits its own slice 0.03 x as badly as the
     two's joint one. K must be 2, with the issue's 98% of object pixels labelled right
     (measured 98.5%: the black half's zero-photon pixels take the nearest label)."""
-    tables = [read_merl(p) for p in merl_proxy("black-obsidian", "pickled-oak-260")]
-    mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
-    folder = write_synthetic_scene(tmp_path / "scene", mesh,
-                                   by_region([table_brdf(t) for t in tables], _region), cam,
-                                   [point_light([0.03, 0, 0])], photons=PHOTONS, seed=0)
-    out = tmp_path / "labels.png"
-    assert main(["segment", str(folder), "--out", str(out)]) == 0
-    labels = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
-    truth = region_image(mesh, cam, _region)
-    on = truth > 0
-    assert labels.max() == 2
-    right = max(np.mean(labels[on] == truth[on]), np.mean(labels[on] == 3 - truth[on]))
-    assert right >= 0.98
+    k, right = _labelled_right(merl_proxy, tmp_path, ("black-obsidian", "pickled-oak-260"),
+                               _region, 0)
+    assert k == 2 and right >= 0.98, right
 
 
 def _dots(points, spacing=0.012, radius=0.004):
@@ -147,18 +154,8 @@ def test_a_material_in_small_dots_keeps_its_dots(merl_proxy, tmp_path):
     alone looks like speckle; together they are the material, so the clean-up must keep them.
     Measured 99.3% of object pixels right; 84.2% before, when every dot but the largest was
     cleared (the blue then held one dot). 98%: the issue's label target."""
-    tables = [read_merl(p) for p in merl_proxy(*MATERIALS)]
-    mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
-    folder = write_synthetic_scene(tmp_path / "scene", mesh,
-                                   by_region([table_brdf(t) for t in tables], _dots), cam,
-                                   [point_light([0.03, 0, 0])], photons=PHOTONS, seed=0)
-    out = tmp_path / "labels.png"
-    assert main(["segment", str(folder), "--out", str(out), "--materials", "2"]) == 0
-    labels = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
-    truth = region_image(mesh, cam, _dots)
-    on = truth > 0
-    assert labels.max() == 2
-    assert max(np.mean(labels[on] == truth[on]), np.mean(labels[on] == 3 - truth[on])) >= 0.98
+    k, right = _labelled_right(merl_proxy, tmp_path, MATERIALS, _dots, 0, "--materials", "2")
+    assert k == 2 and right >= 0.98, right
 
 
 # a blob pattern: a smooth random field (8 plane waves, wavelengths 2-7 cm on the 10 cm sphere)
@@ -179,19 +176,9 @@ def test_materials_keep_their_names_from_one_theta_h_ring_to_the_next(merl_proxy
     right, named wrong: 86.9% of pixels right). The pixels adjacent across the rings' edges put
     the names back (align_bin_labels): measured 96.4%. 95%: between the two; what is left is
     rings where one name holds both materials, which renaming cannot split."""
-    tables = [read_merl(p) for p in merl_proxy("fruitwood-241", "dark-specular-fabric")]
-    mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
-    folder = write_synthetic_scene(tmp_path / "scene", mesh,
-                                   by_region([table_brdf(t) for t in tables], _blobs), cam,
-                                   [point_light([0.03, 0, 0])], photons=PHOTONS, seed=10)
-    out = tmp_path / "labels.png"
-    assert main(["segment", str(folder), "--out", str(out)]) == 0
-    labels = cv2.imread(str(out), cv2.IMREAD_UNCHANGED)
-    truth = region_image(mesh, cam, _blobs)
-    on = truth > 0
-    assert labels.max() == 2
-    right = max(np.mean(labels[on] == truth[on]), np.mean(labels[on] == 3 - truth[on]))
-    assert right >= 0.95, right
+    k, right = _labelled_right(merl_proxy, tmp_path, ("fruitwood-241", "dark-specular-fabric"),
+                               _blobs, 10)
+    assert k == 2 and right >= 0.95, right
 
 
 def test_auto_picks_one_material_on_the_sample_capture(tmp_path):
