@@ -76,7 +76,7 @@ def load_mesh(path):
     # Scene.dump() and Trimesh.copy() drop that cache, so read it before anything else touches
     # the mesh)
     parts = ([loaded] if isinstance(loaded, trimesh.Trimesh) else
-             _scene_parts(loaded) if isinstance(loaded, trimesh.Scene) else [])
+             _scene_parts(loaded, path) if isinstance(loaded, trimesh.Scene) else [])
     parts = [g for g in parts if len(g.faces)]
     if not parts:
         raise InputError(path, "no triangles in the mesh")
@@ -99,7 +99,7 @@ def load_mesh(path):
     return mesh, has_normals
 
 
-def _scene_parts(scene):
+def _scene_parts(scene, path):
     """The triangle meshes of a trimesh.Scene (glTF, GLB, multi-object files) placed by the scene
     graph, as Scene.dump() places them, but keeping each file's vertex normals (transformed by the
     inverse transpose of the node's matrix and renormalised), which dump() drops."""
@@ -114,7 +114,10 @@ def _scene_parts(scene):
         part = geometry.copy()
         part.apply_transform(transform)
         if normals is not None:
-            normals = np.asarray(normals, dtype=np.float64) @ np.linalg.inv(transform[:3, :3])
+            linear = transform[:3, :3]
+            if not np.all(np.isfinite(linear)) or abs(np.linalg.det(linear)) < 1e-12:
+                raise InputError(path, f"scene node {node!r} has a singular transform")
+            normals = np.asarray(normals, dtype=np.float64) @ np.linalg.inv(linear)
             normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-300)
             part = trimesh.Trimesh(part.vertices, part.faces, vertex_normals=normals,
                                    process=False)

@@ -114,6 +114,8 @@ def read_pfm(path):
     except (OSError, ValueError, IndexError) as err:
         raise InputError(path, f"cannot read PFM image: {err}") from None
     channels = {b"PF": 3, b"Pf": 1}.get(kind)
+    if width < 1 or height < 1 or width * height > MAX_IMAGE_PIXELS:
+        raise InputError(path, f"cannot read PFM image: size {width}x{height}")
     if channels is None or data.size < width * height * channels:
         raise InputError(path, "cannot read PFM image: bad header or truncated data")
     image = data[:width * height * channels].reshape(height, width, channels)[::-1]

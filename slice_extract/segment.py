@@ -35,10 +35,14 @@ What separates materials is what the photo says about the material, not about sh
 - the last assignment of every pixel (_assign_all) first takes off a flash-coloured (white)
   highlight term where the pixel is brighter than a coloured material's slice (_added_white,
   dichromatic model): a foil's highlight no longer passes for a paler material.
+- names across theta_h rings (align_bin_labels): the assignment decides bin by bin, so where
+  two materials' names came out exchanged over some rings, the pixels adjacent across the
+  rings' edges put them back.
 - spatial clean-up (OpenCV connected components and labelled distance transform): patches
   smaller than `min_area_fraction` of the object merge into the nearest larger patch (unless
-  the photo's frame cuts them), and object pixels without a sample (silhouette ring, grazing,
-  clipped, shadowed) take the nearest label.
+  the photo's frame cuts them, or the material has no larger patch: a pattern of dots), and
+  object pixels without a sample (silhouette ring, grazing, clipped, shadowed) take the
+  nearest label.
 
 Labels are numbered by decreasing pixel count (1 = the largest material).
 """
@@ -644,14 +648,23 @@ def align_bin_labels(labels, bins, pixels, shape, present=0.05):
     label_image = np.zeros(shape[0] * shape[1], np.int16)
     label_image[pixels] = labels
     label_image = label_image.reshape(shape)
-    codes = []
+    codes, same, pairs_in_bin = [], 0, 0
     for here, there in ((np.s_[:, :-1], np.s_[:, 1:]), (np.s_[:-1, :], np.s_[1:, :])):
         step = bin_image[there] - bin_image[here]
+        inside = step == 0
+        inside &= bin_image[here] >= 0
+        same += int(np.count_nonzero(label_image[here][inside] == label_image[there][inside]))
+        pairs_in_bin += int(np.count_nonzero(inside))
         for sign, low, high in ((1, here, there), (-1, there, here)):
             edge = step == sign
             codes.append((bin_image[low][edge].astype(np.int64) * k + label_image[low][edge]) * k
                          + label_image[high][edge])
     codes = np.concatenate(codes)
+    shares = np.bincount(labels, minlength=k) / len(labels)
+    if same <= (shares ** 2).sum() * pairs_in_bin:
+        # neighbours share their material no more often than chance (a 1-px pattern, or noise):
+        # adjacency says nothing about names
+        return labels, 0
     n_bins = N_THETA_H
     # pairs[b, i, j]: adjacent pixels, the one in bin b labelled i, the one in bin b + 1 labelled j
     pairs = np.bincount(codes, minlength=n_bins * k * k).reshape(n_bins, k, k).astype(float)
@@ -701,8 +714,8 @@ def clean_label_image(labels, object_mask, min_area_fraction):
     Connected patches smaller than min_area_fraction of the object (at least MIN_PATCH_PX
     pixels) are cleared, unless they touch the photo's frame: such a patch continues outside the
     photo, so its visible area does not say it is noise (an object larger than the frame: the
-    planar cards' scales cut by the frame). A material that lies mostly in such small patches is
-    a pattern (dots, print), not speckle round a larger region of it, so only its patches under
+    planar cards' scales cut by the frame). A material none of whose patches is larger is a
+    pattern (dots, print), not speckle round a region of it, so only its patches under
     MIN_PATCH_PX go. Then every object pixel takes the label of the nearest labelled pixel.
     Labels are renumbered 1..K by decreasing area. Returns (H, W) uint16.
     Works on the object's bounding box only (the rest stays 0): the same result, less image.
@@ -734,7 +747,7 @@ def _clean_labels(labels, object_mask, min_area_fraction, object_pixels, frame):
         clear = area < min_area
         clear[0] = False                      # the background of this label's mask
         clear[np.unique(comp[frame])] = False  # cut by the frame: its size is unknown
-        if area[1:][clear[1:]].sum() > 0.5 * area[1:].sum():  # a pattern of small patches
+        if clear[1:].all():                   # no patch is a region: a pattern (dots, print)
             clear &= area < MIN_PATCH_PX
         if clear[1:].all():                   # all tiny: keep the largest
             clear[1 + int(np.argmax(area[1:]))] = False

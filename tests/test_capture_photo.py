@@ -215,3 +215,15 @@ def test_exr_data_window_is_placed_in_display_window(tmp_path):
     rgb, usable = capture.load_photo(tmp_path / "w.exr")
     assert rgb.shape == (5, 8, 3) and np.all(rgb[1:4, 2:6] == 2.0)
     assert usable.sum() == 12 and usable[1:4, 2:6].all()
+
+
+@pytest.mark.parametrize("size", [b"-2 -3", b"-1 4", b"0 5"])
+def test_pfm_with_a_size_below_one_is_bad_input(tmp_path, size):
+    """A PFM header's width and height must be >= 1: -2 -3 broke numpy's reshape (a traceback),
+    -1 4 read a 4x4 image from the wrong bytes, 0 5 gave an empty one."""
+    from brdf.errors import InputError
+    from capture.photo import read_float_image
+    path = tmp_path / "bad.pfm"
+    path.write_bytes(b"PF\n" + size + b"\n-1.0\n" + np.zeros(60, "<f4").tobytes())
+    with pytest.raises(InputError, match="bad.pfm"):
+        read_float_image(path)

@@ -236,3 +236,17 @@ def test_pixel_box_covers_every_hit(tmp_path):
     rows, cols = np.nonzero(hits.hit)
     assert rows.min() >= r0 and rows.max() < r1 and cols.min() >= c0 and cols.max() < c1
     assert (r1 - r0) * (c1 - c0) < 0.5 * 96 * 96  # and it does cull
+
+
+def test_gltf_node_with_a_singular_transform_is_bad_input(tmp_path):
+    """A scene node that scales an axis to 0 has no inverse for its normals: InputError naming
+    the file, not numpy's LinAlgError."""
+    import trimesh
+    from brdf.errors import InputError
+    triangle = trimesh.Trimesh([[-1.0, -1.0, 0.0], [0.0, 2.0, 0.0], [2.0, -1.0, 0.0]], [[0, 1, 2]],
+                               vertex_normals=[[0.0, 0.0, 1.0]] * 3, process=False)
+    scene = trimesh.Scene()
+    scene.add_geometry(triangle, transform=np.diag([0.0, 1.0, 1.0, 1.0]))
+    scene.export(tmp_path / "t.glb")
+    with pytest.raises(InputError, match="t.glb"):
+        capture.load_mesh(tmp_path / "t.glb")

@@ -2,9 +2,10 @@
 move a pixel to another material, and a patch cut by the photo's frame is not cleared as noise."""
 
 import numpy as np
+import pytest
 
 from brdf.merl import N_THETA_H
-from slice_extract.segment import _residuals, clean_label_image
+from slice_extract.segment import _residuals, align_bin_labels, clean_label_image
 
 TEAL = np.array([0.01, 0.06, 0.058])      # a coloured material's slice value (1/sr)
 SILVER = np.array([0.045, 0.083, 0.094])  # a pale lavender one
@@ -72,3 +73,54 @@ def test_a_small_patch_cut_by_the_frame_is_kept():
     photo[10:110, 10:110] = labels
     cleaned = clean_label_image(photo, photo > 0, 0.005)
     assert np.count_nonzero(cleaned == 2) == 100
+
+
+def _rings(size=120):
+    """A disc of theta_h rings (bin = 0.7 x radius in px): (bins (N,), pixels (N,), shape,
+    right half (N,) 0/1)."""
+    rows, cols = np.mgrid[0:size, 0:size]
+    radius = np.hypot(rows - size / 2, cols - size / 2)
+    pixels = np.flatnonzero(radius.ravel() < size / 2)
+    bins = np.clip((0.7 * radius).astype(int), 0, N_THETA_H - 1).ravel()[pixels]
+    return bins, pixels, (size, size), (cols.ravel()[pixels] > size / 2).astype(int)
+
+
+def test_align_bin_labels_puts_back_names_swapped_over_a_range_of_rings():
+    """Two halves, their names exchanged in bins 10-19: every pixel right again (exact: the
+    swap is clean), and the 10 bins counted."""
+    bins, pixels, shape, truth = _rings()
+    labels = np.where((bins >= 10) & (bins < 20), 1 - truth, truth)
+    out, renamed = align_bin_labels(labels, bins, pixels, shape)
+    assert renamed == 10 and np.array_equal(out, truth)
+
+
+@pytest.mark.parametrize("layout", ["cap", "checkerboard", "one"])
+def test_align_bin_labels_leaves_right_names_alone(layout):
+    """A boundary that follows a ring (a cap round the highlight: one material per side, nothing
+    to exchange), a 1-px checkerboard (neighbours share their material less than chance, so
+    adjacency says nothing about names) and one material: unchanged."""
+    bins, pixels, shape, _ = _rings()
+    row, col = np.divmod(pixels, shape[1])
+    labels = {"cap": (bins < 15).astype(int), "checkerboard": (row + col) % 2,
+              "one": np.zeros(len(bins), int)}[layout]
+    out, renamed = align_bin_labels(labels, bins, pixels, shape)
+    assert renamed == 0 and np.array_equal(out, labels)
+
+
+def test_clean_up_keeps_a_region_whole_and_clears_its_speckle():
+    """A material with one region plus 1-px speckle (20% of the other material's pixels, more
+    than the region holds) is not a pattern: the speckle goes (the pattern rule keeps small
+    patches only for a material with no region). Measured 99.87% of pixels with their region's
+    label (what is left: speckle touching the region or the frame); 89.6% under the rule that
+    called a material a pattern when most of its pixels lay in small patches. 99.5%: between."""
+    rng = np.random.default_rng(0)
+    size = 400
+    rows, cols = np.mgrid[0:size, 0:size]
+    mask = np.hypot(rows - size / 2, cols - size / 2) < size / 2 - 1
+    region = mask & (cols < 60)
+    labels = np.where(mask, 1, 0)
+    labels[region] = 2
+    labels[mask & ~region & (rng.random(mask.shape) < 0.2)] = 2
+    cleaned = clean_label_image(labels, mask, 0.002)
+    truth = np.where(region, 2, 1)
+    assert np.mean((cleaned == 2)[mask] == (truth == 2)[mask]) >= 0.995
