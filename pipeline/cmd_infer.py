@@ -139,7 +139,15 @@ def _render_envmaps(args):
         raise InputError("--envmap", "names Table 2's maps: give it with --render")
     if not getattr(args, "render", False):
         return None
-    paths = [Path(p) for p in given] if given else default_envmaps()
+    try:
+        paths = [Path(p) for p in given] if given else default_envmaps()
+    except InputError as err:  # the CLI's words for the Python API's hint
+        raise InputError(err.where, "Table 2's default map is not there: give --envmap FILE "
+                                    "(repeat it) or set FLASHBRDF_SHARED") from None
+    names = [path.stem.split("_latlong")[0] for path in paths]  # Table 2's column names
+    if len(set(names)) < len(names):
+        raise InputError("--envmap", f"two maps share the name {max(names, key=names.count)!r}: "
+                                     "Table 2 names a map by its file name")
     for path in paths:
         read_envmap_pixels(path)
     return paths
@@ -154,6 +162,8 @@ def evaluate(args):
     check_engine_options(args)
     _check_protocol_options(args)
     if getattr(args, "test_dir", None):
+        if getattr(args, "envmap", None) and not getattr(args, "render", False):
+            raise InputError("--envmap", "names Table 2's maps: give it with --render")
         if getattr(args, "render", False):
             raise InputError("--render", "renders the cross-validation protocol's materials; "
                                          "not with --test-dir")

@@ -32,6 +32,7 @@ def export_for_report(out, method, envmap=None):
     note = (f"--export: {method}'s BRDF exported to export/ (Mitsuba 3, principled.json, glTF). "
             f"Its Principled fit has 2D LAB-log error {fit['lab_log_2d']:.2f} against the table"
             + (f" and sphere Delta E log {fit['render_delta_e_log']:.2f} under "
-               f"{Path(envmap).name}" if fit["render_delta_e_log"] is not None else "")
+               f"{Path(envmap).name} (the map file as stored: not the scene's rotation or scale)"
+               if fit["render_delta_e_log"] is not None else "")
             + f"; its renders are the method `{method}-principled`.")
     return f"{method}-principled", tabulate_principled(result["params"]), note
