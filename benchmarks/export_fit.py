@@ -19,6 +19,7 @@ the JSON files present):
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -26,6 +27,9 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+# the paper's pisa probe (research use only: read from ../shared, never shipped)
+PISA = (Path(os.environ.get("FLASHBRDF_SHARED", ROOT.parent / "shared")) / "data" / "envmaps"
+        / "pisa_latlong_256x128.hdr")
 sys.path.insert(0, str(ROOT))
 
 from brdf.atomic import write_text  # noqa: E402
@@ -80,7 +84,6 @@ def _mitsuba_spheres(args):
     """(mitsuba_bsdf module, pisa envmap path, sphere mask (size, size), [(name, path)]) for the
     Mitsuba parts: llvm_ad_rgb registered, one MERL table per --plugin-materials name."""
     import render.mitsuba_bsdf as mbsdf
-    from render.envmap import default_envmaps
     from render.scene_render import sphere_view
     if not mbsdf.llvm_available():
         raise SystemExit("llvm_ad_rgb unavailable: pip install -e '.[mitsuba]', apt-get install "
@@ -88,7 +91,7 @@ def _mitsuba_spheres(args):
     mbsdf.register("llvm_ad_rgb")
     materials = [(name, Path(args.merl_dir) / f"{name}.binary")
                  for name in args.plugin_materials.split(",")]
-    return mbsdf, default_envmaps()[0], sphere_view(args.size)[0], materials
+    return mbsdf, PISA, sphere_view(args.size)[0], materials
 
 
 def part_plugin(args):
@@ -171,8 +174,7 @@ def part_recovery(args):
 
 
 def part_measured(args):
-    from render.envmap import default_envmaps
-    pisa = default_envmaps()[0]
+    pisa = PISA
     rows = []
     sets = [("MERL (NBRDF proxy)", args.merl_dir), ("RGL (NBRDF proxy)", args.rgl_dir)]
     jobs = [[(label, name, path) for name, path in list_merl(folder)] for label, folder in sets

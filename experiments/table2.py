@@ -43,8 +43,12 @@ def table2(merl_dir, out_dir, predict, names=None, methods=METHODS, envmaps=None
     unknown = [n for n in names if n not in tables]
     if unknown:
         raise InputError(merl_dir, f"no table for material {unknown[0]!r}")
-    envmap_paths = [Path(p) for p in (envmaps or default_envmaps())]
-    maps = {p.stem.split("_latlong")[0]: EnvMap.from_file(p) for p in envmap_paths}
+    if envmaps:
+        envmap_paths = [Path(p) for p in envmaps]
+        maps = {p.stem.split("_latlong")[0]: EnvMap.from_file(p) for p in envmap_paths}
+    else:  # the project's own maps, made in code
+        maps = {name: EnvMap(pixels) for name, pixels in default_envmaps().items()}
+        envmap_paths = [f"procedural:{name}" for name in maps]
     mask = sphere_view(size)[0]
     scores = {m: {e: {} for e in maps} for m in methods}
     shown = {}

@@ -142,7 +142,8 @@ def _parser():
     s.add_argument("--render", action="store_true")
     s.add_argument("--envmap", action="append", metavar="FILE",
                    help="with --render: a lat-long map for Table 2 (repeat it for several; "
-                        "default pisa, grace and uffizi from ../shared/data/envmaps)")
+                        "default two maps made in code, render.envmap.default_envmaps: a sky "
+                        "with a sun and a studio)")
     s.add_argument("--quick", action="store_true")
     s.add_argument("--experiments", type=int, help="number of experiments (default 25)")
     s.add_argument("--time-budget", type=float, metavar="SECONDS",

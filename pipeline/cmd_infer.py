@@ -130,20 +130,17 @@ def _check_protocol_options(args):
 
 
 def _render_envmaps(args):
-    """Table 2's lat-long maps: every --envmap FILE, else render.envmap.default_envmaps() (pisa,
-    grace and uffizi in ../shared/data/envmaps or $FLASHBRDF_SHARED). Each is read once here,
-    before the long run, so a missing or malformed map is bad input at once (InputError)."""
-    from render.envmap import default_envmaps, read_envmap_pixels
+    """Table 2's lat-long maps: every --envmap FILE, or None for the project's own maps
+    (render.envmap.default_envmaps, made in code: never a file outside the project that no flag
+    names). Each file is read once here, before the long run, so a missing or malformed map is
+    bad input at once (InputError)."""
+    from render.envmap import read_envmap_pixels
     given = getattr(args, "envmap", None)
     if given and not getattr(args, "render", False):
         raise InputError("--envmap", "names Table 2's maps: give it with --render")
-    if not getattr(args, "render", False):
+    if not getattr(args, "render", False) or not given:
         return None
-    try:
-        paths = [Path(p) for p in given] if given else default_envmaps()
-    except InputError as err:  # the CLI's words for the Python API's hint
-        raise InputError(err.where, "Table 2's default map is not there: give --envmap FILE "
-                                    "(repeat it) or set FLASHBRDF_SHARED") from None
+    paths = [Path(p) for p in given]
     names = [path.stem.split("_latlong")[0] for path in paths]  # Table 2's column names
     if len(set(names)) < len(names):
         raise InputError("--envmap", f"two maps share the name {max(names, key=names.count)!r}: "

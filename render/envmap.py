@@ -21,7 +21,6 @@ hemisphere where rho cos > 0.
 """
 
 import os
-from pathlib import Path
 
 import numpy as np
 
@@ -29,20 +28,57 @@ from brdf.errors import InputError
 
 # Rec. 709 / linear sRGB luminance weights.
 LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722])
-ENVMAPS = ("pisa_latlong_256x128.hdr", "grace_latlong_256x128.hdr", "uffizi_latlong_256x128.hdr")
+# Table 2's maps when no --envmap names one. Nothing may be read from outside the project unless
+# a flag names the file, and no third-party data is shipped, so the defaults are made here, in
+# code: an outdoor sky with a sun, and a studio with two soft boxes. The paper's pisa, grace and
+# uffizi (USC ICT, research use only) stay in ../shared: pass them with --envmap.
+DEFAULT_ENVMAPS = ("sky", "studio")
+DEFAULT_ENVMAP_HEIGHT = 128  # the USC probes' size: Table 2 renders stay as fast
 
 
-def default_envmaps():
-    """Paths of pisa and two other maps in ../shared/data/envmaps (or $FLASHBRDF_SHARED)."""
-    shared = Path(os.environ.get("FLASHBRDF_SHARED",
-                                 Path(__file__).resolve().parents[2] / "shared"))
-    folder = shared / "data" / "envmaps"
-    paths = [folder / name for name in ENVMAPS]
-    missing = [p for p in paths if not p.is_file()]
-    if missing:
-        raise InputError(missing[0], "environment map not found (set FLASHBRDF_SHARED or pass "
-                                     "envmaps=...)")
-    return paths
+def envmap_directions(height):
+    """(H, 2H, 3) unit envmap-frame directions of the pixel centres of an H-row lat-long map."""
+    theta = np.pi * (np.arange(height) + 0.5) / height
+    phi = 2.0 * np.pi * (np.arange(2 * height) + 0.5) / (2 * height) - np.pi
+    st, ct = np.sin(theta)[:, None], np.cos(theta)[:, None]
+    return np.stack(np.broadcast_arrays(np.sin(phi)[None] * st, ct, -np.cos(phi)[None] * st), -1)
+
+
+def _cap(d, elevation_deg, azimuth_deg, radius_deg):
+    """(H, W) bool: pixel directions d within radius_deg of the direction at that elevation above
+    the horizon and azimuth (phi, the map's own angle)."""
+    el, az = np.radians(elevation_deg), np.radians(azimuth_deg)
+    centre = np.array([np.sin(az) * np.cos(el), np.sin(el), -np.cos(az) * np.cos(el)])
+    return d @ centre >= np.cos(np.radians(radius_deg))
+
+
+def procedural_envmap(name, height=DEFAULT_ENVMAP_HEIGHT):
+    """(height, 2 height, 3) linear RGB radiance of a default map, in the map's convention above.
+
+    "sky": blue at the zenith, white at the horizon, a grey-brown ground, and a 3° sun 35° up
+    holding about 60% of the light a horizontal surface receives (a hot spot like a probe's sun,
+    which the importance sampler must find). "studio": a dark room with a large key box 45° up
+    and a dimmer fill box opposite, with hard edges (a highlight's shape shows in the render)."""
+    d = envmap_directions(height)
+    up = d[..., 1]
+    if name == "sky":
+        horizon = np.clip(1.0 - up, 0.0, 1.0)[..., None] ** 2
+        pixels = np.where((up >= 0)[..., None],
+                          0.8 * ((1 - horizon) * np.array([0.35, 0.55, 1.0]) + horizon),
+                          np.array([0.25, 0.22, 0.18]))
+        pixels[_cap(d, 35.0, 40.0, 3.0)] = np.array([1.0, 0.95, 0.85]) * 500.0
+    elif name == "studio":
+        pixels = np.where((up >= 0)[..., None], 0.05, 0.1) * np.ones(3)
+        pixels[_cap(d, 45.0, -50.0, 15.0)] = 6.0
+        pixels[_cap(d, 20.0, 140.0, 12.0)] = np.array([1.2, 1.3, 1.5])
+    else:
+        raise ValueError(f"no default envmap {name!r}: one of {', '.join(DEFAULT_ENVMAPS)}")
+    return pixels
+
+
+def default_envmaps(height=DEFAULT_ENVMAP_HEIGHT):
+    """{name: (height, 2 height, 3) radiance}: Table 2's default maps (procedural_envmap)."""
+    return {name: procedural_envmap(name, height) for name in DEFAULT_ENVMAPS}
 
 
 def read_envmap_pixels(path):

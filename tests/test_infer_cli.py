@@ -198,3 +198,13 @@ def test_evaluate_render_takes_its_envmaps_from_a_flag(tmp_path, capsys, monkeyp
     write_exr(mine, np.ones((4, 8, 3)))
     args = argparse.Namespace(render=True, envmap=[str(mine)])
     assert _render_envmaps(args) == [mine]
+
+
+def test_evaluate_render_without_envmap_reads_no_file(monkeypatch):
+    """The contract's `evaluate ... --render` needs no --envmap: Table 2's default maps are made
+    in code (render.envmap.default_envmaps), so nothing is read from ../shared (it was before)."""
+    import argparse
+
+    from pipeline.cmd_infer import _render_envmaps
+    monkeypatch.setenv("FLASHBRDF_SHARED", "/nonexistent")  # the old fallback's override
+    assert _render_envmaps(argparse.Namespace(render=True, envmap=None)) is None

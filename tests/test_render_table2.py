@@ -33,3 +33,15 @@ def test_table2_scores_truth_zero_and_errors_positive(tmp_path, merl_proxy):
     assert saved["summary"] == summary
     assert set(saved["per_material"]["pca"]["sky"]) == set(names)
     assert (out / "table2.md").read_text().count("|") > 10 and (out / "table2.png").is_file()
+
+
+def test_table2_without_envmaps_renders_the_maps_made_in_code(tmp_path, merl_proxy):
+    """No envmaps: Table 2 renders under render.envmap.default_envmaps, named as such."""
+    path = merl_proxy("blue-acrylic")
+    paths = [path]
+    truth = read_merl(path)
+    result = table2(paths[0].parent, tmp_path / "out", lambda name, m: truth * 2.0,
+                    names=[paths[0].stem], methods=("pca",), size=16, spp=4, progress=False)
+    assert result["envmaps"] == ["procedural:sky", "procedural:studio"]
+    # 2 x the BRDF is 2 x every pixel under any map: a clear log-Lab error under both
+    assert all(result["per_material"]["pca"][e][paths[0].stem] > 0.5 for e in ("sky", "studio"))
