@@ -16,6 +16,7 @@ for integer images (at the black level, so the true value is unknown), or no cha
 channel < 0 for float images (a float image has no code floor, so one dark channel is still data).
 """
 
+import os
 from pathlib import Path
 
 import cv2
@@ -137,13 +138,39 @@ def _float_masks(rgb, saturation):
     return usable, clipped
 
 
+# OpenCV's size limits (imgcodecs/loadsave.cpp): the name its failed assertion shows -> the
+# environment variable that sets the limit, the default, and what it counts
+OPENCV_SIZE_LIMITS = {"CV_IO_MAX_IMAGE_PIXELS": ("OPENCV_IO_MAX_IMAGE_PIXELS", 1 << 30, "pixels"),
+                      "CV_IO_MAX_IMAGE_WIDTH": ("OPENCV_IO_MAX_IMAGE_WIDTH", 1 << 20,
+                                                "pixels wide"),
+                      "CV_IO_MAX_IMAGE_HEIGHT": ("OPENCV_IO_MAX_IMAGE_HEIGHT", 1 << 20,
+                                                 "pixels high")}
+
+
+def opencv_size_limit(message, environ=None):
+    """The limit an OpenCV error message says an image exceeds, as words ("1073741824 pixels
+    (OPENCV_IO_MAX_IMAGE_PIXELS)"), or None when the error is about something else."""
+    environ = os.environ if environ is None else environ
+    for assertion, (variable, default, unit) in OPENCV_SIZE_LIMITS.items():
+        if assertion in message:
+            value = environ.get(variable, "")
+            limit = int(value) if value.isdigit() else default
+            return f"{limit} {unit} ({variable})"
+    return None
+
+
 def imread_unchanged(path):
-    """cv2.imread(path, IMREAD_UNCHANGED), or None when OpenCV cannot read the file (it raises,
-    rather than returning None, for an image over its 2^30-pixel limit)."""
+    """cv2.imread(path, IMREAD_UNCHANGED), or None when OpenCV cannot read the file. An image
+    over OpenCV's size limits, where cv2 raises rather than returning None, is an InputError
+    naming the file and the limit (every caller would only say "cannot read"). The size itself
+    is not told: OpenImageIO refuses to open such a header too (a "corrupt or malicious" PNG)."""
     try:
         return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    except cv2.error:
-        return None
+    except cv2.error as err:
+        limit = opencv_size_limit(str(err))
+        if limit is None:
+            return None
+        raise InputError(path, f"image is over OpenCV's limit of {limit}") from None
 
 
 def _read_cv(path, encoding):

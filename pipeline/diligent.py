@@ -97,7 +97,7 @@ def read_png_rgb(path):
     linear 8-bit (the 16-bit value / 257), which import_diligent reads as linear with a note.
     InputError for any other pixel type or channel count.
     """
-    from capture.photo import imread_unchanged  # None also over OpenCV's pixel limit
+    from capture.photo import imread_unchanged  # InputError over OpenCV's size limit
     image = imread_unchanged(path)
     if image is None:
         raise InputError(path, "cannot be read as an image")
@@ -113,7 +113,7 @@ def read_png_rgb(path):
 
 
 def _read_mask(path):
-    from capture.photo import imread_unchanged  # None also over OpenCV's pixel limit
+    from capture.photo import imread_unchanged  # InputError over OpenCV's size limit
     mask = imread_unchanged(path)
     if mask is None:
         raise InputError(path, "cannot be read as an image")

@@ -83,7 +83,7 @@ def plane_point_from_pixel(u, v, side_m, width, height):
 
 def read_srgb8_as_linear(path, gamma=2.2):
     """8-bit PNG -> (H, W, 3) float32 linear RGB by (x/255)^gamma; clipped (255) pixels -> NaN."""
-    from capture.photo import imread_unchanged  # None also over OpenCV's pixel limit
+    from capture.photo import imread_unchanged  # InputError over OpenCV's size limit
     image = imread_unchanged(path)
     if image is None:
         raise InputError(path, "cannot be read as an image")

@@ -137,6 +137,28 @@ def test_size_missing_and_corrupt_files(tmp_path):
         capture.load_photo(tmp_path / "bad.dng")
 
 
+def test_image_over_opencvs_size_limit_is_named_with_the_limit(tmp_path):
+    """cv2.imread raises (not None) past its limits: the one line names the file and the limit it
+    exceeds, not "cannot read image (corrupt or unsupported)"."""
+    from test_bad_input_corpus import png_bomb
+    big = tmp_path / "big.png"
+    big.write_bytes(png_bomb(40000))
+    with pytest.raises(InputError) as err:
+        capture.load_photo(big, encoding="linear")
+    assert str(err.value) == (f"{big}: image is over OpenCV's limit of 1073741824 pixels "
+                              "(OPENCV_IO_MAX_IMAGE_PIXELS)")
+    # the limit as OpenCV read it from its variable (a PNG too wide is refused by libpng first,
+    # as unreadable, so the width limit is seen only from other formats); other errors are not
+    # limits
+    from capture.photo import opencv_size_limit
+    assert opencv_size_limit("pixels <= CV_IO_MAX_IMAGE_PIXELS",
+                             {"OPENCV_IO_MAX_IMAGE_PIXELS": "4096"}) == \
+        "4096 pixels (OPENCV_IO_MAX_IMAGE_PIXELS)"
+    assert opencv_size_limit("static_cast<size_t>(size.width) <= CV_IO_MAX_IMAGE_WIDTH", {}) == \
+        "1048576 pixels wide (OPENCV_IO_MAX_IMAGE_WIDTH)"
+    assert opencv_size_limit("(-215:Assertion failed) size.width > 0") is None
+
+
 def test_exr_loading_never_imports_rawpy(tmp_path):
     write_exr(tmp_path / "a.exr", np.ones((2, 2, 3)))
     code = ("import sys, capture; capture.load_photo(sys.argv[1]); "
