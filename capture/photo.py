@@ -173,10 +173,10 @@ def imread_unchanged(path):
         raise InputError(path, f"image is over OpenCV's limit of {limit}") from None
 
 
-def _read_cv(path, encoding):
-    img = imread_unchanged(path)
-    if img is None:
-        raise InputError(path, "cannot read image (corrupt or unsupported)")
+def _linear_from_cv(img, path, encoding, saturation):
+    """An image as cv2.imread decoded it (BGR(A), 8/16-bit or float) -> (rgb, usable, clipped)
+    as load_photo returns them; path only names the file in errors. Pure, so that brackets
+    already decoded are linearised without reading their files again."""
     if img.ndim == 3 and img.shape[2] >= 3:
         img = img[..., [2, 1, 0]]  # BGR(A) -> RGB
     img = np.ascontiguousarray(_to_rgb(img, path))
@@ -191,8 +191,16 @@ def _read_cv(path, encoding):
             rgb = srgb_to_linear(rgb)
         return rgb, usable, clipped
     if img.dtype in (np.float32, np.float64):
-        return img.astype(np.float32), None, None
+        rgb = img.astype(np.float32)
+        return (rgb, *_float_masks(rgb, saturation))
     raise InputError(path, f"unsupported pixel type {img.dtype} (expected 8/16-bit or float)")
+
+
+def _check_shape(rgb, path, shape):
+    """InputError naming the file when the image is not `shape` (height, width); None: any."""
+    if shape is not None and rgb.shape[:2] != tuple(shape):
+        raise InputError(path, f"image is {rgb.shape[1]}x{rgb.shape[0]} but the camera is "
+                               f"{shape[1]}x{shape[0]}")
 
 
 def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=False):
@@ -213,17 +221,16 @@ def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=
         from capture.raw import load_raw  # capture.raw imports this module
         rgb, usable, clipped = load_raw(path)
     elif ext in CV_EXTENSIONS:
-        rgb, usable, clipped = _read_cv(path, encoding)
-        if usable is None:
-            usable, clipped = _float_masks(rgb, saturation)
+        img = imread_unchanged(path)
+        if img is None:
+            raise InputError(path, "cannot read image (corrupt or unsupported)")
+        rgb, usable, clipped = _linear_from_cv(img, path, encoding, saturation)
     else:
         rgb = read_pfm(path) if ext == ".pfm" else read_float_image(path)
         if encoding == "srgb":
             rgb = srgb_to_linear(rgb)
         usable, clipped = _float_masks(rgb, saturation)
-    if shape is not None and rgb.shape[:2] != tuple(shape):
-        raise InputError(path, f"image is {rgb.shape[1]}x{rgb.shape[0]} but the camera is "
-                               f"{shape[1]}x{shape[0]}")
+    _check_shape(rgb, path, shape)
     return (rgb, usable, clipped) if return_clipped else (rgb, usable)
 
 
@@ -250,7 +257,12 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
         if encoding is None and all(img.dtype == np.uint8 for img in raw):
             out = _merge_debevec(paths, raw, times, shape)
             return out if return_clipped else out[:2]
-    loaded = [load_photo(p, encoding, saturation, shape, return_clipped=True) for p in paths]
+        # linearised as load_photo does, from the pixels decoded above (not read again)
+        loaded = [_linear_from_cv(img, p, encoding, saturation) for p, img in zip(paths, raw)]
+        for p, (rgb, _, _) in zip(paths, loaded):
+            _check_shape(rgb, p, shape)
+    else:
+        loaded = [load_photo(p, encoding, saturation, shape, return_clipped=True) for p in paths]
     total = np.zeros(loaded[0][0].shape, dtype=np.float64)
     exposure = np.zeros(loaded[0][1].shape, dtype=np.float64)
     clipped = np.ones(loaded[0][1].shape, dtype=bool)

@@ -120,6 +120,37 @@ def test_8bit_brackets_with_encoding_keep_absolute_radiance(tmp_path):
         assert np.percentile(np.abs(ratio - 1), 95) < (0.05 if encoding == "srgb" else 0.2)
 
 
+def test_brackets_with_an_encoding_are_decoded_once(tmp_path, monkeypatch):
+    """8-bit brackets with an `encoding` were decoded twice (once to choose the merge, again by
+    load_photo): each file is now decoded once, and the merge is the one of the photos as
+    load_photo reads them, bit for bit (clipped and dark pixels included)."""
+    import capture.photo as photo
+    rng = np.random.default_rng(3)
+    radiance = np.exp(rng.uniform(np.log(0.001), np.log(8), (12, 10, 3)))
+    radiance[0, :3] = 20.0  # clipped even at 1/8 s
+    entries = []
+    for k, t in enumerate((0.125, 1.0, 4.0)):  # exact in float32 too
+        c = np.clip(radiance * t, 0, 1)
+        srgb = np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
+        cv2.imwrite(str(tmp_path / f"b{k}.png"), np.round(srgb * 255).astype(np.uint8)[..., ::-1])
+        entries.append((tmp_path / f"b{k}.png", t))
+    decoded = []
+    real_imread = photo.cv2.imread
+    monkeypatch.setattr(photo.cv2, "imread", lambda *a: decoded.append(a[0]) or real_imread(*a))
+    rgb, usable, clipped = capture.load_brackets(entries, encoding="srgb", return_clipped=True)
+    assert decoded == [str(path) for path, _ in entries]
+    photos = [capture.load_photo(path, "srgb", return_clipped=True) for path, _ in entries]
+    total = sum(np.where(u[..., None], x, 0).astype(np.float64) for x, u, _ in photos)
+    exposure = sum(u * t for (_, u, _), (_, t) in zip(photos, entries))
+    seen = exposure > 0  # elsewhere the shortest exposure's value, flagged unusable
+    expected = np.where(seen[..., None], total / np.where(seen, exposure, 1)[..., None],
+                        photos[0][0] / 0.125).astype(np.float32)
+    assert 0 < usable.mean() < 1 and clipped.any()  # dark, clipped and merged pixels all present
+    assert np.array_equal(usable, seen)
+    assert np.array_equal(clipped, photos[0][2] & photos[1][2] & photos[2][2])
+    assert np.array_equal(rgb, expected)
+
+
 def test_size_missing_and_corrupt_files(tmp_path):
     write_exr(tmp_path / "a.exr", np.ones((4, 5, 3)))
     with pytest.raises(InputError, match=r"a.exr: image is 5x4 but the camera is 6x4"):
