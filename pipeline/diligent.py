@@ -17,6 +17,7 @@ scale; scene.json then records each photo's bit_depth and a provenance precision
 """
 
 import os
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -64,9 +65,13 @@ def _read_rows(path, what):
     """(K, 3) float64 from a whitespace- or comma-separated text file; InputError if malformed."""
     try:
         text = path.read_text()
-        rows = np.loadtxt(path, delimiter="," if "," in text else None, ndmin=2)
+        with warnings.catch_warnings():  # "input contained no data": a second stderr line
+            warnings.simplefilter("ignore", UserWarning)
+            rows = np.loadtxt(path, delimiter="," if "," in text else None, ndmin=2)
     except ValueError as err:
         raise InputError(path, f"cannot read {what} as rows of 3 numbers ({err})") from None
+    if rows.size == 0:
+        raise InputError(path, f"holds no rows (expected K rows of 3 numbers, {what})")
     if rows.ndim != 2 or rows.shape[1] != 3 or rows.shape[0] == 0:
         raise InputError(path, f"expected K rows of 3 numbers ({what}), got shape {rows.shape}")
     if not np.all(np.isfinite(rows)):
@@ -128,7 +133,10 @@ def _read_normals(path):
         raise InputError(path, f"cannot be read as a MATLAB file ({err})") from None
     if "Normal_gt" not in mat:
         raise InputError(path, "has no variable 'Normal_gt'")
-    normals = np.asarray(mat["Normal_gt"], dtype=np.float64)
+    normals = np.asarray(mat["Normal_gt"])
+    if normals.dtype.kind not in "biuf":  # a string, cell array (object), struct or complex
+        raise InputError(path, f"Normal_gt holds {normals.dtype} values; normals are real numbers")
+    normals = normals.astype(np.float64)
     if normals.ndim != 3 or normals.shape[2] != 3:
         raise InputError(path, f"Normal_gt must be H x W x 3, got shape {normals.shape}")
     return normals

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy.io
 
 from pipeline.cli import main
 from pipeline.cmd_run import DEFAULT_MODEL
@@ -662,6 +663,14 @@ CASES = [
      "scene"),
     ("import-diligent", "flash index 0", lambda w, t: [
         "import-diligent", str(w.diligent), "--flash", "0", "--out", _out(t)], "--flash"),
+    ("import-diligent", "light directions empty (numpy warned on a second line)", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "light_directions.txt")
+                                             .write_text(""))), "--flash", "1", "--out", _out(t)],
+     "light_directions.txt"),
+    ("import-diligent", "Normal_gt a string", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: scipy.io.savemat(
+            f / "Normal_gt.mat", {"Normal_gt": "up"}))), "--flash", "1", "--out", _out(t)],
+     "Normal_gt.mat"),
 ]
 
 

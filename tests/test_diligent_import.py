@@ -132,6 +132,22 @@ def test_flash_index_out_of_range(tmp_path, capsys, index):
     assert not (tmp_path / "scene").exists()
 
 
+@pytest.mark.filterwarnings("error")  # a warning that reaches the user fails the test
+def test_empty_light_file_is_one_line_on_stderr(tmp_path, capsys):
+    """An empty light_directions.txt: numpy's loadtxt warned "input contained no data" before the
+    error, two more lines on a terminal's stderr (safety.hold_native_stderr drops them only when
+    stderr is a file or pipe)."""
+    make_diligent(tmp_path / "obj")
+    lights = tmp_path / "obj" / "light_directions.txt"
+    lights.write_text("")
+    assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "1",
+                 "--out", str(tmp_path / "scene")]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"flashbrdf import-diligent: error: {lights}: holds no rows (expected K rows of 3 "
+        "numbers, light directions)"]
+    assert not (tmp_path / "scene").exists()
+
+
 def test_refuses_to_clobber_unrelated_folder(tmp_path, capsys):
     make_diligent(tmp_path / "obj")
     (tmp_path / "mine").mkdir()
