@@ -46,6 +46,7 @@ from brdf.atomic import write_text
 from brdf.errors import InputError
 from pipeline import dask_engine
 from pipeline.safety import MARKER as RUN_MARKER
+from pipeline.safety import check_writable_folder
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
@@ -276,6 +277,7 @@ def _check_outputs(out_dir, captures_dir, captures):
             raise InputError(out_dir, f"output {target} would overwrite the input capture(s); "
                                       "choose an --out outside CAPTURES_DIR's captures")
     _check_batch_folder(given)
+    check_writable_folder(given)  # before the cluster starts, not a traceback at the first write
 
 
 def _check_batch_folder(out_dir):

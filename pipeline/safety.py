@@ -23,6 +23,7 @@ files are also compared by inode, which catches hard links.
 """
 
 import contextlib
+import errno
 import json
 import os
 import shutil
@@ -122,6 +123,17 @@ def _check_parent(path):
         raise InputError(path, f"cannot be made: no permission to write in {ancestor}")
 
 
+def check_writable_folder(path):
+    """InputError when the output folder `path` cannot be written in: an existing folder without
+    write permission (or on a read-only filesystem), or one that cannot be made. For a command
+    that adds to its OUT_DIR (batch) rather than building a new one aside and renaming it."""
+    path = os.fspath(path)
+    if not os.path.isdir(path):
+        _check_parent(path)
+    elif not os.access(path, os.W_OK | os.X_OK):
+        raise InputError(path, "cannot be written: no permission to write in it")
+
+
 def sidecar_json(path):
     """The JSON written beside a file output: SLICE.csv -> SLICE.json (x.json -> x.report.json)."""
     path = os.fspath(path)
@@ -143,6 +155,9 @@ def _check_replaceable(target, force):
                                  "never replaced)")
     if not os.path.isdir(target):
         raise InputError(target, "exists and is not a folder (--out names an output folder here)")
+    if os.path.ismount(target):  # the rename onto it fails (EBUSY) after all the work
+        raise InputError(target, "is a mount point, which a new folder cannot replace; give a "
+                                 "folder inside it")
     if not os.listdir(target):
         return
     if not _is_marked(target):
@@ -177,11 +192,20 @@ def staged_output_dir(path, force=False, command=None):
         with _signals_deferred():  # no Ctrl-C between moving the old folder away and renaming
             _check_replaceable(target, force)
             old = None
-            if os.path.lexists(target) and os.listdir(target):
-                old = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.", suffix=".old",
-                                       dir=parent)
-                os.replace(target, os.path.join(old, "previous"))
-            os.replace(tmp, target)
+            try:
+                if os.path.lexists(target) and os.listdir(target):
+                    old = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.",
+                                           suffix=".old", dir=parent)
+                    os.replace(target, os.path.join(old, "previous"))
+                os.replace(tmp, target)
+            except OSError as err:
+                if err.errno != errno.EBUSY:
+                    raise
+                # a mount point that os.path.ismount does not see (a bind mount within one
+                # filesystem): the rename is refused, the earlier checks could not know
+                remove_empty([old] if old else [])
+                raise InputError(target, "is a mount point (or in use), which a new folder "
+                                         "cannot replace; give a folder inside it") from None
         if old is not None:
             shutil.rmtree(old, ignore_errors=True)
     except BaseException:

@@ -289,6 +289,25 @@ def test_no_capture_or_bad_options_exit_2(captures, tmp_path, capsys, monkeypatc
     assert "--scheduler" in capsys.readouterr().err
 
 
+def test_out_dir_that_cannot_be_written_is_bad_input(captures, tmp_path, capsys, monkeypatch):
+    """A read-only OUT_DIR (or a new one in a read-only folder) was a traceback at the first write
+    (exit 1); it is bad input, found before any capture runs. os.access answers as on a
+    read-only filesystem: as root (CI) a chmod would not stop a write."""
+    out = tmp_path / "out"
+    out.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda path, mode, **kw: (
+        False if os.fspath(path) == str(out) and mode & os.W_OK else real_access(path, mode, **kw)))
+    options = ["--methods", "chandraker", "--spp", "2", "--workers", "1"]
+    assert main(["batch", str(captures), "--out", str(out), *options]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"flashbrdf batch: error: {out}: cannot be written: no permission to write in it"]
+    assert main(["batch", str(captures), "--out", str(out / "new"), *options]) == 2
+    assert capsys.readouterr().err.splitlines() == [
+        f"flashbrdf batch: error: {out / 'new'}: cannot be made: no permission to write in {out}"]
+    assert os.listdir(out) == []
+
+
 def test_scheduler_with_nothing_listening_fails_at_once(captures, tmp_path, capsys):
     """Nothing listens at --scheduler: one line naming it, exit 2, long before Dask's 20 s connect
     timeout (a refused TCP probe takes milliseconds; 5 s leaves room for a loaded machine)."""

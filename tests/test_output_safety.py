@@ -68,6 +68,32 @@ def test_staged_output_dir_is_all_or_nothing_and_force_replaces_only_its_own(tmp
     assert not [p for p in os.listdir(tmp_path) if p.endswith(".part")]
 
 
+def test_an_out_dir_that_is_a_mount_point_is_bad_input(tmp_path, monkeypatch):
+    """A mount point (docker run -v HOST:/out, then --out /out) cannot be renamed over: the
+    rename failed with EBUSY after all the work, a traceback and exit 1. Refused before the work
+    when os.path.ismount sees it, and at the rename when it does not (a bind mount within one
+    filesystem), both times with nothing left beside it."""
+    import errno
+    mount = tmp_path / "mnt"
+    mount.mkdir()
+    monkeypatch.setattr(os.path, "ismount", lambda p: os.fspath(p) == str(mount))
+    with pytest.raises(InputError, match=r"mnt: is a mount point"):
+        with staged_output_dir(mount):
+            raise AssertionError("the body must not run")
+    monkeypatch.setattr(os.path, "ismount", lambda p: False)
+    real_replace = os.replace
+
+    def replace(src, dst):
+        if os.fspath(dst) == str(mount):
+            raise OSError(errno.EBUSY, "Device or resource busy")
+        return real_replace(src, dst)
+    monkeypatch.setattr(os, "replace", replace)
+    with pytest.raises(InputError, match=r"mnt: is a mount point \(or in use\)"):
+        with staged_output_dir(mount) as tmp:
+            (Path(tmp) / "a.txt").write_text("work")
+    assert sorted(os.listdir(tmp_path)) == ["mnt"] and os.listdir(mount) == []
+
+
 def _run_command(world, out):
     return [sys.executable, "-m", "pipeline", "run", str(world.scene), "--out", str(out),
             "--methods", "chandraker", "--spp", "2"]
