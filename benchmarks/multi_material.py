@@ -182,7 +182,7 @@ def _markdown(result):
         lines += ["", f"Planar cards (flash = {cards['flash_view']}, the other 8 views predicted; "
                   f"{cards['materials']} material(s) found): mean ΔE log "
                   + ", ".join(f"{m} {v:.2f}" for m, v in cards["delta_e_log_mean"].items())
-                  + " (one BRDF for the whole card: 16.98 for dsgplvm, planar_cards.md)"
+                  + " (one BRDF for the whole card: 17.27 for dsgplvm, planar_cards.md)"
                   + ("; with the albedo map (segment --albedo, render --albedo): "
                      + ", ".join(f"{m} {v:.2f}" for m, v in cards["delta_e_log_mean_albedo"].items())
                      if cards.get("delta_e_log_mean_albedo") else "") + ".", "",

@@ -7,7 +7,7 @@ where the bin is empty (missing data, never 0).
 import numpy as np
 
 from brdf.errors import InputError
-from brdf.merl import N_THETA_H
+from brdf.merl import N_THETA_H, theta_h_centres
 
 
 def check_slice(flash_slice):
@@ -37,3 +37,56 @@ def fill_slice(rho, offset=1e-3):
     for c in range(3):
         out[:, c] = np.interp(idx, idx[ok], np.log1p(rho[ok, c] / offset))
     return np.expm1(out) * offset
+
+
+# The last θh bins a photo fills lie on its periphery: the grazing rim of a curved object, the far
+# corners of a flat one. There the pixel model is least exact (silhouette mixing, normal error,
+# vignetting, the flash's cone) and a bin's few pixels come from one patch, so they do not average
+# it out. Anchoring (infer.anchoring) carries the last observed bin's correction over every θh
+# past it, so that one bin would set the whole unobserved tail. 20 samples is the count below
+# which the issue's own checks call a bin incomparable; on the planar cards' view 00 any count
+# from 10 to 100 trims the same bins (benchmarks/results/sparse_tail.md).
+MIN_TAIL_SAMPLES = 20
+
+
+def sparse_tail(n, min_samples=MIN_TAIL_SAMPLES):
+    """(90,) bool: the θh bins past the last one holding ≥ min_samples samples, among those that
+    hold any. n (90,) sample counts per bin (the slice.csv `n`). None of them when no bin holds
+    min_samples (then nothing better is observed) or when n is None."""
+    if n is None:
+        return np.zeros(N_THETA_H, dtype=bool)
+    n = np.asarray(n)
+    well = np.flatnonzero(n >= min_samples)
+    tail = np.zeros(N_THETA_H, dtype=bool)
+    if well.size:
+        tail[well[-1] + 1:] = n[well[-1] + 1:] > 0
+    return tail
+
+
+def without_sparse_tail(rho, n, min_samples=MIN_TAIL_SAMPLES):
+    """(rho (90, 3) with the sparse_tail bins emptied (NaN), their θh bin indices (list of int)):
+    the slice inference reads. rho in 1/sr, NaN where empty; n (90,) counts or None."""
+    tail = sparse_tail(n, min_samples)
+    rho = np.array(rho, dtype=float)
+    rho[tail] = np.nan
+    return rho, [int(i) for i in np.flatnonzero(tail)]
+
+
+def sparse_tail_record(ignored, n):
+    """The BRDF.json entry for the bins without_sparse_tail emptied: None when none were, else
+    {"min_samples", "theta_h_deg": [bin centres], "n": [their counts]}."""
+    if not ignored:
+        return None
+    centres = np.degrees(theta_h_centres())
+    return {"min_samples": MIN_TAIL_SAMPLES, "theta_h_deg": [float(centres[i]) for i in ignored],
+            "n": [int(n[i]) for i in ignored]}
+
+
+def sparse_tail_note(ignored, n):
+    """One line for the terminal and the report about the bins without_sparse_tail emptied."""
+    centres = np.degrees(theta_h_centres())
+    where = (f"{centres[ignored[0]]:.1f} deg" if len(ignored) == 1 else
+             f"{centres[ignored[0]]:.1f}-{centres[ignored[-1]]:.1f} deg")
+    return (f"note: {len(ignored)} theta_h bin(s) past the last one of >= {MIN_TAIL_SAMPLES} "
+            f"samples ({where}, {', '.join(str(int(n[i])) for i in ignored)} samples) lie on "
+            "the photo's periphery; inference treats them as missing")

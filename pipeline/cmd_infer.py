@@ -14,6 +14,7 @@ from experiments.evaluate import experiment_predictor, run_evaluation
 from experiments.test_set import run_test_set
 from infer import TrainingSet, load_method, make_method, novelty_warning
 from infer.model_selection import check_training_size
+from infer.slices import sparse_tail_note, sparse_tail_record, without_sparse_tail
 from infer.training import train_model
 from pipeline.dask_engine import check_engine_options, dask_client
 from pipeline.safety import check_outputs, sidecar_json, staged_output_dir
@@ -64,6 +65,9 @@ def infer(args):
     check_outputs(inputs=[args.model, args.slice, *_merl_inputs(args.merl_dir)],
                   outputs=[args.out, json_path])
     rho, n = views.read_slice_csv(args.slice)
+    rho, ignored = without_sparse_tail(rho, n)
+    if ignored:
+        print(sparse_tail_note(ignored, n), file=sys.stderr)
     view = getattr(args, "view", "auto") or "auto"
     if args.model is None:
         if args.method != "chandraker":
@@ -103,6 +107,7 @@ def infer(args):
               "slice": str(args.slice), "view": view,
               "predicted": "3D table" if view == "3d" else "2D table copied across phi_d",
               "observed_theta_h_bins": int(np.isfinite(rho).all(axis=1).sum()),
+              "sparse_tail_ignored": sparse_tail_record(ignored, n),
               "training_tables_2d_only": missing,
               "params": method.fitted_params(),
               "timings": {"load_s": t1 - t0, "predict_s": t2 - t1, "write_s": t3 - t2,

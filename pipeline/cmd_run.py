@@ -31,6 +31,7 @@ from brdf.atomic import write_text
 from brdf.errors import InputError
 from infer import METHODS, make_method, novelty_warning
 from infer.model_file import check_model_file, load_methods
+from infer.slices import sparse_tail_note, sparse_tail_record, without_sparse_tail
 from pipeline.cmd_extract import write_extraction
 from pipeline.cmd_render import photo_exists, samples_per_pixel
 from pipeline.cmd_segment import materials_option, segment_scene, write_labels
@@ -108,10 +109,13 @@ def _load_methods(names, model_path, anchor):
     return load_methods(model_path, names, overrides={"dsgplvm": {"anchor": anchor}})
 
 
-def _infer(method, method_name, model_path, rho, out_dir):
-    """Predict a 2D table (or 3D where the model stores 3D data); write brdf.binary + brdf.json."""
+def _infer(method, method_name, model_path, rho, n, out_dir):
+    """Predict a 2D table (or 3D where the model stores 3D data) from the slice rho with sample
+    counts n, its sparse periphery emptied (infer.slices.without_sparse_tail); write brdf.binary
+    + brdf.json."""
     start = time.perf_counter()
     view = "3d" if method.training_3d() == "stored" else "2d"
+    rho, ignored = without_sparse_tail(rho, n)
     table, variance = method.predict(rho, view=view)
     seconds = time.perf_counter() - start
     novelty, warning = novelty_warning(method, rho, f"{method_name}")
@@ -123,9 +127,11 @@ def _infer(method, method_name, model_path, rho, out_dir):
     write_text(out_dir / "brdf.json", json.dumps({
         "method": method_name, "model": None if model_path is None else str(model_path),
         "view": view, "predict_seconds": seconds, "novelty": novelty,
+        "sparse_tail_ignored": sparse_tail_record(ignored, n),
         "predicted": "2D table copied across phi_d" if view == "2d" else "3D table"}, indent=2))
     label = "predictive variance (" + getattr(method, "feature_label", "features") + ")"
-    return table, variance, view, label, warning
+    note = sparse_tail_note(ignored, n) if ignored else None
+    return table, variance, view, label, warning, note
 
 
 def _check_references(references):
@@ -218,8 +224,11 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
 
     predictions, two_d, ood_warnings = {}, [], []
     for name in methods:
-        table, variance, view, label, warning = stages.run(
-            f"infer {name}", _infer, fitted[name], name, model_path, rho, out / name)
+        table, variance, view, label, warning, tail_note = stages.run(
+            f"infer {name}", _infer, fitted[name], name, model_path, rho, result.n, out / name)
+        if tail_note and tail_note.removeprefix("note: ") not in notes:  # the same for every method
+            print(tail_note, file=sys.stderr)
+            notes.append(tail_note.removeprefix("note: "))
         if warning:
             print(warning, file=sys.stderr)
             ood_warnings.append(warning.removeprefix("warning: "))

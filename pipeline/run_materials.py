@@ -9,6 +9,7 @@ A material with no usable sample at all (every pixel rejected) borrows the whole
 slice, and the report says so; a sparse one is inferred with its missing bins imputed.
 """
 
+import sys
 
 import numpy as np
 
@@ -71,8 +72,14 @@ def run_materials(ctx, samples, segmentation, faces):
         tables[name], brdf_files[name] = {}, {}
         for k, rho in rhos.items():
             folder = out / name / f"material_{k}"
+            counts = (whole if slices[k] is None else slices[k]).n
             tables[name][k] = stages.run(f"infer {name}", _infer, fitted[name], name,
-                                         ctx.model_path, rho, folder)
+                                         ctx.model_path, rho, counts, folder)
+            tail_note = tables[name][k][5]
+            tail_warning = tail_note and f"material {k}: {tail_note.removeprefix('note: ')}"
+            if tail_warning and tail_warning not in warnings:  # the same for every method
+                print(f"note: {tail_warning}", file=sys.stderr)
+                warnings.append(tail_warning)
             brdf_files[name][k] = f"{name}/material_{k}/brdf.binary"
     rows = []
     references = ctx.scene.photos_with_role("reference")

@@ -208,3 +208,42 @@ def test_evaluate_render_without_envmap_reads_no_file(monkeypatch):
     from pipeline.cmd_infer import _render_envmaps
     monkeypatch.setenv("FLASHBRDF_SHARED", "/nonexistent")  # the old fallback's override
     assert _render_envmaps(argparse.Namespace(render=True, envmap=None)) is None
+
+
+def test_sparse_tail_bins_are_missing_for_inference(trained, tmp_path, capsys):
+    """The last θh bins a photo fills are its periphery (rim, corners): bins past the last one of
+    >= 20 samples are read as missing. A slice whose two outermost filled bins hold 5 samples
+    each, at a tenth of their true value, predicts exactly what the slice without them predicts
+    (bit for bit: the same input), lists them in BRDF.json and says so in one stderr line; with
+    30 samples each the same bins are read, and the prediction past them drops (checked: > 20%
+    in ln ρ on the θd = 0 row past the slice, because anchoring carries their correction on)."""
+    from infer.slices import sparse_tail
+    assert np.flatnonzero(sparse_tail(np.r_[0, 5, 30, 40, 25, 7, 3, np.zeros(83)])).tolist() == [5, 6]
+    assert not sparse_tail(np.r_[5, 7, 19, np.zeros(87)]).any()  # nothing better observed: kept
+    assert not sparse_tail(None).any()
+    folder, model, slice_csv = trained
+    rho, n = views.read_slice_csv(slice_csv)
+    rho[60:], n[60:] = np.nan, 0                       # a slice that ends at bin 59 ...
+    last = [58, 59]
+
+    def predict(counts, values, name):
+        r, c = rho.copy(), n.copy()
+        r[last], c[last] = values, counts
+        path = tmp_path / f"{name}.csv"
+        views.write_slice_csv(path, r, c)
+        out = tmp_path / f"{name}.binary"
+        assert main(["infer", "--model", str(model), "--slice", str(path), "--out", str(out)]) == 0
+        table = merl.read_merl(out)
+        return table, json.loads(out.with_suffix(".json").read_text()), capsys.readouterr().err
+
+    clean, _, _ = predict(0, np.nan, "without")
+    sparse, report, err = predict(5, rho[last] * 0.1, "sparse")  # ... or with two dim, sparse bins
+    assert np.array_equal(sparse, clean, equal_nan=True)
+    assert report["sparse_tail_ignored"]["n"] == [5, 5]
+    assert report["observed_theta_h_bins"] == 58
+    assert err.count("\n") == 1 and "2 theta_h bin(s)" in err and "treats them as missing" in err
+    read, report, _ = predict(30, rho[last] * 0.1, "read")
+    assert report["sparse_tail_ignored"] is None
+    past = (slice(62, 90), 0, 0)  # θd = 0 row past the slice, one φd bin (copied across φd)
+    drop = np.log(clean[past] + 1e-3) - np.log(read[past] + 1e-3)
+    assert np.median(drop) > 0.2
