@@ -141,7 +141,8 @@ class FlashSamples:
     scene.photos_with_role("flash"); shape (H, W) of the first flash photo's camera;
     object_mask (H, W) bool: pixels of that camera whose ray meets the object; face_image (H, W)
     int64 face hit per pixel (-1 none), or None for normal-map geometry; radiance (H, W, 3) of the
-    first flash photo; per_photo, timings: for the extraction report.
+    first flash photo; per_photo, timings: for the extraction report; normal_image (H, W, 3)
+    float32 unit shading normals in that camera's frame (0 off the object), or None.
     """
     scene: object
     options: object
@@ -158,6 +159,7 @@ class FlashSamples:
     per_photo: list
     timings: dict
     started: float
+    normal_image: np.ndarray = None
 
     def no_sample_error(self):
         """The InputError (naming the flash photo, the geometry or the photos' tests) for
@@ -197,7 +199,7 @@ def collect_samples(scene, options=None):
     t = clock.add("load_mesh", t)
 
     parts, per_photo, photo_of_part = [], [], []
-    first_mask, face_image = None, None
+    first_mask, face_image, normal_image = None, None, None
     groups = {}
     for k, img in enumerate(images):
         groups.setdefault(id(img.photo.camera), []).append(k)
@@ -210,6 +212,11 @@ def collect_samples(scene, options=None):
         surfaces, object_mask = _trace(scene, camera, intersector, options.chunk_pixels)
         if first_mask is None:
             first_mask = object_mask
+            # the first camera's normals as an image: segmentation asks where the surface can
+            # see itself (slice_extract.segment.nonconvex_mask)
+            normal_image = np.zeros((*camera.shape, 3), np.float32)
+            for surface in surfaces:
+                normal_image[surface.rows, surface.cols] = surface.normals @ camera.rotation
             if not normal_map:
                 face_image = np.full(camera.shape, -1, dtype=np.int64)
                 for surface in surfaces:
@@ -239,7 +246,7 @@ def collect_samples(scene, options=None):
                         pooled("theta_d", np.zeros(0)), pooled("rho", np.zeros((0, 3))),
                         pooled("censored", np.zeros(0, bool)), pooled("pixels", np.zeros(0, int)),
                         photo, images[0].photo.camera.shape, first_mask, face_image,
-                        images[0].radiance, per_photo, clock.t, start)
+                        images[0].radiance, per_photo, clock.t, start, normal_image)
 
 
 def bin_samples(samples):

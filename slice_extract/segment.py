@@ -27,6 +27,11 @@ What separates materials is what the photo says about the material, not about sh
   (A material only slightly better explained is a shading or noise split of one material.)
   Or, where two materials share the theta_h bins, its partner must be explained by its own
   slice at most `explained`/2 times as badly as by the two's joint slice (_partner_ratio).
+  The alike merge also takes for one material a brighter one that is the other plus its own
+  colour squared (interreflection_gaps: light come back after one more bounce on it, in a dent,
+  a fold, a bowl), when most of the brighter's pixels lie where the surface can see itself
+  (nonconvex_mask, from the normals): interreflection is not in the pixel model, and a coloured
+  metal lights its own concavities many times brighter and deeper in colour.
   This test and the alike merge read, for each pixel of the work subsample, the sample 2 px away
   (neighbour_samples) under the pixel's label, so the noise that chose a label is not read back
   as a difference; and they read ln rho above the photo's resolution floor (resolution_floor:
@@ -352,13 +357,78 @@ def _refine(log_rho, bins, labels, k, options):
     return labels, k
 
 
+def nonconvex_mask(normal_image, pixels=None):
+    """(H, W) bool, or (M,) bool at `pixels` (M,) flat indices: object pixels where the surface is
+    not convex, so that it can see (and light) itself. normal_image (H, W, 3) unit normals in the
+    camera frame (x right, y down; 0 off the object). The normal's image-plane part (nx, ny) is
+    differentiated over the pixel grid (central differences); on a convex surface it turns the
+    way the pixel moves (a sphere seen orthographically: the identity over its radius), so the
+    symmetric part of its 2 x 2 derivative has no negative eigenvalue; one below 0 is a dent, a
+    valley, a crease, the inside of a bowl or of a torus. A pixel whose four neighbours are not
+    all on the object (no central difference) is never non-convex. An orthographic reading: with
+    a pinhole, a convex surface's silhouette can read non-convex over a few pixels (the caller
+    asks it of a majority of a material's pixels). At pixels only: no 12-MP derivative images."""
+    normals = np.asarray(normal_image)
+    height, width = normals.shape[:2]
+    flat = normals.reshape(-1, 3)
+    image = pixels is None
+    pixels = np.arange(height * width) if image else np.asarray(pixels, np.int64)
+    row, col = np.divmod(pixels, width)
+    valid = (row > 0) & (row < height - 1) & (col > 0) & (col < width - 1)
+    at = np.where(valid, pixels, 0)
+    steps = [flat[at + off].astype(np.float64) for off in (1, -1, width, -width)]
+    for v in steps + [flat[at]]:
+        valid &= np.einsum("ij,ij->i", v, v) > 0.25
+    a, c = 0.5 * (steps[0][:, :2] - steps[1][:, :2]).T   # d nx / d col, d ny / d col
+    b, d = 0.5 * (steps[2][:, :2] - steps[3][:, :2]).T   # d nx / d row, d ny / d row
+    off = 0.5 * (b + c)
+    half_trace = 0.5 * (a + d)
+    lowest = half_trace - np.sqrt(np.maximum(half_trace ** 2 - (a * d - off * off), 0))
+    out = valid & (lowest < 0)
+    return out.reshape(height, width) if image else out
+
+
+def interreflection_gaps(base, other):
+    """How well ln-rho slice `other` (n, 3) is `base` (n, 3) plus base's own light come back after
+    one more bounce on it: (surplus gap, scaled gap), medians over the n bins of the mean
+    |difference| over channels after the fitted term. Surplus: other = base (1 + t base) per
+    channel with t >= 0 fitted per bin (least squares on other / base - 1), i.e. an added term
+    of base's colour squared. Scaled: other = c base, a brightness factor per bin, the colour
+    left as it is.
+
+    Why: in a concave region (a dent, a fold, a bowl, the hole of a torus) light reaches the
+    pixel also after bouncing off the object itself, and each bounce on the material multiplies
+    the light by its reflectance again: the pixel is brighter by a term of the material's colour
+    squared (cubed, ...), so a coloured material looks more saturated there, and a coloured metal
+    (gold, copper), which sends its highlight into its own concavities, many times brighter and
+    deeper in colour. The pixel model (rho = pixel / cos theta_i) has no such term, so these
+    pixels read as another material (Mitsuba path-traced dented sphere, gold: K = 3 with 8
+    bounces, K = 1 with direct light only). A brighter material of the base's colour fits the
+    scaling as well as the surplus; only a colour change towards base squared tells them apart,
+    so the caller asks the surplus to fit twice as well as the scaling. A grey base: the two fit
+    alike, and the two materials stay apart (interreflection on a grey material looks like a
+    brighter grey, which nothing in one flash photo tells from a paler material)."""
+    base = np.asarray(base, float)
+    other = np.asarray(other, float)
+    s = np.exp(base)
+    t = np.maximum(((np.exp(other - base) - 1) * s).sum(axis=1) / (s * s).sum(axis=1), 0)
+    surplus = np.abs(other - base - np.log1p(t[:, None] * s)).mean(axis=1)
+    d = other - base
+    scaled = np.abs(d - d.mean(axis=1, keepdims=True)).mean(axis=1)
+    return float(np.median(surplus)), float(np.median(scaled))
+
+
 def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_common=3,
-                        margins=None):
+                        margins=None, nonconvex=None):
     """Materials whose slices agree are one material: merge every pair whose ln-rho slices
     differ by less than options.alike (median over the theta_h bins both observe, with at least
     min_count samples each, of the mean |difference| over channels). A material seen at grazing
     angles only (or only in the highlight) then joins the one it continues. Returns
-    (labels 0..k'-1, k'). margins: a dict whose "alike_gaps" list receives every pair's gap."""
+    (labels 0..k'-1, k'). margins: a dict whose "alike_gaps" list receives every pair's gap.
+    nonconvex: None, or a callable giving (N,) bool: the samples on surface that can see itself
+    (nonconvex_mask). A pair that is not alike is still one material when the brighter is the
+    other plus its own light come back (interreflection_gaps), provided most of the brighter's
+    samples lie where the surface can see itself: a convex object cannot light itself."""
     raw = np.stack([_binned_median(log_rho[labels == j], bins[labels == j],
                                    min_count=min_count) for j in range(k)])
     parent = list(range(k))
@@ -378,6 +448,21 @@ def _merge_alike_slices(log_rho, bins, labels, k, options, min_count=10, min_com
                 margins.setdefault("alike_gaps", []).append(round(float(gap), 4))
             if gap < options.alike:
                 parent[root(b)] = root(a)
+                continue
+            # the brighter one may be the other's own light come back (interreflection)
+            if nonconvex is None:
+                continue
+            for base, other in ((a, b), (b, a)):
+                surplus, scaled = interreflection_gaps(raw[base][common], raw[other][common])
+                if surplus >= options.alike or surplus > scaled / 2:
+                    continue
+                share = float(np.mean(nonconvex()[labels == other]))
+                if margins is not None:
+                    margins.setdefault("interreflection_gaps", []).append(
+                        [round(surplus, 4), round(scaled, 4), round(share, 3)])
+                if share >= 0.5:
+                    parent[root(b)] = root(a)
+                    break
     roots = np.array([root(j) for j in range(k)])
     _, remap = np.unique(roots, return_inverse=True)
     return remap[labels], int(remap.max()) + 1
@@ -406,7 +491,8 @@ def neighbour_samples(pixels, shape, which=None, distance=1):
     return out
 
 
-def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None, at_least=0.0):
+def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None, at_least=0.0,
+                    normal_image=None):
     """Material of each sample: (labels (N,) int 0..K-1, K, criterion dict).
 
     rho (N, 3) 1/sr, finite; theta_h (N,) radians. See the module docstring for the method.
@@ -421,6 +507,9 @@ def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None, at_leas
     chosen from, the noise that chose them passes for a difference of materials (near-black
     pixels of chrome-steel and of a dark blue car paint split off,
     benchmarks/results/segment_sweep.md). at_least: the photo's resolution_floor.
+    normal_image: (H, W, 3) camera-frame normals of the photo (FlashSamples.normal_image), or
+    None; with pixels, the alike merge may then read a concave region's interreflection as the
+    material it comes from (_merge_alike_slices, nonconvex_mask).
     """
     options = options or SegmentOptions()
     n = len(rho)
@@ -430,7 +519,16 @@ def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None, at_leas
     if pixels is not None:
         neighbours = neighbour_samples(pixels, shape, pick, options.neighbour_px)
         check = (rho[neighbours], theta_h[neighbours])
-    labels, k, criterion = _cluster(rho[pick], theta_h[pick], options, check, at_least)
+    nonconvex = None
+    if normal_image is not None and pixels is not None:
+        cache = []
+
+        def nonconvex():  # only when a pair asks
+            if not cache:
+                cache.append(nonconvex_mask(normal_image, pixels[pick]))
+            return cache[0]
+    labels, k, criterion = _cluster(rho[pick], theta_h[pick], options, check, at_least,
+                                    nonconvex)
     criterion.update(samples=int(n), work_samples=int(len(pick)))
     if k == 1:
         return np.zeros(n, int), 1, criterion
@@ -488,7 +586,7 @@ def _assign_all(rho, theta_h, pick, labels, k):
     return out
 
 
-def _cluster(rho, theta_h, options, check=None, at_least=0.0):
+def _cluster(rho, theta_h, options, check=None, at_least=0.0, nonconvex=None):
     """cluster_samples on the samples given, all of them; check: (rho, theta_h) of the samples'
     neighbours, which the alike and explained tests read (None: the samples themselves)."""
     from sklearn.mixture import GaussianMixture  # lazy: +2.4 s on every import of slice_extract
@@ -538,7 +636,7 @@ def _cluster(rho, theta_h, options, check=None, at_least=0.0):
     for _ in range(options.max_materials):  # refine, merge look-alikes, until nothing merges
         labels, k = _refine(log_rho, bins, labels, k, options)
         labels, merged = _merge_alike_slices(log_test, bins_test, labels, k, options,
-                                             margins=margins)
+                                             margins=margins, nonconvex=nonconvex)
         if merged == k:
             break
         k = merged
@@ -831,7 +929,7 @@ def _segment_samples(samples, materials, options):
         every = slice(None, None, max(1, len(rho) // 50000))  # no 12-MP gather for a floor
         at_least = resolution_floor(rho[every], samples.radiance.reshape(-1, 3)[pixels[every]])
         labels, k, criterion = cluster_samples(rho, theta_h, options, pixels, samples.shape,
-                                               at_least)
+                                               at_least, samples.normal_image)
     else:
         k = int(materials)
         if k > 1 and len(rho) < 2 * k:  # a K-component mixture needs 2K samples at least
