@@ -54,9 +54,17 @@ def main(argv=None):
     # the photo (the resolution floor reads it): rho cos(theta_i), theta_i = theta_h at the flash
     radiance = np.zeros((height, width, 3), np.float32)
     radiance[mask] = rho * np.cos(theta_h)[:, None]
+    # camera-frame normals (x right, y down, z into the scene) where the concavity test asks
+    # for them, as extraction's normals_at gives them
+    def normals_at(pixels):
+        px, py = (pixels % width - width / 2) / 1450, (pixels // width - height / 2) / 1450
+        inside = px * px + py * py < 1
+        normal = np.stack([px, py, -np.sqrt(np.clip(1 - px * px - py * py, 0, 1))], axis=1)
+        return np.where(inside[:, None], normal, 0).astype(np.float32)
     samples = SimpleNamespace(rho=rho, theta_h=theta_h, pixels=np.flatnonzero(mask),
                               photo=np.zeros(len(rho), int), censored=np.zeros(len(rho), bool),
-                              shape=(height, width), object_mask=mask, radiance=radiance)
+                              shape=(height, width), object_mask=mask, radiance=radiance,
+                              normals_at=normals_at)
     walls, cpus = [], []
     for _ in range(args.repeats):
         start, cpu = time.perf_counter(), time.process_time()

@@ -357,27 +357,37 @@ def _refine(log_rho, bins, labels, k, options):
     return labels, k
 
 
-def nonconvex_mask(normal_image, pixels=None):
+def nonconvex_mask(normals, pixels=None, shape=None):
     """(H, W) bool, or (M,) bool at `pixels` (M,) flat indices: object pixels where the surface is
-    not convex, so that it can see (and light) itself. normal_image (H, W, 3) unit normals in the
-    camera frame (x right, y down; 0 off the object). The normal's image-plane part (nx, ny) is
-    differentiated over the pixel grid (central differences); on a convex surface it turns the
-    way the pixel moves (a sphere seen orthographically: the identity over its radius), so the
-    symmetric part of its 2 x 2 derivative has no negative eigenvalue; one below 0 is a dent, a
-    valley, a crease, the inside of a bowl or of a torus. A pixel whose four neighbours are not
-    all on the object (no central difference) is never non-convex. An orthographic reading: with
-    a pinhole, a convex surface's silhouette can read non-convex over a few pixels (the caller
-    asks it of a majority of a material's pixels). At pixels only: no 12-MP derivative images."""
-    normals = np.asarray(normal_image)
-    height, width = normals.shape[:2]
-    flat = normals.reshape(-1, 3)
+    not convex, so that it can see (and light) itself. normals: (H, W, 3) unit normals in the
+    camera frame (x right, y down; 0 off the object), or a callable giving them (M, 3) at flat
+    pixel indices (M,) of an image of `shape` (H, W) (FlashSamples.normals_at: extraction then
+    traces only the pixels asked and their neighbours, no 12-MP normal image). The normal's
+    image-plane part (nx, ny) is differentiated over the pixel grid (central differences); on a
+    convex surface it turns the way the pixel moves (a sphere seen orthographically: the
+    identity over its radius), so the symmetric part of its 2 x 2 derivative has no negative
+    eigenvalue; one below 0 is a dent, a valley, a crease, the inside of a bowl or of a torus. A
+    pixel whose four neighbours are not all on the object (no central difference) is never
+    non-convex. An orthographic reading: with a pinhole, a convex surface's silhouette can read
+    non-convex over a few pixels (the caller asks it of a majority of a material's pixels)."""
+    if callable(normals):
+        normals_at, (height, width) = normals, shape
+    else:
+        flat = np.asarray(normals).reshape(-1, 3)
+        height, width = np.asarray(normals).shape[:2]
+
+        def normals_at(p):
+            return flat[p]
     image = pixels is None
     pixels = np.arange(height * width) if image else np.asarray(pixels, np.int64)
     row, col = np.divmod(pixels, width)
     valid = (row > 0) & (row < height - 1) & (col > 0) & (col < width - 1)
     at = np.where(valid, pixels, 0)
-    steps = [flat[at + off].astype(np.float64) for off in (1, -1, width, -width)]
-    for v in steps + [flat[at]]:
+    # one look-up for the pixels and their four neighbours
+    looked_up = np.asarray(normals_at(np.concatenate(
+        [at + off for off in (1, -1, width, -width, 0)])), np.float64).reshape(5, len(at), 3)
+    steps = list(looked_up[:4])
+    for v in looked_up:
         valid &= np.einsum("ij,ij->i", v, v) > 0.25
     a, c = 0.5 * (steps[0][:, :2] - steps[1][:, :2]).T   # d nx / d col, d ny / d col
     b, d = 0.5 * (steps[2][:, :2] - steps[3][:, :2]).T   # d nx / d row, d ny / d row
@@ -492,7 +502,7 @@ def neighbour_samples(pixels, shape, which=None, distance=1):
 
 
 def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None, at_least=0.0,
-                    normal_image=None):
+                    normals=None):
     """Material of each sample: (labels (N,) int 0..K-1, K, criterion dict).
 
     rho (N, 3) 1/sr, finite; theta_h (N,) radians. See the module docstring for the method.
@@ -507,9 +517,10 @@ def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None, at_leas
     chosen from, the noise that chose them passes for a difference of materials (near-black
     pixels of chrome-steel and of a dark blue car paint split off,
     benchmarks/results/segment_sweep.md). at_least: the photo's resolution_floor.
-    normal_image: (H, W, 3) camera-frame normals of the photo (FlashSamples.normal_image), or
-    None; with pixels, the alike merge may then read a concave region's interreflection as the
-    material it comes from (_merge_alike_slices, nonconvex_mask).
+    normals: camera-frame normals of the photo, (H, W, 3) or a callable at flat pixel indices
+    (FlashSamples.normals_at), or None; with pixels, the alike merge may then read a concave
+    region's interreflection as the material it comes from (_merge_alike_slices,
+    nonconvex_mask).
     """
     options = options or SegmentOptions()
     n = len(rho)
@@ -520,12 +531,12 @@ def cluster_samples(rho, theta_h, options=None, pixels=None, shape=None, at_leas
         neighbours = neighbour_samples(pixels, shape, pick, options.neighbour_px)
         check = (rho[neighbours], theta_h[neighbours])
     nonconvex = None
-    if normal_image is not None and pixels is not None:
+    if normals is not None and pixels is not None:
         cache = []
 
         def nonconvex():  # only when a pair asks
             if not cache:
-                cache.append(nonconvex_mask(normal_image, pixels[pick]))
+                cache.append(nonconvex_mask(normals, pixels[pick], shape))
             return cache[0]
     labels, k, criterion = _cluster(rho[pick], theta_h[pick], options, check, at_least,
                                     nonconvex)
@@ -929,7 +940,7 @@ def _segment_samples(samples, materials, options):
         every = slice(None, None, max(1, len(rho) // 50000))  # no 12-MP gather for a floor
         at_least = resolution_floor(rho[every], samples.radiance.reshape(-1, 3)[pixels[every]])
         labels, k, criterion = cluster_samples(rho, theta_h, options, pixels, samples.shape,
-                                               at_least, samples.normal_image)
+                                               at_least, samples.normals_at)
     else:
         k = int(materials)
         if k > 1 and len(rho) < 2 * k:  # a K-component mixture needs 2K samples at least
