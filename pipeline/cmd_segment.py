@@ -82,6 +82,18 @@ def write_labels(out, segmentation, faces, extra=None):
         Path(js).write_text(json.dumps(report, indent=1) + "\n")
 
 
+def _lossy_format(path):
+    """"JPEG" or "lossy WebP" when the file's first bytes say so, else None (the name's suffix
+    is not asked: a JPEG named .png is still a JPEG)."""
+    with open(path, "rb") as f:
+        head = f.read(16)
+    if head[:3] == b"\xff\xd8\xff":
+        return "JPEG"
+    if head[:4] == b"RIFF" and head[8:12] == b"WEBP" and head[12:16] == b"VP8 ":
+        return "lossy WebP"  # VP8L is WebP's lossless form
+    return None
+
+
 def read_labels(path, shape):
     """A label image (H, W) int from LABELS.png; InputError if unreadable, not `shape`, or a
     label in 1..K has no pixel."""
@@ -89,6 +101,10 @@ def read_labels(path, shape):
     if not path.is_file():
         raise InputError(path, "is a folder, not a label image" if path.is_dir() else
                          "label image not found")
+    lossy = _lossy_format(path)
+    if lossy:  # its compression moves values at every border: a label becomes another
+        raise InputError(path, f"is a {lossy}, whose lossy compression changes labels at the "
+                               "borders between materials: write labels as a PNG")
     labels = imread_unchanged(path)
     if labels is None or labels.ndim != 2:
         raise InputError(path, "is not a single-channel (16-bit) label PNG")

@@ -18,6 +18,7 @@ import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pytest
 import scipy.io
@@ -675,15 +676,16 @@ CASES = [
 
 
 # ----- the multi-material and batch commands (issues 13 and 15) -------------------------------
-def labels_png(w, tmp, name="labels.png", k=2, value=None, dtype=np.uint16):
+def labels_png(w, tmp, name="labels.png", k=2, value=None, dtype=np.uint16, params=()):
     """The world scene's object pixels (its flash photo > 0) as labels 1..k in vertical bands
-    (`value(labels) -> array` edits them), written as a PNG (or TIFF) in tmp."""
+    (`value(labels) -> array` edits them), written as a PNG (or TIFF, JPEG, WebP with OpenCV's
+    `params`) in tmp."""
     import cv2
     from render.images import read_image
     on = read_image(w.scene / "flash0.exr").sum(axis=2) > 0
     labels = np.where(on, 1 + np.arange(on.shape[1])[None, :] * k // on.shape[1], 0)
     path = tmp / name
-    cv2.imwrite(str(path), (labels if value is None else value(labels)).astype(dtype))
+    cv2.imwrite(str(path), (labels if value is None else value(labels)).astype(dtype), params)
     return path
 
 
@@ -781,6 +783,13 @@ SWEEP_CASES = [
     ("extract", "labels {1, 3}", lambda w, t: [
         "extract", str(w.scene), "--labels", str(labels_png(w, t, value=lambda a: a * 2 - (
             a > 0))), "--out", _out(t)], "labels.png"),
+    ("extract", "labels JPEG (named .png)", lambda w, t: [
+        "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.jpg", dtype=np.uint8).rename(
+            t / "l.png")), "--out", _out(t)], "l.png"),
+    ("extract", "labels lossy WebP", lambda w, t: [  # OpenCV's default WebP is lossless
+        "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.webp", dtype=np.uint8,
+                                                            params=(cv2.IMWRITE_WEBP_QUALITY, 90))),
+        "--out", _out(t)], "l.webp"),
     ("extract", "labels RGB", lambda w, t: [
         "extract", str(w.scene), "--labels", str(labels_png(w, t, value=lambda a: np.dstack(
             [a] * 3), dtype=np.uint8)), "--out", _out(t)], "labels.png"),
