@@ -45,40 +45,52 @@ def fill_slice(rho, offset=1e-3):
 # it out. Anchoring (infer.anchoring) carries the last observed bin's correction over every θh
 # past it, so that one bin would set the whole unobserved tail. 20 samples is the count below
 # which the issue's own checks call a bin incomparable; on the planar cards' view 00 any count
-# from 10 to 100 trims the same bins (benchmarks/results/sparse_tail.md).
+# from 10 to 100 trims the same bins (benchmarks/results/sparse_tail.md). A small photo (or a
+# small material region) has few samples in every bin: there "sparse" is relative, a quarter of
+# the fullest bin's count, so a 450-sample slice is not half thrown away.
 MIN_TAIL_SAMPLES = 20
 
 
+def tail_threshold(n, min_samples=MIN_TAIL_SAMPLES):
+    """The sample count (float) below which a peripheral θh bin is sparse: min_samples, or a
+    quarter of the fullest bin's count when that is smaller. n (90,) counts."""
+    return float(min(min_samples, np.max(n) / 4.0)) if np.size(n) else float(min_samples)
+
+
 def sparse_tail(n, min_samples=MIN_TAIL_SAMPLES):
-    """(90,) bool: the θh bins past the last one holding ≥ min_samples samples, among those that
-    hold any. n (90,) sample counts per bin (the slice.csv `n`). None of them when no bin holds
-    min_samples (then nothing better is observed) or when n is None."""
+    """(90,) bool: the θh bins past the last one holding ≥ tail_threshold(n) samples, among those
+    that hold any. n (90,) sample counts per bin (the slice.csv `n`). None of them when n is None
+    or holds no sample."""
     if n is None:
         return np.zeros(N_THETA_H, dtype=bool)
     n = np.asarray(n)
-    well = np.flatnonzero(n >= min_samples)
     tail = np.zeros(N_THETA_H, dtype=bool)
-    if well.size:
-        tail[well[-1] + 1:] = n[well[-1] + 1:] > 0
+    if not (n > 0).any():
+        return tail
+    well = np.flatnonzero(n >= tail_threshold(n, min_samples))
+    tail[well[-1] + 1:] = n[well[-1] + 1:] > 0
     return tail
 
 
 def without_sparse_tail(rho, n, min_samples=MIN_TAIL_SAMPLES):
     """(rho (90, 3) with the sparse_tail bins emptied (NaN), their θh bin indices (list of int)):
-    the slice inference reads. rho in 1/sr, NaN where empty; n (90,) counts or None."""
-    tail = sparse_tail(n, min_samples)
+    the slice inference reads. rho in 1/sr, NaN where empty; n (90,) counts or None. A bin whose
+    value is missing counts as holding no sample, whatever its n says."""
     rho = np.array(rho, dtype=float)
+    if n is not None:
+        n = np.where(np.isfinite(rho).all(axis=1), np.asarray(n), 0)
+    tail = sparse_tail(n, min_samples)
     rho[tail] = np.nan
     return rho, [int(i) for i in np.flatnonzero(tail)]
 
 
 def sparse_tail_record(ignored, n):
     """The BRDF.json entry for the bins without_sparse_tail emptied: None when none were, else
-    {"min_samples", "theta_h_deg": [bin centres], "n": [their counts]}."""
+    {"min_samples": the threshold used, "theta_h_deg": [bin centres], "n": [their counts]}."""
     if not ignored:
         return None
     centres = np.degrees(theta_h_centres())
-    return {"min_samples": MIN_TAIL_SAMPLES, "theta_h_deg": [float(centres[i]) for i in ignored],
+    return {"min_samples": tail_threshold(n), "theta_h_deg": [float(centres[i]) for i in ignored],
             "n": [int(n[i]) for i in ignored]}
 
 
@@ -87,6 +99,6 @@ def sparse_tail_note(ignored, n):
     centres = np.degrees(theta_h_centres())
     where = (f"{centres[ignored[0]]:.1f} deg" if len(ignored) == 1 else
              f"{centres[ignored[0]]:.1f}-{centres[ignored[-1]]:.1f} deg")
-    return (f"note: {len(ignored)} theta_h bin(s) past the last one of >= {MIN_TAIL_SAMPLES} "
+    return (f"note: {len(ignored)} theta_h bin(s) past the last one of >= {tail_threshold(n):g} "
             f"samples ({where}, {', '.join(str(int(n[i])) for i in ignored)} samples) lie on "
             "the photo's periphery; inference treats them as missing")

@@ -82,15 +82,35 @@ def write_labels(out, segmentation, faces, extra=None):
         Path(js).write_text(json.dumps(report, indent=1) + "\n")
 
 
+def _webp_image_chunk(f):
+    """The fourcc of a WebP file's image chunk ("VP8 " lossy, "VP8L" lossless) or None; f is open
+    at byte 12, past the RIFF header. An extended file (VP8X) holds it after other chunks."""
+    for _ in range(64):  # VP8X, ICCP, ANIM, ALPH, ... precede it
+        head = f.read(8)
+        if len(head) < 8:
+            return None
+        fourcc, size = head[:4], int.from_bytes(head[4:], "little")
+        if fourcc in (b"VP8 ", b"VP8L", b"ANMF"):
+            return fourcc.decode()
+        f.seek(size + (size & 1), 1)
+    return None
+
+
 def _lossy_format(path):
-    """"JPEG" or "lossy WebP" when the file's first bytes say so, else None (the name's suffix
-    is not asked: a JPEG named .png is still a JPEG)."""
-    with open(path, "rb") as f:
-        head = f.read(16)
-    if head[:3] == b"\xff\xd8\xff":
-        return "JPEG"
-    if head[:4] == b"RIFF" and head[8:12] == b"WEBP" and head[12:16] == b"VP8 ":
-        return "lossy WebP"  # VP8L is WebP's lossless form
+    """"JPEG", "JPEG 2000" or "lossy WebP" when the file's first bytes say so, else None (the
+    name's suffix is not asked: a JPEG named .png is still a JPEG). InputError when the file cannot
+    be read. JPEG 2000 is refused whole: its lossless mode is rare and not told by the header."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(12)
+            if head[:3] == b"\xff\xd8\xff":
+                return "JPEG"
+            if head[:4] == b"\xff\x4f\xff\x51" or head == b"\x00\x00\x00\x0cjP  \r\n\x87\n":
+                return "JPEG 2000"
+            if head[:4] == b"RIFF" and head[8:12] == b"WEBP" and _webp_image_chunk(f) in ("VP8 ", "ANMF"):
+                return "lossy WebP"  # VP8L is WebP's lossless form; an animation is no label image
+    except OSError as err:
+        raise InputError(path, f"cannot be read ({err.strerror or err})") from None
     return None
 
 

@@ -678,7 +678,7 @@ CASES = [
 # ----- the multi-material and batch commands (issues 13 and 15) -------------------------------
 def labels_png(w, tmp, name="labels.png", k=2, value=None, dtype=np.uint16, params=()):
     """The world scene's object pixels (its flash photo > 0) as labels 1..k in vertical bands
-    (`value(labels) -> array` edits them), written as a PNG (or TIFF, JPEG, WebP with OpenCV's
+    (`value(labels) -> array` edits them), written as a PNG (or TIFF, JPEG, JPEG 2000 with OpenCV's
     `params`) in tmp."""
     import cv2
     from render.images import read_image
@@ -786,10 +786,11 @@ SWEEP_CASES = [
     ("extract", "labels JPEG (named .png)", lambda w, t: [
         "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.jpg", dtype=np.uint8).rename(
             t / "l.png")), "--out", _out(t)], "l.png"),
-    ("extract", "labels lossy WebP", lambda w, t: [  # OpenCV's default WebP is lossless
-        "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.webp", dtype=np.uint8,
-                                                            params=(cv2.IMWRITE_WEBP_QUALITY, 90))),
-        "--out", _out(t)], "l.webp"),
+    ("extract", "labels JPEG 2000", lambda w, t: [  # decodes to one channel: only its bytes tell
+        "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.jp2", dtype=np.uint8)),
+        "--out", _out(t)], "l.jp2"),
+    ("extract", "labels unreadable", lambda w, t: [  # a regular file whose read fails (EIO)
+        "extract", str(w.scene), "--labels", "/proc/self/mem", "--out", _out(t)], "mem"),
     ("extract", "labels RGB", lambda w, t: [
         "extract", str(w.scene), "--labels", str(labels_png(w, t, value=lambda a: np.dstack(
             [a] * 3), dtype=np.uint8)), "--out", _out(t)], "labels.png"),

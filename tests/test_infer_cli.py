@@ -221,6 +221,17 @@ def test_sparse_tail_bins_are_missing_for_inference(trained, tmp_path, capsys):
     assert np.flatnonzero(sparse_tail(np.r_[0, 5, 30, 40, 25, 7, 3, np.zeros(83)])).tolist() == [5, 6]
     assert not sparse_tail(np.r_[5, 7, 19, np.zeros(87)]).any()  # nothing better observed: kept
     assert not sparse_tail(None).any()
+    # A small slice: "sparse" is relative, a quarter of the fullest bin (30 -> 7.5 samples), so
+    # only the two bins under 7.5 go, not the seven under 20.
+    small = np.r_[25, 30, 22, 18, 15, 12, 10, 8, 6, 4, np.zeros(80)]
+    assert np.flatnonzero(sparse_tail(small)).tolist() == [8, 9]
+    # A bin whose value is missing holds no sample, whatever its count says: bin 4 (n = 40, empty)
+    # does not make bin 3 (7 samples) interior; both sparse bins around it go.
+    from infer.slices import without_sparse_tail
+    values = np.ones((90, 3))
+    values[4], values[6:] = np.nan, np.nan
+    _, ignored = without_sparse_tail(values, np.r_[0, 30, 40, 7, 40, 3, np.zeros(84)])
+    assert ignored == [3, 5]
     folder, model, slice_csv = trained
     rho, n = views.read_slice_csv(slice_csv)
     rho[60:], n[60:] = np.nan, 0                       # a slice that ends at bin 59 ...

@@ -124,3 +124,27 @@ def test_clean_up_keeps_a_region_whole_and_clears_its_speckle():
     cleaned = clean_label_image(labels, mask, 0.002)
     truth = np.where(region, 2, 1)
     assert np.mean((cleaned == 2)[mask] == (truth == 2)[mask]) >= 0.995
+
+
+def test_lossy_label_files_are_told_by_their_bytes(tmp_path):
+    # A label image must be lossless: JPEG, JPEG 2000 (either wrapping) and lossy WebP, also in
+    # its extended form where an alpha chunk precedes the image, are refused; PNG and lossless
+    # WebP are not. The bytes decide, not the name (every file here is named .png).
+    from pipeline.cmd_segment import _lossy_format
+
+    def riff(*chunks):
+        body = b"WEBP" + b"".join(c + len(d).to_bytes(4, "little") + d + b"\0" * (len(d) & 1)
+                                  for c, d in chunks)
+        return b"RIFF" + len(body).to_bytes(4, "little") + body
+
+    files = {"JPEG": b"\xff\xd8\xff\xe0" + bytes(20),
+             "JPEG 2000": b"\x00\x00\x00\x0cjP  \r\n\x87\n" + bytes(20),
+             "lossy WebP": riff((b"VP8X", bytes(10)), (b"ALPH", bytes(33)), (b"VP8 ", bytes(8))),
+             None: riff((b"VP8X", bytes(10)), (b"VP8L", bytes(8)))}
+    for kind, data in files.items():
+        (tmp_path / "l.png").write_bytes(data)
+        assert _lossy_format(tmp_path / "l.png") == kind
+    (tmp_path / "l.png").write_bytes(b"\xff\x4f\xff\x51" + bytes(20))  # a bare J2K codestream
+    assert _lossy_format(tmp_path / "l.png") == "JPEG 2000"
+    (tmp_path / "l.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(20))
+    assert _lossy_format(tmp_path / "l.png") is None
