@@ -20,7 +20,10 @@ LLVM: drjit needs LLVM >= 16 ("Cannot select: fminimum" with Debian 12's 14/15).
 there and the variable is unset (it must be set before drjit first uses LLVM).
 """
 
+import functools
 import os
+import subprocess
+import sys
 
 import numpy as np
 
@@ -37,21 +40,24 @@ if "DRJIT_LIBLLVM_PATH" not in os.environ and os.path.exists(LIBLLVM19):
     os.environ["DRJIT_LIBLLVM_PATH"] = LIBLLVM19
 
 
+@functools.lru_cache(maxsize=None)
 def llvm_available():
-    """True when Mitsuba's llvm_ad_rgb variant can be set (mitsuba installed, a usable LLVM)."""
+    """True when Mitsuba's llvm_ad_rgb variant can be set (mitsuba installed, a usable LLVM).
+    Probed in a child process, once per process: with LLVM 14/15 the probe's op does not raise,
+    it aborts the whole process ("LLVM ERROR: Cannot select"), which no except can catch."""
     try:
         import mitsuba as mi
         if "llvm_ad_rgb" not in mi.variants():
             return False
-        previous = mi.variant()
-        mi.set_variant("llvm_ad_rgb")
-        import drjit as dr
-        dr.eval(dr.minimum(mi.Float([1.0, 2.0]), 1.5))   # the op that fails on LLVM 14/15
-        if previous is not None:
-            mi.set_variant(previous)
-        return True
-    except Exception:   # any failure (import, LLVM load) means "not available"
+    except Exception:   # any failure (import, missing library) means "not available"
         return False
+    probe = ("import mitsuba as mi, drjit as dr; mi.set_variant('llvm_ad_rgb'); "
+             "dr.eval(dr.minimum(mi.Float([1.0, 2.0]), 1.5))")  # the op that fails on LLVM 14/15
+    try:
+        done = subprocess.run([sys.executable, "-c", probe], capture_output=True, timeout=300)
+    except (OSError, subprocess.SubprocessError):
+        return False
+    return done.returncode == 0
 
 
 def register(variant=None):
