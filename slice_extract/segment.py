@@ -1016,11 +1016,15 @@ def check_labels(labels, shape, where, count=None):
         raise InputError(where, f"holds a negative label ({int(labels.min())}); labels are 0 "
                                 "(not the object) or 1..K")
     k = int(labels.max()) if labels.size else 0
-    present = np.bincount(labels.ravel().astype(np.int64), minlength=k + 1)
-    empty = [j for j in range(1, k + 1) if present[j] == 0]
-    if k == 0 or empty:
-        shown = ", ".join(map(str, (empty or [1])[:5])) + (", ..." if len(empty) > 5 else "")
-        raise InputError(where, f"label(s) {shown} have no pixel ({len(empty) or 1} in all): "
+    # the labels used, not a count per value up to K: one pixel of 2^31 - 1 in an int32 TIFF
+    # asked np.bincount for 16 GiB (and listed 2^31 empty labels)
+    used = np.unique(labels[labels > 0])
+    missing = k - len(used)
+    if k == 0 or missing:
+        # the first missing labels lie within 1..len(used) + 5
+        empty = np.setdiff1d(np.arange(1, min(k, len(used) + 5) + 1), used)[:5].tolist()
+        shown = ", ".join(map(str, empty or [1])) + (", ..." if missing > 5 else "")
+        raise InputError(where, f"label(s) {shown} have no pixel ({missing or 1} in all): "
                                 "labels must be 1..K, each used")
     if count is not None and count != k:
         raise InputError(where, f"has {k} material label(s) but {count} BRDF table(s) were "

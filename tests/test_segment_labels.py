@@ -148,3 +148,35 @@ def test_lossy_label_files_are_told_by_their_bytes(tmp_path):
     assert _lossy_format(tmp_path / "l.png") == "JPEG 2000"
     (tmp_path / "l.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(20))
     assert _lossy_format(tmp_path / "l.png") is None
+
+
+def test_a_label_of_2_31_is_refused_without_counting_up_to_it(tmp_path):
+    # An int32 TIFF of labels {0, 1, 2^31 - 1}: labels 2..2^31 - 2 have no pixel, so it is bad
+    # input (exit 2, one line). Counting pixels per value up to K (np.bincount) asked for 16 GiB:
+    # a MemoryError traceback, or the OOM killer. Run in a child limited to 4 GiB of address
+    # space, so that the old code fails here instead of taking the machine's memory.
+    import resource
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import cv2
+    from synthetic import ggx_lambert, pinhole_camera, point_light, sphere_mesh, \
+        write_synthetic_scene
+    scene = write_synthetic_scene(tmp_path / "s", sphere_mesh(subdivisions=2), ggx_lambert(),
+                                  pinhole_camera(16, 16, 40.0), [point_light([0.02, 0, 0])])
+    labels = np.zeros((16, 16), np.int32)
+    labels[4:12, 4:8], labels[4:12, 8:12] = 1, 2 ** 31 - 1
+    assert cv2.imwrite(str(tmp_path / "l.tif"), labels)
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (4 << 30, resource.RLIM_INFINITY))
+    root = Path(__file__).resolve().parents[1]
+    done = subprocess.run(
+        [sys.executable, "-m", "pipeline", "extract", str(scene), "--labels",
+         str(tmp_path / "l.tif"), "--out", str(tmp_path / "out")], cwd=root,
+        capture_output=True, text=True, preexec_fn=limit, timeout=300)
+    assert done.returncode == 2, done.stderr
+    assert len(done.stderr.strip().splitlines()) == 1, done.stderr
+    assert "l.tif" in done.stderr and "(2147483645 in all)" in done.stderr
+    assert not (tmp_path / "out").exists()
