@@ -247,7 +247,9 @@ class _Fields:
             self.fail(key, "expected a file name (string, relative to the scene folder)")
         try:
             return (folder / v).resolve()
-        except (OSError, RuntimeError) as err:  # a symlink loop, a name too long
+        except (OSError, RuntimeError, ValueError) as err:
+            # a symlink loop, a name too long, a lone surrogate ("\ud800", valid JSON) that no
+            # file name encodes
             self.fail(key, f"cannot resolve the path {v!r} ({err})")
 
 

@@ -386,6 +386,9 @@ CASES = [
     ("extract", "an integer of 5000 digits (over Python's limit)", lambda w, t: [
         "extract", str(scene_with_literal(w, t, ("camera", "width"), "4" * 5000)), "--out",
         _out(t, "s.csv")], "scene.json"),
+    ("extract", "flash photo's name a lone surrogate (valid JSON, no file name)", lambda w, t: [
+        "extract", str(scene_with_literal(w, t, ("photos", 0, "file"), r'"\ud800.exr"')),
+        "--out", _out(t, "s.csv")], "photos[0].file"),
     ("extract", "camera pose not a rotation", lambda w, t: ["extract", str(scene_copy(
         w, t, set_field(("camera", "world_from_camera"), (2 * np.eye(4)).tolist()))), "--out",
         _out(t, "s.csv")], "camera.world_from_camera"),
