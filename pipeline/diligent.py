@@ -33,6 +33,8 @@ PNG16_MAX = 65535
 EIGHT_BIT_NOTE = ("8-bit photos, read as linear (value / 255): 256 levels instead of 65536, so "
                   "dark pixels are coarse and precision is reduced")
 _NOT_PHOTOS = {"mask.png", "normal_gt.png"}
+# light intensities whose photos (pixel / intensity, float32) stay finite and not all zero
+MIN_INTENSITY, MAX_INTENSITY = 1e-30, 1e30
 
 
 @dataclass
@@ -159,6 +161,13 @@ def read_diligent(obj_dir):
         raise InputError(folder / "light_directions.txt", "rows must be unit vectors")
     if np.any(intensities <= 0):
         raise InputError(folder / "light_intensities.txt", "intensities must be > 0")
+    # the photos are written as pixel / intensity in 32-bit floats: 1e-50 made them inf and NaN,
+    # 1e308 (inf in float32) black, with numpy's warnings on stderr and exit 0
+    odd = intensities[(intensities < MIN_INTENSITY) | (intensities > MAX_INTENSITY)]
+    if odd.size:
+        raise InputError(folder / "light_intensities.txt",
+                         f"intensity {odd[0]:g} is outside {MIN_INTENSITY:g}..{MAX_INTENSITY:g} "
+                         "(photos are stored as pixel / intensity in 32-bit floats)")
     mask = _read_mask(mask_path)
     normals = _read_normals(normals_path)
     if normals.shape[:2] != mask.shape:

@@ -652,6 +652,14 @@ CASES = [
         "import-diligent", str(diligent_copy(w, t, lambda f: (f / "light_directions.txt")
                                              .write_text("nan 0 1\n0 0 1\n0 0 1\n0 0 1\n"))),
         "--flash", "1", "--out", _out(t)], "light_directions.txt"),
+    ("import-diligent", "light intensity 1e-50 (inf and NaN photos in float32)", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "light_intensities.txt")
+                                             .write_text("1e-50 1 1\n" + "1 1 1\n" * 3))),
+        "--flash", "1", "--out", _out(t)], "light_intensities.txt"),
+    ("import-diligent", "light intensity 1e308 (black photos in float32)", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "light_intensities.txt")
+                                             .write_text("1 1 1\n" * 3 + "1e308 1 1\n"))),
+        "--flash", "1", "--out", _out(t)], "light_intensities.txt"),
     ("import-diligent", "a photo of 40000x40000", lambda w, t: [
         "import-diligent", str(diligent_copy(w, t, lambda f: (f / "003.png").write_bytes(
             png_bomb()))), "--flash", "1", "--out", _out(t)], "003.png"),
