@@ -96,10 +96,46 @@ def _webp_image_chunk(f):
     return None
 
 
+# TIFF Compression (tag 259) values of lossy codecs: old-style and new JPEG, DNG's lossy JPEG,
+# JPEG 2000, WebP, JPEG XL (the last three refused whole, as a .jp2 is)
+_TIFF_LOSSY = {6: "JPEG", 7: "JPEG", 34892: "JPEG", 34712: "JPEG 2000", 50001: "WebP",
+               50002: "JPEG XL"}
+
+
+def _tiff_compression(f, head):
+    """The Compression tag (259) of a TIFF's first image (the one OpenCV reads) or None; head is
+    the file's first 12 bytes, f open past them. Classic TIFF and BigTIFF, either byte order."""
+    order = {b"II": "little", b"MM": "big"}.get(head[:2])
+    magic = int.from_bytes(head[2:4], order or "little")
+    if order is None or magic not in (42, 43):
+        return None
+    big = magic == 43
+    if big:  # the first directory's offset: 8 bytes at byte 8 (BigTIFF), else 4 at byte 4
+        f.seek(8)
+        offset = int.from_bytes(f.read(8), order)
+    else:
+        offset = int.from_bytes(head[4:8], order)
+    if offset >= 1 << 62:  # past any file (and past what seek takes)
+        return None
+    f.seek(offset)
+    count = int.from_bytes(f.read(8 if big else 2), order)
+    size = 20 if big else 12
+    for _ in range(min(count, 4096)):
+        entry = f.read(size)
+        if len(entry) < size:
+            return None
+        if int.from_bytes(entry[:2], order) == 259:
+            kind = int.from_bytes(entry[2:4], order)  # SHORT (3) or LONG (4), in the entry
+            value = entry[12:] if big else entry[8:]
+            return int.from_bytes(value[:2] if kind == 3 else value[:4], order)
+    return None
+
+
 def _lossy_format(path):
-    """"JPEG", "JPEG 2000" or "lossy WebP" when the file's first bytes say so, else None (the
-    name's suffix is not asked: a JPEG named .png is still a JPEG). InputError when the file cannot
-    be read. JPEG 2000 is refused whole: its lossless mode is rare and not told by the header."""
+    """"JPEG", "JPEG 2000", "lossy WebP" or "TIFF compressed as ..." (a lossy TIFF codec) when the
+    file's first bytes say so, else None (the name's suffix is not asked: a JPEG named .png is
+    still a JPEG). InputError when the file cannot be read. JPEG 2000 is refused whole: its
+    lossless mode is rare and not told by the header."""
     try:
         with open(path, "rb") as f:
             head = f.read(12)
@@ -109,6 +145,9 @@ def _lossy_format(path):
                 return "JPEG 2000"
             if head[:4] == b"RIFF" and head[8:12] == b"WEBP" and _webp_image_chunk(f) in ("VP8 ", "ANMF"):
                 return "lossy WebP"  # VP8L is WebP's lossless form; an animation is no label image
+            lossy = _TIFF_LOSSY.get(_tiff_compression(f, head))
+            if lossy:  # a TIFF of JPEG tiles decodes to one channel too
+                return f"TIFF compressed as {lossy}"
     except OSError as err:
         raise InputError(path, f"cannot be read ({err.strerror or err})") from None
     return None

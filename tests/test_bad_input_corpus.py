@@ -800,6 +800,9 @@ SWEEP_CASES = [
     ("extract", "labels JPEG 2000", lambda w, t: [  # decodes to one channel: only its bytes tell
         "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.jp2", dtype=np.uint8)),
         "--out", _out(t)], "l.jp2"),
+    ("extract", "labels a JPEG-compressed TIFF", lambda w, t: [  # one channel: only its tags tell
+        "extract", str(w.scene), "--labels", str(labels_png(w, t, "l.tif", dtype=np.uint8, params=(
+            cv2.IMWRITE_TIFF_COMPRESSION, 7))), "--out", _out(t)], "l.tif"),
     ("extract", "labels unreadable", lambda w, t: [  # a regular file whose read fails (EIO)
         "extract", str(w.scene), "--labels", "/proc/self/mem", "--out", _out(t)], "mem"),
     ("extract", "labels RGB", lambda w, t: [

@@ -149,6 +149,28 @@ def test_lossy_label_files_are_told_by_their_bytes(tmp_path):
     (tmp_path / "l.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(20))
     assert _lossy_format(tmp_path / "l.png") is None
 
+    # a TIFF is lossy when its first directory's Compression tag (259) names a lossy codec: in
+    # either byte order, a SHORT left-justified in its entry; BigTIFF's entries are 20 bytes
+    def tiff(order, compression, big=False):
+        def n(value, size):
+            return value.to_bytes(size, order)
+        mark = b"II" if order == "little" else b"MM"
+        if big:
+            head = mark + n(43, 2) + n(8, 2) + n(0, 2) + n(16, 8) + n(2, 8)
+            entry = n(256, 2) + n(3, 2) + n(1, 8) + n(4, 2) + bytes(6)
+            return head + entry + n(259, 2) + n(3, 2) + n(1, 8) + n(compression, 2) + bytes(6)
+        head = mark + n(42, 2) + n(8, 4) + n(2, 2)
+        entry = n(256, 2) + n(3, 2) + n(1, 4) + n(4, 2) + bytes(2)
+        return head + entry + n(259, 2) + n(3, 2) + n(1, 4) + n(compression, 2) + bytes(2)
+    for order in ("little", "big"):
+        for big in (False, True):
+            for compression, kind in ((7, "TIFF compressed as JPEG"), (34712, "TIFF compressed as "
+                                      "JPEG 2000"), (1, None), (5, None), (8, None)):
+                (tmp_path / "l.png").write_bytes(tiff(order, compression, big))
+                assert _lossy_format(tmp_path / "l.png") == kind, (order, big, compression)
+    (tmp_path / "l.png").write_bytes(b"II+\x00\x08\x00\x00\x00" + b"\xff" * 8)  # no directory
+    assert _lossy_format(tmp_path / "l.png") is None
+
 
 def test_a_label_of_2_31_is_refused_without_counting_up_to_it(tmp_path):
     # An int32 TIFF of labels {0, 1, 2^31 - 1}: labels 2..2^31 - 2 have no pixel, so it is bad
