@@ -72,13 +72,21 @@ def sparse_tail(n, min_samples=MIN_TAIL_SAMPLES):
     return tail
 
 
+def sample_counts(rho, n):
+    """n (90,) with 0 for every bin whose value is missing (a bin with no value holds no sample,
+    whatever its n says), or None when n is None. rho (90, 3), NaN where empty. Pass these counts
+    to sparse_tail_record and sparse_tail_note, so that they tell the threshold that was used."""
+    if n is None:
+        return None
+    return np.where(np.isfinite(np.asarray(rho, dtype=float)).all(axis=1), np.asarray(n), 0)
+
+
 def without_sparse_tail(rho, n, min_samples=MIN_TAIL_SAMPLES):
     """(rho (90, 3) with the sparse_tail bins emptied (NaN), their θh bin indices (list of int)):
     the slice inference reads. rho in 1/sr, NaN where empty; n (90,) counts or None. A bin whose
-    value is missing counts as holding no sample, whatever its n says."""
+    value is missing counts as holding no sample, whatever its n says (sample_counts)."""
     rho = np.array(rho, dtype=float)
-    if n is not None:
-        n = np.where(np.isfinite(rho).all(axis=1), np.asarray(n), 0)
+    n = sample_counts(rho, n)
     tail = sparse_tail(n, min_samples)
     rho[tail] = np.nan
     return rho, [int(i) for i in np.flatnonzero(tail)]

@@ -14,7 +14,8 @@ from experiments.evaluate import experiment_predictor, run_evaluation
 from experiments.test_set import run_test_set
 from infer import TrainingSet, load_method, make_method, novelty_warning
 from infer.model_selection import check_training_size
-from infer.slices import sparse_tail_note, sparse_tail_record, without_sparse_tail
+from infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
+                          without_sparse_tail)
 from infer.training import train_model
 from pipeline.dask_engine import check_engine_options, dask_client
 from pipeline.safety import check_outputs, sidecar_json, staged_output_dir
@@ -65,6 +66,7 @@ def infer(args):
     check_outputs(inputs=[args.model, args.slice, *_merl_inputs(args.merl_dir)],
                   outputs=[args.out, json_path])
     rho, n = views.read_slice_csv(args.slice)
+    n = sample_counts(rho, n)  # an empty bin's n does not set the threshold the note tells
     rho, ignored = without_sparse_tail(rho, n)
     if ignored:
         print(sparse_tail_note(ignored, n), file=sys.stderr)

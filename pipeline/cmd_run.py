@@ -31,7 +31,8 @@ from brdf.atomic import write_text
 from brdf.errors import InputError
 from infer import METHODS, make_method, novelty_warning
 from infer.model_file import check_model_file, load_methods
-from infer.slices import sparse_tail_note, sparse_tail_record, without_sparse_tail
+from infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
+                          without_sparse_tail)
 from pipeline.cmd_extract import write_extraction
 from pipeline.cmd_render import photo_exists, samples_per_pixel
 from pipeline.cmd_segment import materials_option, segment_scene, write_labels
@@ -115,6 +116,7 @@ def _infer(method, method_name, model_path, rho, n, out_dir):
     + brdf.json."""
     start = time.perf_counter()
     view = "3d" if method.training_3d() == "stored" else "2d"
+    n = sample_counts(rho, n)  # an empty bin's n does not set the threshold the record tells
     rho, ignored = without_sparse_tail(rho, n)
     table, variance = method.predict(rho, view=view)
     seconds = time.perf_counter() - start

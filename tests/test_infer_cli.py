@@ -258,3 +258,26 @@ def test_sparse_tail_bins_are_missing_for_inference(trained, tmp_path, capsys):
     past = (slice(62, 90), 0, 0)  # θd = 0 row past the slice, one φd bin (copied across φd)
     drop = np.log(clean[past] + 1e-3) - np.log(read[past] + 1e-3)
     assert np.median(drop) > 0.2
+
+
+def test_sparse_tail_record_tells_the_threshold_used(tmp_path, capsys):
+    """An empty bin's n (a count with no value) sets no threshold (without_sparse_tail): so it
+    must not set the one BRDF.json and the stderr note tell either. Bins 20-60 of 8 samples and
+    61-70 of 1: the threshold is 8 / 4 = 2 whether the empty bin 5 says n = 0 or n = 400 (that
+    said 20, the fixed cap, while the 8-sample bins it called sparse were read)."""
+    rho = np.full((90, 3), np.nan)
+    rho[20:71] = 0.1
+    n = np.zeros(90, np.int64)
+    n[20:61], n[61:71] = 8, 1
+    reports = []
+    for count in (0, 400):
+        n[5] = count
+        path, out = tmp_path / f"s{count}.csv", tmp_path / f"b{count}.binary"
+        views.write_slice_csv(path, rho, n)
+        assert main(["infer", "--method", "chandraker", "--slice", str(path), "--out",
+                     str(out)]) == 0
+        record = json.loads(out.with_suffix(".json").read_text())["sparse_tail_ignored"]
+        assert record["min_samples"] == 2.0 and record["n"] == [1] * 10
+        assert "past the last one of >= 2 samples" in capsys.readouterr().err
+        reports.append(record)
+    assert reports[0] == reports[1]
