@@ -155,6 +155,24 @@ def _no_sample_error(scene, per_photo):
                       f"{', '.join(f'{k} {totals[k]}' for k in REASONS)}; mostly '{worst}')")
 
 
+def _check_above_ambient(scene, rho):
+    """InputError naming the ambient photo when flash - ambient is <= 0 at 99% or more of the
+    object's usable pixels (rho (N, 3) 1/sr, +inf where censored): the ambient photo is as bright
+    as the flash photo (the same file, or the two swapped), and the slice would be 0 everywhere.
+    Not at "most": off its highlights a chrome object holds only noise, half of it below 0."""
+    ambient = scene.photos_with_role("ambient")
+    finite = np.isfinite(rho).all(axis=1)
+    if not ambient or not finite.any():
+        return
+    total = rho[finite].sum(axis=1)
+    if np.mean(total > 0) < 0.01:
+        where = ambient[0].file or ambient[0].where
+        raise InputError(where, f"the flash photo minus this ambient photo is <= 0 at "
+                                f"{np.mean(total <= 0):.0%} of the object's usable pixels: the "
+                                "ambient photo is as bright as the flash photo (the same photo, "
+                                "or the two swapped?)")
+
+
 @dataclass(eq=False)
 class FlashSamples:
     """Every flash photo's samples, pooled, before binning (what extraction and segmentation share).
@@ -263,8 +281,10 @@ def collect_samples(scene, options=None):
 
     photo = (np.concatenate([np.full(len(p.theta_h), k) for p, k in zip(parts, photo_of_part)])
              if parts else np.zeros(0, int))
+    rho = pooled("rho", np.zeros((0, 3)))
+    _check_above_ambient(scene, rho)
     return FlashSamples(scene, options, pooled("theta_h", np.zeros(0)),
-                        pooled("theta_d", np.zeros(0)), pooled("rho", np.zeros((0, 3))),
+                        pooled("theta_d", np.zeros(0)), rho,
                         pooled("censored", np.zeros(0, bool)), pooled("pixels", np.zeros(0, int)),
                         photo, images[0].photo.camera.shape, first_mask, face_image,
                         images[0].radiance, per_photo, clock.t, start, normals_at)

@@ -1016,9 +1016,11 @@ def check_labels(labels, shape, where, count=None):
         raise InputError(where, f"holds a negative label ({int(labels.min())}); labels are 0 "
                                 "(not the object) or 1..K")
     k = int(labels.max()) if labels.size else 0
-    # the labels used, not a count per value up to K: one pixel of 2^31 - 1 in an int32 TIFF
-    # asked np.bincount for 16 GiB (and listed 2^31 empty labels)
-    used = np.unique(labels[labels > 0])
+    # the labels used: a count per value only when K is no more than the pixels (one pixel of
+    # 2^31 - 1 in an int32 TIFF asked np.bincount for 16 GiB; past that some label is missing
+    # anyway), else np.unique, which sorts (0.34 s against 0.02 s on 12 MP)
+    used = (np.flatnonzero(np.bincount(labels.ravel().astype(np.int64), minlength=k + 1)[1:]) + 1
+            if k <= labels.size else np.unique(labels[labels > 0]))
     missing = k - len(used)
     if k == 0 or missing:
         # the first missing labels lie within 1..len(used) + 5

@@ -362,6 +362,10 @@ CASES = [
                                                  _out(t, "s.csv")], "none"),
     ("extract", "scene.json not JSON", lambda w, t: ["extract", str(scene_with_file(
         w, t, "scene.json", b"{camera: oops")), "--out", _out(t, "s.csv")], "scene.json"),
+    ("extract", "ambient photo is the flash photo", lambda w, t: [  # flash - ambient = 0
+        "extract", str(scene_copy(w, t, lambda doc: doc["photos"].append(
+            {"file": "flash0.exr", "role": "ambient"}))), "--out", _out(t, "s.csv")],
+     "flash0.exr"),
     ("extract", "camera.width NaN", lambda w, t: ["extract", str(scene_copy(
         w, t, set_field(("camera", "width"), float("nan")))), "--out", _out(t, "s.csv")],
      "scene.json: camera.width"),
