@@ -51,7 +51,7 @@ from pipeline.safety import check_writable_folder
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
 SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "cpu_seconds", "worker")
-RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map")
+RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map", "export")
 OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md")  # what a batch writes in OUT_DIR itself
 SUMMARY_TITLE = "# flashbrdf batch summary"
 SUMMARY_HEADS = {"summary.csv": ",".join(SUMMARY_FIELDS).encode(),
@@ -224,7 +224,7 @@ def run_capture(scene_dir, out_dir, options):
     """The Dask task: `run` one capture into OUT_DIR/<name>/, all or nothing. -> summary row dict.
 
     options: the run options (RUN_OPTIONS: model, methods, spp, no_anchor, materials,
-    albedo_map). Raises on unexpected errors (Dask
+    albedo_map, export). Raises on unexpected errors (Dask
     retries once); bad input in the capture is returned as a failed row.
     """
     from pipeline.cmd_run import run
@@ -459,7 +459,8 @@ def batch(args):
     options = {"model": None if args.model is None else str(Path(args.model).absolute()),
                "methods": args.methods, "spp": args.spp, "no_anchor": args.no_anchor,
                "materials": getattr(args, "materials", "auto"),
-               "albedo_map": bool(getattr(args, "albedo_map", False))}
+               "albedo_map": bool(getattr(args, "albedo_map", False)),
+               "export": bool(getattr(args, "export", False))}
     rows, todo = {}, []
     for c in captures:
         row = None if args.force else completed_row(out / c.name)
@@ -505,7 +506,8 @@ def batch(args):
         f"- Ran on {engine if todo else 'nothing (all complete)'}; "
         f"wall time {time.perf_counter() - start:.1f} s.",
         f"- Run options: methods {args.methods}, spp {args.spp}, model "
-        f"{options['model'] or '(none)'}{', no anchor' if args.no_anchor else ''}.",
+        f"{options['model'] or '(none)'}{', no anchor' if args.no_anchor else ''}"
+        f"{', export' if options['export'] else ''}.",
         f"- Per-capture logs: `{LOG_DIR}/<capture>.log`. ΔE-log is `delta_e_log_mean` of each "
         "method's renders against the reference photos (mean over photos, then per photo)."])
     for r in failed:

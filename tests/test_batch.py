@@ -199,6 +199,23 @@ def test_one_capture_to_run_runs_in_process(two_workers, sequential, captures, t
     assert _summary(out)["a"]["reason"] == "RuntimeError: disk on fire"
 
 
+def test_run_options_reach_run_export(merl_proxy, tmp_path):
+    """Contract: "Each capture's output is `OUT_DIR/<subfolder>/` exactly as `run` writes it",
+    with `[run options]`: `batch --export` writes what `run --export` does (export/ and the
+    Principled fit's renders), not a plain `run`'s folder."""
+    one = tmp_path / "captures"
+    make_sample_capture(merl_proxy(MATERIALS["a"]), one / "a", size=48, spp=16, shape="sphere",
+                        envmaps={"ref_pisa": "pisa_latlong_256x128.hdr"})
+    options = ["--methods", "dsgplvm", "--spp", "4", "--export"]
+    assert main(["run", str(one / "a"), "--out", str(tmp_path / "run"), *options]) == 0
+    out = tmp_path / "out"
+    assert main(["batch", str(one), "--out", str(out), *options]) == 0
+    assert (out / "a" / "export" / "principled.json").is_file()
+    assert (out / "a" / "dsgplvm-principled").is_dir()
+    assert _files(out / "a") == sorted(_files(tmp_path / "run") + [MARKER])
+    assert ", export." in (out / "summary.md").read_text()
+
+
 class KillMidRun(WorkerPlugin):
     """Test-only: kill the worker process (os._exit) when capture `name`'s `run` reaches its
     first render, on every worker and every attempt. `run` has then written the slice, the
