@@ -50,11 +50,13 @@ from pipeline.safety import check_writable_folder
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
+# The contract's column order: `capture`, `status`, `reason`, per-method ΔE-log, seconds; then ours.
 SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "cpu_seconds", "worker")
+SUMMARY_LEAD, SUMMARY_TAIL = SUMMARY_FIELDS[:3], SUMMARY_FIELDS[3:]  # before / after the ΔE-log
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map", "export")
 OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md")  # what a batch writes in OUT_DIR itself
 SUMMARY_TITLE = "# flashbrdf batch summary"
-SUMMARY_HEADS = {"summary.csv": ",".join(SUMMARY_FIELDS).encode(),
+SUMMARY_HEADS = {"summary.csv": (",".join(SUMMARY_LEAD) + ",").encode(),
                  "summary.md": SUMMARY_TITLE.encode()}
 
 
@@ -329,23 +331,29 @@ def _cell(value):
     return f"{value:.6g}" if isinstance(value, float) else str(value)
 
 
+def _field(row, name):
+    return "" if row.get(name) is None else row[name]
+
+
 def write_summary(out_dir, rows, header_lines=()):
     """OUT_DIR/summary.csv and summary.md, one row per capture (atomic writes)."""
     columns = _columns(rows)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(list(SUMMARY_FIELDS) + [f"delta_e_log {c}" for c in columns])
+    writer.writerow(list(SUMMARY_LEAD) + [f"delta_e_log {c}" for c in columns]
+                    + list(SUMMARY_TAIL))
     for r in rows:
-        writer.writerow([r.get(f) if r.get(f) is not None else "" for f in SUMMARY_FIELDS]
+        writer.writerow([_field(r, f) for f in SUMMARY_LEAD]
                         + [repr(r["delta_e_log"][c]) if r["delta_e_log"].get(c) is not None
-                           else "" for c in columns])
+                           else "" for c in columns] + [_field(r, f) for f in SUMMARY_TAIL])
     write_text(Path(out_dir) / "summary.csv", buffer.getvalue())
-    head = list(SUMMARY_FIELDS) + [f"ΔE-log {c}" for c in columns]
+    head = list(SUMMARY_LEAD) + [f"ΔE-log {c}" for c in columns] + list(SUMMARY_TAIL)
     lines = [SUMMARY_TITLE, "", *header_lines, "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
-        cells = [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_FIELDS]
+        cells = [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_LEAD]
         cells += [_cell(r["delta_e_log"].get(c)) for c in columns]
+        cells += [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_TAIL]
         lines.append("| " + " | ".join(cells) + " |")
     write_text(Path(out_dir) / "summary.md", "\n".join(lines) + "\n")
 

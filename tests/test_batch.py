@@ -22,7 +22,7 @@ from distributed import Client, LocalCluster
 from distributed.diagnostics.plugin import WorkerPlugin
 
 import pipeline.cmd_run as cmd_run  # in a worker: the worker's copy, which `run` calls
-from pipeline.batch import MARKER, capture_bytes
+from pipeline.batch import MARKER, capture_bytes, failed_row, write_summary
 from pipeline.cli import main
 from pipeline.dask_engine import ALLOWED_FAILURES, threads_per_worker
 from pipeline.sample_capture import make_sample_capture
@@ -214,6 +214,26 @@ def test_run_options_reach_run_export(merl_proxy, tmp_path):
     assert (out / "a" / "dsgplvm-principled").is_dir()
     assert _files(out / "a") == sorted(_files(tmp_path / "run") + [MARKER])
     assert ", export." in (out / "summary.md").read_text()
+
+
+def test_summary_columns_in_the_contract_order(tmp_path):
+    """Contract: summary.csv and summary.md have one row per capture "(`capture`, `status`
+    ok|failed, `reason`, per-method ΔE-log, seconds)": the ΔE-log columns come before seconds."""
+    rows = [{"capture": "a", "status": "ok", "reason": "", "seconds": 1.5, "cpu_seconds": 2.0,
+             "worker": "w:1", "delta_e_log": {"dsgplvm": 3.0, "dsgplvm/ref_pisa": 3.0}},
+            failed_row("b", "bad scene.json")]
+    write_summary(tmp_path, rows)
+    with open(tmp_path / "summary.csv", newline="") as f:
+        header = next(csv.reader(f))
+    assert header[:5] == ["capture", "status", "reason", "delta_e_log dsgplvm",
+                          "delta_e_log dsgplvm/ref_pisa"]
+    assert header[5] == "seconds"
+    assert _summary(tmp_path)["a"]["seconds"] == "1.5"
+    assert _summary(tmp_path)["b"]["status"] == "failed"
+    table = [line for line in (tmp_path / "summary.md").read_text().splitlines()
+             if line.startswith("| capture")][0]
+    assert [c.strip() for c in table.strip("|").split("|")][:6] == [
+        "capture", "status", "reason", "ΔE-log dsgplvm", "ΔE-log dsgplvm/ref_pisa", "seconds"]
 
 
 class KillMidRun(WorkerPlugin):
