@@ -50,14 +50,18 @@ from pipeline.safety import check_writable_folder
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
-# The contract's column order: `capture`, `status`, `reason`, per-method ΔE-log, seconds; then ours.
+# The contract's column order: `capture`, `status`, `reason`, per-method ΔE-log, seconds, then
+# ours (cpu_seconds, worker).
 SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "cpu_seconds", "worker")
 SUMMARY_LEAD, SUMMARY_TAIL = SUMMARY_FIELDS[:3], SUMMARY_FIELDS[3:]  # before / after the ΔE-log
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map", "export")
 OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md")  # what a batch writes in OUT_DIR itself
 SUMMARY_TITLE = "# flashbrdf batch summary"
-SUMMARY_HEADS = {"summary.csv": (",".join(SUMMARY_LEAD) + ",").encode(),
-                 "summary.md": SUMMARY_TITLE.encode()}
+# How a summary that a batch wrote starts: summary.csv without ΔE-log columns (or as batches
+# before the contract's column order wrote it), or with them.
+SUMMARY_HEADS = {"summary.csv": (",".join(SUMMARY_FIELDS).encode(),
+                                 (",".join(SUMMARY_LEAD) + ",delta_e_log ").encode()),
+                 "summary.md": (SUMMARY_TITLE.encode(),)}
 
 
 def find_captures(captures_dir):
@@ -291,7 +295,8 @@ def _check_batch_folder(out_dir):
         return
     for entry in sorted(out_dir.iterdir()):
         if entry.name in SUMMARY_HEADS:  # a summary is ours if it starts as write_summary writes
-            ours = entry.is_file() and _starts_with(entry, SUMMARY_HEADS[entry.name])
+            ours = entry.is_file() and any(_starts_with(entry, head)
+                                           for head in SUMMARY_HEADS[entry.name])
         else:
             ours = entry.name.startswith(".") or (entry.is_dir() and (
                 entry.name == LOG_DIR or (entry / MARKER).is_file() or

@@ -22,7 +22,8 @@ from distributed import Client, LocalCluster
 from distributed.diagnostics.plugin import WorkerPlugin
 
 import pipeline.cmd_run as cmd_run  # in a worker: the worker's copy, which `run` calls
-from pipeline.batch import MARKER, capture_bytes, failed_row, write_summary
+from brdf.errors import InputError
+from pipeline.batch import MARKER, _check_batch_folder, capture_bytes, failed_row, write_summary
 from pipeline.cli import main
 from pipeline.dask_engine import ALLOWED_FAILURES, threads_per_worker
 from pipeline.sample_capture import make_sample_capture
@@ -234,6 +235,13 @@ def test_summary_columns_in_the_contract_order(tmp_path):
              if line.startswith("| capture")][0]
     assert [c.strip() for c in table.strip("|").split("|")][:6] == [
         "capture", "status", "reason", "ΔE-log dsgplvm", "ΔE-log dsgplvm/ref_pisa", "seconds"]
+    # A batch recognises the summaries it wrote, in either order, and no one else's.
+    _check_batch_folder(tmp_path)
+    write_summary(tmp_path, [failed_row("b", "bad scene.json")])  # no ΔE-log column
+    _check_batch_folder(tmp_path)
+    (tmp_path / "summary.csv").write_text("capture,status,reason,notes\n")
+    with pytest.raises(InputError):
+        _check_batch_folder(tmp_path)
 
 
 class KillMidRun(WorkerPlugin):
