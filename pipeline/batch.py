@@ -98,14 +98,23 @@ def _leftovers(out_dir, name):
 
 
 def _repoint(staging, target):
-    """slice.json names its slice.csv by absolute path: make it the final one, as `run` into
-    `target` would have written it."""
+    """slice.json names its slice.csv by absolute path, and `--export`'s mitsuba_tabulated.xml
+    and principled.json their table: make them the final ones, as `run` into `target` would
+    have written them."""
     report_path = Path(staging) / "slice.json"
     if report_path.is_file():
         report = json.loads(report_path.read_text())
         if str(report.get("slice_csv", "")).startswith(str(Path(staging).resolve())):
             report["slice_csv"] = str(Path(target).resolve() / "slice.csv")
             write_text(report_path, json.dumps(report, indent=1) + "\n")
+    for name in ("mitsuba_tabulated.xml", "principled.json"):
+        path = Path(staging) / "export" / name
+        if path.is_file():  # the staging folder's absolute path, as run was given it
+            text = path.read_text()
+            for given in dict.fromkeys((str(Path(staging).absolute()),
+                                        str(Path(staging).resolve()))):
+                text = text.replace(given + os.sep, str(Path(target).absolute()) + os.sep)
+            write_text(path, text)
 
 
 def _publish(staging, target):

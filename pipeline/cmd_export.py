@@ -13,18 +13,20 @@ from pipeline.safety import check_outputs, staged_output_dir
 from render.export import FORMATS, MITSUBA_USAGE, export_table, parse_formats
 
 
-def export_brdf(brdf_path, out_dir, formats=FORMATS, envmap=None, force=False):
+def export_brdf(brdf_path, out_dir, formats=FORMATS, envmap=None, force=False, final_path=None):
     """Export a MERL table into out_dir (an earlier export there is replaced only with force); the
     result dict of render.export.export_table. envmap: a lat-long map (`export --envmap`) for the
     sphere render check of the fit, or None to skip it (nothing outside the project is read
-    unless a flag names it)."""
+    unless a flag names it). final_path: where brdf_path will be once its staged folder is
+    renamed into place, recorded in the files instead of brdf_path (`run --export`)."""
     check_outputs(inputs=[brdf_path, envmap], outputs=[out_dir], folders=[out_dir])
     table = read_merl(brdf_path)
     if envmap is not None:
         from render.envmap import read_envmap_pixels
         read_envmap_pixels(envmap)  # bad input before any work: missing, unreadable or not 2:1
     with staged_output_dir(out_dir, force=force, command="export") as tmp:
-        result = export_table(table, brdf_path, tmp, formats, envmap=envmap)
+        result = export_table(table, brdf_path, tmp, formats, envmap=envmap,
+                              final_path=final_path)
     return result
 
 

@@ -242,7 +242,7 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
     exported = None
     if export:
         exported = stages.run("export", export_for_report, out, export_method(methods),
-                              scene_envmap(references))
+                              scene_envmap(references), Path(args.out))
         notes.append(exported[2])
     if two_d:
         notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "

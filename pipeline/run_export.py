@@ -23,11 +23,14 @@ def scene_envmap(references):
                  if p.light is not None and p.light.type == "envmap"), None)
 
 
-def export_for_report(out, method, envmap=None):
+def export_for_report(out, method, envmap=None, final_out=None):
     """Export OUT/<method>/brdf.binary into OUT/export, with the sphere render check under
-    `envmap` when given; returns (label, fitted table (90, 90, 180, 3), a note for the report)."""
+    `envmap` when given; the files name the table at FINAL_OUT/<method>/brdf.binary, where the
+    staged OUT is renamed to (default: OUT). Returns (label, fitted table (90, 90, 180, 3), a note for the report)."""
     out = Path(out)
-    result = export_brdf(out / method / "brdf.binary", out / "export", envmap=envmap)
+    final = None if final_out is None else Path(final_out).absolute() / method / "brdf.binary"
+    result = export_brdf(out / method / "brdf.binary", out / "export", envmap=envmap,
+                         final_path=final)
     fit = result["fit"]
     note = (f"--export: {method}'s BRDF exported to export/ (Mitsuba 3, principled.json, glTF). "
             f"Its Principled fit has 2D LAB-log error {fit['lab_log_2d']:.2f} against the table"

@@ -172,14 +172,16 @@ def check_table(table, table_path):
         raise InputError(table_path, "the table has no valid bin (every value is no-data)")
 
 
-def export_table(table, table_path, out_dir, formats=FORMATS, envmap=None):
+def export_table(table, table_path, out_dir, formats=FORMATS, envmap=None, final_path=None):
     """Write the files of `formats` for a MERL table (90, 90, 180, 3) into the folder out_dir.
 
-    table_path: the table's file (mitsuba_tabulated.xml points to it). envmap: for the render
-    check (None skips it). Returns {"files": [...], "params": dict, "fit": dict,
+    table_path: the table's file (mitsuba_tabulated.xml points to it). final_path: where that
+    file will be once a staged output folder is renamed into place (`run --export`), recorded
+    instead of table_path (default: table_path). envmap: for the render check (None skips it). Returns {"files": [...], "params": dict, "fit": dict,
     "images": {"tabulated", "fitted"} sphere renders, or None without envmap}.
     """
     check_table(table, table_path)
+    table_path = table_path if final_path is None else final_path  # the path the files record
     files, images = [], None
     if "mitsuba" in formats:
         write_text(os.path.join(out_dir, FILES["mitsuba"][0]), mitsuba_tabulated_xml(table_path))

@@ -215,6 +215,10 @@ def test_run_options_reach_run_export(merl_proxy, tmp_path):
     assert (out / "a" / "dsgplvm-principled").is_dir()
     assert _files(out / "a") == sorted(_files(tmp_path / "run") + [MARKER])
     assert ", export." in (out / "summary.md").read_text()
+    # The export names the table where it is now, not in the batch's or run's staging folder.
+    table = str((out / "a" / "dsgplvm" / "brdf.binary").absolute())
+    assert f'value="{table}"' in (out / "a" / "export" / "mitsuba_tabulated.xml").read_text()
+    assert json.loads((out / "a" / "export" / "principled.json").read_text())["table"] == table
 
 
 def test_summary_columns_in_the_contract_order(tmp_path):

@@ -123,3 +123,9 @@ def test_run_export_puts_the_export_and_the_principled_render_beside_the_report(
     tab, prin = rows["ref_pisa", "chandraker"], rows["ref_pisa", "chandraker-principled"]
     assert prin["delta_e_log_mean"] < tab["delta_e_log_mean"] + fit["render_delta_e_log"] + 1.0
     assert "chandraker-principled" in (out / "report.md").read_text()
+    # The export names the table where it is once `run` is done, not in run's temporary folder
+    # (the contract's `filename`: a MERL .binary).
+    table = str((out / "chandraker" / "brdf.binary").absolute())
+    assert f'<string name="filename" value="{table}"/>' in (
+        out / "export" / "mitsuba_tabulated.xml").read_text()
+    assert json.loads((out / "export" / "principled.json").read_text())["table"] == table
