@@ -26,7 +26,8 @@ def scene_envmap(references):
 def export_for_report(out, method, envmap=None, final_out=None):
     """Export OUT/<method>/brdf.binary into OUT/export, with the sphere render check under
     `envmap` when given; the files name the table at FINAL_OUT/<method>/brdf.binary, where the
-    staged OUT is renamed to (default: OUT). Returns (label, fitted table (90, 90, 180, 3), a note for the report)."""
+    staged OUT is renamed to (default: OUT). Returns (label, fitted table (90, 90, 180, 3), a
+    note for the report)."""
     out = Path(out)
     final = None if final_out is None else Path(final_out).absolute() / method / "brdf.binary"
     result = export_brdf(out / method / "brdf.binary", out / "export", envmap=envmap,

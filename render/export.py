@@ -177,7 +177,8 @@ def export_table(table, table_path, out_dir, formats=FORMATS, envmap=None, final
 
     table_path: the table's file (mitsuba_tabulated.xml points to it). final_path: where that
     file will be once a staged output folder is renamed into place (`run --export`), recorded
-    instead of table_path (default: table_path). envmap: for the render check (None skips it). Returns {"files": [...], "params": dict, "fit": dict,
+    instead of table_path (default: table_path). envmap: for the render check (None skips it).
+    Returns {"files": [...], "params": dict, "fit": dict,
     "images": {"tabulated", "fitted"} sphere renders, or None without envmap}.
     """
     check_table(table, table_path)
