@@ -217,7 +217,8 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
             scene=scene, scene_dir=args.scene_dir, out=out, stages=stages, options=options,
             methods=methods, model_path=model_path, spp=spp, notes=notes, title=title,
             load_methods=lambda: fitted, geometry=lambda: SceneGeometry(scene), loaded=loaded,
-            final_out=Path(args.out), with_albedo=with_albedo or (lambda brdf: brdf))
+            final_out=Path(args.out), with_albedo=with_albedo or (lambda brdf: brdf),
+            export=export, envmap=scene_envmap(references))
         return stages, run_materials(ctx, samples, segmentation, faces)
     result = stages.run("extract", bin_samples, samples)
     rho = write_extraction(out / "slice.csv", args.scene_dir, result, options,

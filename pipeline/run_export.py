@@ -1,7 +1,8 @@
 """`run --export`: export the default method's BRDF beside the report, and the table of its
 Principled fit, so the report can show the fit's renders next to the tabulated BRDF's and the photo.
 
-OUT_DIR/export/            flashbrdf export of <method>/brdf.binary (all formats)
+OUT_DIR/export/            flashbrdf export of <method>/brdf.binary (all formats); with several
+                           materials, export/material_<k>/ of <method>/material_<k>/brdf.binary
 OUT_DIR/<method>-principled/   renders of the reference photos with the fitted Principled
 """
 
@@ -23,18 +24,23 @@ def scene_envmap(references):
                  if p.light is not None and p.light.type == "envmap"), None)
 
 
-def export_for_report(out, method, envmap=None, final_out=None):
+def export_for_report(out, method, envmap=None, final_out=None, material=None):
     """Export OUT/<method>/brdf.binary into OUT/export, with the sphere render check under
     `envmap` when given; the files name the table at FINAL_OUT/<method>/brdf.binary, where the
-    staged OUT is renamed to (default: OUT). Returns (label, fitted table (90, 90, 180, 3), a
-    note for the report)."""
+    staged OUT is renamed to (default: OUT). material k (`run --materials`): the table
+    OUT/<method>/material_<k>/brdf.binary into OUT/export/material_<k>/. Returns (label, fitted
+    table (90, 90, 180, 3), a note for the report)."""
     out = Path(out)
-    final = None if final_out is None else Path(final_out).absolute() / method / "brdf.binary"
-    result = export_brdf(out / method / "brdf.binary", out / "export", envmap=envmap,
+    part = Path(method) if material is None else Path(method) / f"material_{material}"
+    where = Path("export") if material is None else Path("export") / f"material_{material}"
+    final = None if final_out is None else Path(final_out).absolute() / part / "brdf.binary"
+    result = export_brdf(out / part / "brdf.binary", out / where, envmap=envmap,
                          final_path=final)
     fit = result["fit"]
-    note = (f"--export: {method}'s BRDF exported to export/ (Mitsuba 3, principled.json, glTF). "
-            f"Its Principled fit has 2D LAB-log error {fit['lab_log_2d']:.2f} against the table"
+    whose = f"{method}'s BRDF" if material is None else f"material {material}'s {method} BRDF"
+    note = (f"--export: {whose} exported to {where.as_posix()}/ (Mitsuba 3, principled.json, "
+            f"glTF). Its Principled fit has 2D LAB-log error {fit['lab_log_2d']:.2f} against the "
+            "table"
             + (f" and sphere Delta E log {fit['render_delta_e_log']:.2f} under "
                f"{Path(envmap).name} (the map file as stored: not the scene's rotation or scale)"
                if fit["render_delta_e_log"] is not None else "")

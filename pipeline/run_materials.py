@@ -20,6 +20,7 @@ from pipeline.cmd_extract import (NARROW_LAST_THETA_H_DEG, material_coverage, wr
                                   write_material_slices)
 from pipeline.cmd_segment import write_labels
 from pipeline.report import _table_2d, _variance_2d, write_report
+from pipeline.run_export import export_for_report, export_method
 from render import MaterialMap, TabulatedBRDF
 from render.albedo_map import DiffuseAlbedoMap
 from render.images import write_preview
@@ -81,6 +82,13 @@ def run_materials(ctx, samples, segmentation, faces):
                 print(f"note: {tail_warning}", file=sys.stderr)
                 warnings.append(tail_warning)
             brdf_files[name][k] = f"{name}/material_{k}/brdf.binary"
+    exported = {}  # --export: each material's table of one method, as run exports one table
+    if getattr(ctx, "export", False):
+        method = export_method(ctx.methods)
+        for k in sorted(rhos):
+            label, exported[k], note = stages.run("export", export_for_report, out, method,
+                                                  ctx.envmap, ctx.final_out, k)
+            ctx.notes.append(note)
     rows = []
     references = ctx.scene.photos_with_role("reference")
     if references:
@@ -91,6 +99,12 @@ def run_materials(ctx, samples, segmentation, faces):
                 [TabulatedBRDF(tables[name][k][0]) for k in sorted(rhos)], labels, camera, faces))
             rows += stages.run(f"render+compare {name}", _render_and_compare, ctx.scene, geometry,
                                name, materials, ctx.spp, out / name, references, ctx.loaded)
+        if exported:
+            fits = MaterialMap([TabulatedBRDF(exported[k]) for k in sorted(rhos)], labels,
+                               camera, faces)
+            rows += stages.run(f"render+compare {label}", _render_and_compare, ctx.scene,
+                               geometry, label, fits, ctx.spp, out / label, references,
+                               ctx.loaded)
     else:
         ctx.notes.append("The scene has no reference photo: nothing was rendered or compared.")
     fig_dir = out / "figures"
