@@ -77,14 +77,20 @@ def find_captures(captures_dir):
     return captures
 
 
-def completed_row(folder):
-    """The summary row in `folder`'s marker when a batch finished it, else None (no marker, or
-    one that cannot be read: the capture is run again)."""
+def completed_row(folder, requested=None):
+    """The summary row in `folder`'s marker when a batch finished it with the run options
+    `requested` (a dict of RUN_OPTIONS as the batch was asked them; None: any), else None (no
+    marker, one that cannot be read, or other options: the capture is run again, since its
+    folder is not what `run` with these options writes, e.g. no export/ for a later --export)."""
     try:
         row = json.loads((Path(folder) / MARKER).read_text())
     except (OSError, ValueError):
         return None
-    return row if isinstance(row, dict) and row.get("status") == "ok" else None
+    if not isinstance(row, dict) or row.get("status") != "ok":
+        return None
+    if requested is not None and row.get("run_options") != requested:
+        return None
+    return row
 
 
 def _leftovers(out_dir, name):
@@ -243,6 +249,8 @@ def run_capture(scene_dir, out_dir, options):
     retries once); bad input in the capture is returned as a failed row.
     """
     from pipeline.cmd_run import run
+    options = dict(options)
+    requested = options.pop("requested", None)  # the options as asked, kept in the marker
     name = Path(scene_dir).name
     out_dir = Path(out_dir)
     worker = f"{socket.gethostname()}:{os.getpid()}"
@@ -259,7 +267,8 @@ def run_capture(scene_dir, out_dir, options):
             report = json.loads((staging / "report.json").read_text())
             row = _row_from_report(name, report, seconds, time.process_time() - cpu_start,
                                    worker)
-            write_text(staging / MARKER, json.dumps(row, indent=1) + "\n")
+            write_text(staging / MARKER, json.dumps(row | {"run_options": requested},
+                                                    indent=1) + "\n")
             _publish(staging, out_dir / name)
         except InputError as err:
             shutil.rmtree(staging, ignore_errors=True)
@@ -483,9 +492,10 @@ def batch(args):
                "materials": getattr(args, "materials", "auto"),
                "albedo_map": bool(getattr(args, "albedo_map", False)),
                "export": bool(getattr(args, "export", False))}
+    requested = dict(options)  # what a capture's output depends on, as asked
     rows, todo = {}, []
     for c in captures:
-        row = None if args.force else completed_row(out / c.name)
+        row = None if args.force else completed_row(out / c.name, requested)
         if row is not None:
             row["reason"] = "complete from an earlier batch: skipped (--force reruns it)"
             rows[c.name] = row
@@ -500,7 +510,7 @@ def batch(args):
         if in_process:
             _prepare(out, captures)
             n_workers = 1
-            rows |= _run_here(todo[0], out, options)
+            rows |= _run_here(todo[0], out, options | {"requested": requested})
         elif todo:
             # Never more local workers than captures to run: a spare worker would cost its
             # start-up and hold cores the busy ones' render threads can use.
@@ -512,7 +522,7 @@ def batch(args):
                 options = _check_options_on(client, options)
                 _prepare(out, captures)
                 n_workers = len(client.scheduler_info().get("workers", {}))
-                rows |= _run_tasks(client, todo, out, options)
+                rows |= _run_tasks(client, todo, out, options | {"requested": requested})
     finally:
         for c in todo:  # a killed worker leaves its staging folders (the cluster is closed now)
             for leftover in _leftovers(out, c.name):

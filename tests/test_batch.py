@@ -210,7 +210,12 @@ def test_run_options_reach_run_export(merl_proxy, tmp_path):
     options = ["--methods", "dsgplvm", "--spp", "4", "--export"]
     assert main(["run", str(one / "a"), "--out", str(tmp_path / "run"), *options]) == 0
     out = tmp_path / "out"
+    # A capture completed by a batch without --export is not complete for one with it: its
+    # folder is not what `run --export` writes, so it runs again (it was skipped before).
+    assert main(["batch", str(one), "--out", str(out), *options[:-1]]) == 0
+    assert not (out / "a" / "export").exists()
     assert main(["batch", str(one), "--out", str(out), *options]) == 0
+    assert "skipped" not in _summary(out)["a"]["reason"]
     assert (out / "a" / "export" / "principled.json").is_file()
     assert (out / "a" / "dsgplvm-principled").is_dir()
     assert _files(out / "a") == sorted(_files(tmp_path / "run") + [MARKER])
@@ -219,6 +224,11 @@ def test_run_options_reach_run_export(merl_proxy, tmp_path):
     table = str((out / "a" / "dsgplvm" / "brdf.binary").absolute())
     assert f'value="{table}"' in (out / "a" / "export" / "mitsuba_tabulated.xml").read_text()
     assert json.loads((out / "a" / "export" / "principled.json").read_text())["table"] == table
+    # the same options again: complete, skipped
+    before = (out / "a" / "report.json").stat().st_mtime_ns
+    assert main(["batch", str(one), "--out", str(out), *options]) == 0
+    assert (out / "a" / "report.json").stat().st_mtime_ns == before
+    assert "skipped" in _summary(out)["a"]["reason"]
 
 
 def test_summary_columns_in_the_contract_order(tmp_path):
