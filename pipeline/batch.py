@@ -103,30 +103,9 @@ def _leftovers(out_dir, name):
     return [p for pattern in patterns for p in out_dir.glob(pattern)]
 
 
-def _repoint(staging, target):
-    """slice.json names its slice.csv by absolute path, and `--export`'s mitsuba_tabulated.xml
-    and principled.json their table: make them the final ones, as `run` into `target` would
-    have written them."""
-    report_path = Path(staging) / "slice.json"
-    if report_path.is_file():
-        report = json.loads(report_path.read_text())
-        if str(report.get("slice_csv", "")).startswith(str(Path(staging).resolve())):
-            report["slice_csv"] = str(Path(target).resolve() / "slice.csv")
-            write_text(report_path, json.dumps(report, indent=1) + "\n")
-    for name in ("mitsuba_tabulated.xml", "principled.json"):
-        path = Path(staging) / "export" / name
-        if path.is_file():  # the staging folder's absolute path, as run was given it
-            text = path.read_text()
-            for given in dict.fromkeys((str(Path(staging).absolute()),
-                                        str(Path(staging).resolve()))):
-                text = text.replace(given + os.sep, str(Path(target).absolute()) + os.sep)
-            write_text(path, text)
-
-
 def _publish(staging, target):
     """Rename the finished `staging` folder to `target`, replacing an earlier output there."""
     target = Path(target)
-    _repoint(staging, target)
     old = None
     if target.exists():
         old = target.with_name(f".{target.name}.old-{uuid.uuid4().hex[:8]}")
@@ -261,7 +240,10 @@ def run_capture(scene_dir, out_dir, options):
         print(f"--- {time.strftime('%Y-%m-%d %H:%M:%S')} {name}: started on {worker}, "
               f"{threads} thread(s)", file=log)
         try:
-            run(argparse.Namespace(scene_dir=str(scene_dir), out=str(staging), **options),
+            # final_out: the paths run records (slice.json's slice.csv, --export's table) are
+            # those of the capture's folder once published, not of this staging folder
+            run(argparse.Namespace(scene_dir=str(scene_dir), out=str(staging),
+                                   final_out=str(out_dir / name), **options),
                 load_methods=cached_load_methods)
             seconds = time.perf_counter() - start
             report = json.loads((staging / "report.json").read_text())

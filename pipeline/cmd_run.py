@@ -202,6 +202,9 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
 
     materials = materials_option(getattr(args, "materials", None))
     export = getattr(args, "export", False)
+    # where `out` ends up: args.out, once run's staged folder is renamed there; a batch runs
+    # into a staging folder of its own and names the capture's final folder (final_out)
+    final = Path(getattr(args, "final_out", None) or args.out)
     albedo_map = bool(getattr(args, "albedo_map", False))
     stages, notes = _Stages(total=6 + 2 * len(methods) + 2 * export + albedo_map), []
     fitted = stages.run("load model", load_methods or _load_methods, methods, model_path,
@@ -217,12 +220,12 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
             scene=scene, scene_dir=args.scene_dir, out=out, stages=stages, options=options,
             methods=methods, model_path=model_path, spp=spp, notes=notes, title=title,
             load_methods=lambda: fitted, geometry=lambda: SceneGeometry(scene), loaded=loaded,
-            final_out=Path(args.out), with_albedo=with_albedo or (lambda brdf: brdf),
+            final_out=final, with_albedo=with_albedo or (lambda brdf: brdf),
             export=export, envmap=scene_envmap(references))
         return stages, run_materials(ctx, samples, segmentation, faces)
     result = stages.run("extract", bin_samples, samples)
     rho = write_extraction(out / "slice.csv", args.scene_dir, result, options,
-                           final_path=Path(args.out) / "slice.csv")
+                           final_path=final / "slice.csv")
     write_labels(out / "labels.png", segmentation, faces)
 
     predictions, two_d, ood_warnings = {}, [], []
@@ -243,7 +246,7 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
     exported = None
     if export:
         exported = stages.run("export", export_for_report, out, export_method(methods),
-                              scene_envmap(references), Path(args.out))
+                              scene_envmap(references), final)
         notes.append(exported[2])
     if two_d:
         notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "

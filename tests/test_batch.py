@@ -377,3 +377,18 @@ def test_scheduler_with_nothing_listening_fails_at_once(captures, tmp_path, caps
     assert time.perf_counter() - start < 5
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--scheduler" in err[0] and not out.exists()
+
+
+def test_batch_export_repoints_the_table_in_an_out_dir_that_json_or_xml_escape(merl_proxy,
+                                                                               tmp_path):
+    # principled.json escapes non-ASCII (\u00e9) and mitsuba_tabulated.xml escapes & (&amp;):
+    # the staging folder's path must still be replaced by the final one
+    one = tmp_path / "captures"
+    make_sample_capture(merl_proxy(MATERIALS["a"]), one / "a", size=48, spp=16, shape="sphere")
+    out = tmp_path / "out é&"
+    assert main(["batch", str(one), "--out", str(out), "--methods", "chandraker", "--spp", "1",
+                 "--export"]) == 0
+    table = str((out / "a" / "chandraker" / "brdf.binary").absolute())
+    assert json.loads((out / "a" / "export" / "principled.json").read_text())["table"] == table
+    xml = (out / "a" / "export" / "mitsuba_tabulated.xml").read_text()
+    assert ".a.partial" not in xml, xml

@@ -282,3 +282,19 @@ def test_run_export_exports_every_material(two_materials, tmp_path):
     assert rows["chandraker-principled"] < rows["chandraker"] + max(fits), (rows, fits)
     assert "material 2's chandraker BRDF exported to export/material_2/" in (
         out / "report.md").read_text()
+
+
+def test_batch_export_names_every_materials_table_where_it_is(two_materials, tmp_path):
+    # batch --export on an object of two materials: each export/material_<k>/ names the table
+    # where it is in OUT_DIR/<capture>/, not in the batch's staging folder (gone)
+    import shutil
+    captures = tmp_path / "captures"
+    shutil.copytree(two_materials["scene"], captures / "a")
+    out = tmp_path / "out"
+    assert main(["batch", str(captures), "--out", str(out), "--spp", "1",
+                 "--methods", "chandraker", "--export"]) == 0
+    for k in (1, 2):
+        folder = out / "a" / "export" / f"material_{k}"
+        table = str((out / "a" / "chandraker" / f"material_{k}" / "brdf.binary").absolute())
+        assert json.loads((folder / "principled.json").read_text())["table"] == table
+        assert f'value="{table}"' in (folder / "mitsuba_tabulated.xml").read_text()
