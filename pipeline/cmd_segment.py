@@ -143,7 +143,8 @@ def _lossy_format(path):
                 return "JPEG"
             if head[:4] == b"\xff\x4f\xff\x51" or head == b"\x00\x00\x00\x0cjP  \r\n\x87\n":
                 return "JPEG 2000"
-            if head[:4] == b"RIFF" and head[8:12] == b"WEBP" and _webp_image_chunk(f) in ("VP8 ", "ANMF"):
+            if (head[:4] == b"RIFF" and head[8:12] == b"WEBP"
+                    and _webp_image_chunk(f) in ("VP8 ", "ANMF")):
                 return "lossy WebP"  # VP8L is WebP's lossless form; an animation is no label image
             lossy = _TIFF_LOSSY.get(_tiff_compression(f, head))
             if lossy:  # a TIFF of JPEG tiles decodes to one channel too

@@ -159,15 +159,14 @@ def read_diligent(obj_dir):
     norm = np.linalg.norm(directions, axis=1)
     if np.any(np.abs(norm - 1.0) > 0.05):
         raise InputError(folder / "light_directions.txt", "rows must be unit vectors")
-    if np.any(intensities <= 0):
-        raise InputError(folder / "light_intensities.txt", "intensities must be > 0")
-    # the photos are written as pixel / intensity in 32-bit floats: 1e-50 made them inf and NaN,
-    # 1e308 (inf in float32) black, with numpy's warnings on stderr and exit 0
-    odd = intensities[(intensities < MIN_INTENSITY) | (intensities > MAX_INTENSITY)]
+    # > 0, and within what pixel / intensity in 32-bit floats keeps finite and not all zero:
+    # 1e-50 made the photos inf and NaN, 1e308 (inf in float32) black, with exit 0
+    odd = intensities[~((intensities >= MIN_INTENSITY) & (intensities <= MAX_INTENSITY))]
     if odd.size:
         raise InputError(folder / "light_intensities.txt",
                          f"intensity {odd[0]:g} is outside {MIN_INTENSITY:g}..{MAX_INTENSITY:g} "
-                         "(photos are stored as pixel / intensity in 32-bit floats)")
+                         "(intensities must be > 0; photos are stored as pixel / intensity in "
+                         "32-bit floats)")
     mask = _read_mask(mask_path)
     normals = _read_normals(normals_path)
     if normals.shape[:2] != mask.shape:
