@@ -324,10 +324,11 @@ def _reason(err):
     return f"{type(err).__name__}: {text[0] if text else ''}".rstrip(": ")
 
 
-def _columns(rows):
-    """ΔE-log columns in first-seen order: each method's mean, then method/photo."""
-    keys = list(dict.fromkeys(k for r in rows for k in r["delta_e_log"]))
-    return [k for k in keys if "/" not in k] + [k for k in keys if "/" in k]
+def _columns(rows, methods=()):
+    """ΔE-log columns: (each method's mean, `methods` first then any other seen, in the
+    contract's place before `seconds`; each method/photo, after our own fields)."""
+    keys = list(dict.fromkeys([*methods, *(k for r in rows for k in r["delta_e_log"])]))
+    return [k for k in keys if "/" not in k], [k for k in keys if "/" in k]
 
 
 def _cell(value):
@@ -340,25 +341,33 @@ def _field(row, name):
     return "" if row.get(name) is None else row[name]
 
 
-def write_summary(out_dir, rows, header_lines=()):
-    """OUT_DIR/summary.csv and summary.md, one row per capture (atomic writes)."""
-    columns = _columns(rows)
+def write_summary(out_dir, rows, header_lines=(), methods=()):
+    """OUT_DIR/summary.csv and summary.md, one row per capture (atomic writes). Columns: the
+    contract's `capture`, `status`, `reason`, per-method ΔE-log (every one of `methods`, even when
+    no capture succeeded), `seconds`; then ours: `cpu_seconds`, `worker`, per-photo ΔE-log."""
+    per_method, per_photo = _columns(rows, methods)
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(list(SUMMARY_LEAD) + [f"delta_e_log {c}" for c in columns]
-                    + list(SUMMARY_TAIL))
+    writer.writerow(list(SUMMARY_LEAD) + [f"delta_e_log {c}" for c in per_method]
+                    + list(SUMMARY_TAIL) + [f"delta_e_log {c}" for c in per_photo])
+
+    def values(r, columns):
+        return [repr(r["delta_e_log"][c]) if r["delta_e_log"].get(c) is not None else ""
+                for c in columns]
+
     for r in rows:
-        writer.writerow([_field(r, f) for f in SUMMARY_LEAD]
-                        + [repr(r["delta_e_log"][c]) if r["delta_e_log"].get(c) is not None
-                           else "" for c in columns] + [_field(r, f) for f in SUMMARY_TAIL])
+        writer.writerow([_field(r, f) for f in SUMMARY_LEAD] + values(r, per_method)
+                        + [_field(r, f) for f in SUMMARY_TAIL] + values(r, per_photo))
     write_text(Path(out_dir) / "summary.csv", buffer.getvalue())
-    head = list(SUMMARY_LEAD) + [f"ΔE-log {c}" for c in columns] + list(SUMMARY_TAIL)
+    head = (list(SUMMARY_LEAD) + [f"ΔE-log {c}" for c in per_method] + list(SUMMARY_TAIL)
+            + [f"ΔE-log {c}" for c in per_photo])
     lines = [SUMMARY_TITLE, "", *header_lines, "",
              "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for r in rows:
         cells = [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_LEAD]
-        cells += [_cell(r["delta_e_log"].get(c)) for c in columns]
+        cells += [_cell(r["delta_e_log"].get(c)) for c in per_method]
         cells += [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_TAIL]
+        cells += [_cell(r["delta_e_log"].get(c)) for c in per_photo]
         lines.append("| " + " | ".join(cells) + " |")
     write_text(Path(out_dir) / "summary.md", "\n".join(lines) + "\n")
 
@@ -523,7 +532,8 @@ def batch(args):
         f"{options['model'] or '(none)'}{', no anchor' if args.no_anchor else ''}"
         f"{', export' if options['export'] else ''}.",
         f"- Per-capture logs: `{LOG_DIR}/<capture>.log`. ΔE-log is `delta_e_log_mean` of each "
-        "method's renders against the reference photos (mean over photos, then per photo)."])
+        "method's renders against the reference photos (mean over photos, then per photo)."],
+        methods=dict.fromkeys(m.strip() for m in args.methods.split(",") if m.strip()))
     for r in failed:
         print(f"flashbrdf batch: {r['capture']} failed: {r['reason']}", file=sys.stderr)
     print(f"summary: {(out / 'summary.md').resolve()}")

@@ -240,16 +240,24 @@ def test_summary_columns_in_the_contract_order(tmp_path):
     write_summary(tmp_path, rows)
     with open(tmp_path / "summary.csv", newline="") as f:
         header = next(csv.reader(f))
-    assert header[:5] == ["capture", "status", "reason", "delta_e_log dsgplvm",
-                          "delta_e_log dsgplvm/ref_pisa"]
-    assert header[5] == "seconds"
+    # per-photo columns are ours: after the contract's, not between the per-method ΔE-log and
+    # seconds
+    assert header == ["capture", "status", "reason", "delta_e_log dsgplvm", "seconds",
+                      "cpu_seconds", "worker", "delta_e_log dsgplvm/ref_pisa"]
     assert _summary(tmp_path)["a"]["seconds"] == "1.5"
+    assert _summary(tmp_path)["a"]["delta_e_log dsgplvm/ref_pisa"] == "3.0"
     assert _summary(tmp_path)["b"]["status"] == "failed"
     table = [line for line in (tmp_path / "summary.md").read_text().splitlines()
              if line.startswith("| capture")][0]
-    assert [c.strip() for c in table.strip("|").split("|")][:6] == [
-        "capture", "status", "reason", "ΔE-log dsgplvm", "ΔE-log dsgplvm/ref_pisa", "seconds"]
+    assert [c.strip() for c in table.strip("|").split("|")][:5] == [
+        "capture", "status", "reason", "ΔE-log dsgplvm", "seconds"]
     # A batch recognises the summaries it wrote, in either order, and no one else's.
+    _check_batch_folder(tmp_path)
+    # every --methods column is there even when no capture succeeded
+    write_summary(tmp_path, [failed_row("b", "bad scene.json")], methods=["dsgplvm", "pca"])
+    with open(tmp_path / "summary.csv", newline="") as f:
+        assert next(csv.reader(f))[:6] == ["capture", "status", "reason",
+                                           "delta_e_log dsgplvm", "delta_e_log pca", "seconds"]
     _check_batch_folder(tmp_path)
     write_summary(tmp_path, [failed_row("b", "bad scene.json")])  # no ΔE-log column
     _check_batch_folder(tmp_path)
