@@ -96,6 +96,16 @@ def write_slice_csv(path, rho, n, comments=()):
     write_text(path, out.getvalue())
 
 
+def _half_last_digit(text):
+    """Half a unit of the last digit printed in a plain decimal ("0.03" -> 0.005, "1" -> 0.5;
+    0 for exponent notation, which says nothing of its rounding)."""
+    text = text.strip()
+    if "e" in text.lower():
+        return 0.0
+    decimals = len(text.partition(".")[2])
+    return 0.5 * 10.0 ** -decimals
+
+
 def read_slice_csv(path):
     """Read a contract slice.csv: (rho (90, 3) in 1/sr with NaN where empty, n (90,) int).
 
@@ -117,9 +127,11 @@ def read_slice_csv(path):
     if len(rows) != N_THETA_H:
         raise InputError(path, f"expected {N_THETA_H} data rows, found {len(rows)}")
     centres = np.degrees(theta_h_centres())
-    # a centre printed with a few decimals is still that centre (0.0028 for bin 0's 0.0027778):
-    # allow a tenth of the bin's width, far from any other bin's centre
-    slack = 0.1 * np.diff(theta_h_from_bin_coordinate(np.arange(N_THETA_H + 1), 90.0))
+    # A centre printed with few decimals is still that centre (0.00 for bin 0's 0.0027778): allow
+    # half the gap to the nearest other centre, or half a unit of the last printed digit, whichever
+    # is larger (rows are in bin order, so this only checks the binning is the contract's).
+    gaps = np.diff(centres)
+    slack = 0.5 * np.minimum(np.r_[np.inf, gaps], np.r_[gaps, np.inf])
     rho = np.full((N_THETA_H, 3), np.nan)
     n = np.zeros(N_THETA_H, dtype=np.int64)
     for i, (lineno, line) in enumerate(rows):
@@ -129,16 +141,21 @@ def read_slice_csv(path):
             raise InputError(path, f"{where}: expected 5 fields, found {len(fields)}")
         try:
             theta = float(fields[0])
-            n[i] = int(fields[4]) if fields[4].strip() else 0
+            count = float(fields[4]) if fields[4].strip() else 0.0  # "180.0" is 180 samples
             values = [float(v) if v.strip() else np.nan for v in fields[1:4]]
         except ValueError:
             raise InputError(path, f"{where}: not a number") from None
+        if not count.is_integer():
+            raise InputError(path, f"{where}: sample count {fields[4].strip()[:20]} is not a "
+                                   "whole number")
+        try:
+            n[i] = int(count)
         except OverflowError:  # n beyond int64
             raise InputError(path, f"{where}: sample count {fields[4].strip()[:20]} is too "
                                    "large") from None
         if n[i] < 0:
             raise InputError(path, f"{where}: negative sample count")
-        if not abs(theta - centres[i]) <= slack[i]:
+        if not abs(theta - centres[i]) <= max(slack[i], _half_last_digit(fields[0])):
             raise InputError(path, f"{where}: theta_h_deg {theta} is not bin {i}'s centre "
                                    f"{centres[i]:.6f}")
         present = [bool(v.strip()) for v in fields[1:4]]

@@ -124,6 +124,18 @@ def test_slice_csv_reads_rounded_centres_and_a_byte_order_mark(tmp_path):
     assert n[89] == 89 and n.sum() == 4005
 
 
+@pytest.mark.parametrize("decimals", [2, 1, 0])
+def test_slice_csv_reads_centres_rounded_to_their_printed_precision(tmp_path, decimals):
+    """theta_h_deg rounded to 2 decimals (bin 0's 0.0027778 as 0.00, bin 1's 0.025 as 0.03), or
+    fewer, names its bin within half a unit of its last digit; n printed as 180.0 is 180."""
+    centres = 90.0 * ((np.arange(90) + 0.5) / 90) ** 2
+    lines = ["theta_h_deg,r,g,b,n"] + [f"{c:.{decimals}f},0.1,0.2,0.3,180.0" for c in centres]
+    path = tmp_path / "s.csv"
+    path.write_text("\n".join(lines) + "\n")
+    rho, n = read_slice_csv(path)
+    assert n.tolist() == [180] * 90 and rho[45].tolist() == [0.1, 0.2, 0.3]
+
+
 @pytest.mark.parametrize("mutate, words", [
     (lambda lines: lines[:-1], "expected 90 data rows"),
     (lambda lines: ["theta,r,g,b,n"] + lines[1:], "header"),
@@ -131,6 +143,9 @@ def test_slice_csv_reads_rounded_centres_and_a_byte_order_mark(tmp_path):
     (lambda lines: lines[:5] + [lines[5].rsplit(",", 4)[0] + ",nan,1,1,3"] + lines[6:], "NaN"),
     (lambda lines: lines[:5] + [lines[5].rsplit(",", 4)[0] + ",1,,1,3"] + lines[6:], "all given"),
     (lambda lines: lines[:5] + ["7.0,1,1,1,3"] + lines[6:], "centre"),
+    # uniform 1° spacing is not the contract's binning, whatever its printed precision
+    (lambda lines: lines[:1] + [f"{k}.5,1,1,1,3" for k in range(90)], "centre"),
+    (lambda lines: lines[:5] + [lines[5].rsplit(",", 1)[0] + ",2.5"] + lines[6:], "whole"),
 ])
 def test_bad_slice_files_name_the_problem(tmp_path, mutate, words):
     path = tmp_path / "s.csv"
