@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from brdf.errors import InputError
-from capture.photo import load_brackets, load_photo
+from capture.photo import load_brackets, load_photo, load_photo_measured
 from capture.scene import Scene, load_scene
 
 
@@ -36,6 +36,15 @@ def load_photo_entry(photo, return_clipped=False):
     if photo.file is not None:
         return load_photo(photo.file, photo.encoding, photo.saturation, shape, return_clipped)
     return load_brackets(photo.brackets, photo.encoding, photo.saturation, shape, return_clipped)
+
+
+def load_reference_entry(photo):
+    """A photos[] entry as renders are compared against it, unscaled: rgb (H, W, 3) float32 and
+    measured (H, W) bool (load_photo_measured; for brackets, the merged usable pixels)."""
+    if photo.file is not None:
+        return load_photo_measured(photo.file, photo.encoding, photo.saturation,
+                                   photo.camera.shape)
+    return load_photo_entry(photo)
 
 
 def _ambient(scene, camera):

@@ -213,10 +213,33 @@ def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=
     and with return_clipped also clipped (H, W) bool: the unusable pixels that are unusable
     because they are too bright (their true value is above the stored one: right-censored).
     """
+    rgb, usable, clipped, _ = _load_photo(path, encoding, saturation, shape)
+    return (rgb, usable, clipped) if return_clipped else (rgb, usable)
+
+
+def load_photo_measured(path, encoding=None, saturation=None, shape=None):
+    """Load one photo as linear RGB with the pixels whose stored value measures the scene,
+    what a render is compared against.
+
+    A float image (EXR, HDR, PFM, float TIFF) stores 0 and negative noise as they are: only NaN
+    and clipped pixels (+Inf, at or above `saturation`) are not measurements. Integer codes
+    (8/16-bit, RAW) are censored at both ends, so there the measured pixels are load_photo's
+    usable ones (no channel at code 0, none saturated). Returns rgb (H, W, 3) float32, measured
+    (H, W) bool.
+    """
+    rgb, usable, clipped, stored_float = _load_photo(path, encoding, saturation, shape)
+    if not stored_float:
+        return rgb, usable
+    return rgb, ~clipped & np.all(np.isfinite(rgb), axis=-1)
+
+
+def _load_photo(path, encoding, saturation, shape):
+    """load_photo's work: -> rgb, usable, clipped, and whether the file stores floats."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
     ext = path.suffix.lower()
+    stored_float = False
     if ext in RAW_EXTENSIONS:
         from capture.raw import load_raw  # capture.raw imports this module
         rgb, usable, clipped = load_raw(path)
@@ -224,14 +247,16 @@ def load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=
         img = imread_unchanged(path)
         if img is None:
             raise InputError(path, "cannot read image (corrupt or unsupported)")
+        stored_float = img.dtype in (np.float32, np.float64)
         rgb, usable, clipped = _linear_from_cv(img, path, encoding, saturation)
     else:
         rgb = read_pfm(path) if ext == ".pfm" else read_float_image(path)
+        stored_float = True
         if encoding == "srgb":
             rgb = srgb_to_linear(rgb)
         usable, clipped = _float_masks(rgb, saturation)
     _check_shape(rgb, path, shape)
-    return (rgb, usable, clipped) if return_clipped else (rgb, usable)
+    return rgb, usable, clipped, stored_float
 
 
 def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_clipped=False):

@@ -4,7 +4,8 @@ render SCENE_DIR --brdf BRDF.binary --out OUT_DIR [--spp N] [--seed N] [--interp
     OUT_DIR/<stem>.exr per reference photo (the photo's pixel units; 0 off the geometry),
     OUT_DIR/<stem>.png (tone-mapped preview), and where the reference photo exists
     OUT_DIR/<stem>_compare.json (+ <stem>_delta_e.png), compared over the pixels that see the
-    geometry and are usable in the photo. OUT_DIR/render.json lists timings and settings.
+    geometry and that the photo measures (a float photo's 0 is a measurement, a clipped pixel or
+    an integer code 0 is not: capture.load_reference_entry). OUT_DIR/render.json lists timings and settings.
 compare PRED.exr REF.exr [--mask MASK.png] --out OUT_DIR
     OUT_DIR/compare.json {"delta_e_log_mean", "delta_e_log_median", "rel_rmse", "pixels"} and
     OUT_DIR/delta_e.png (false colour, with a colour bar).
@@ -108,7 +109,7 @@ def render(args):
     for photo, image, mask in render_scene(scene, brdf, spp=spp, seed=seed, photos=references):
         entry = {"photo": photo.stem, "exr": f"{photo.stem}.exr",
                  "seconds": round(time.perf_counter() - started, 3), "pixels": int(mask.sum())}
-        reference = capture.load_photo_entry(photo) if photo_exists(photo) else None
+        reference = capture.load_reference_entry(photo) if photo_exists(photo) else None
         results.append((photo, image, mask, reference, entry))
         started = time.perf_counter()
     with staged_output_dir(args.out, force=getattr(args, "force", False),
@@ -118,8 +119,8 @@ def render(args):
             write_exr(out / f"{photo.stem}.exr", image)
             write_preview(out / f"{photo.stem}.png", image)
             if reference is not None:
-                rgb, usable = reference
-                entry["compare"] = write_comparison(out, image, rgb, mask & usable,
+                rgb, measured = reference
+                entry["compare"] = write_comparison(out, image, rgb, mask & measured,
                                                     json_name=f"{photo.stem}_compare.json",
                                                     png_name=f"{photo.stem}_delta_e.png")
             report["renders"].append(entry)

@@ -140,14 +140,15 @@ def _check_references(references):
     """Read every reference photo and environment map `run` will need, before any slow work:
     bad input (unreadable, wrong size, not lat-long) fails in seconds, not after inference.
 
-    Returns {photo index: (rgb, usable)} for the photos that exist (render compares with them).
+    Returns {photo index: (rgb, measured)} for the photos that exist (render compares with them
+    over the object's measured pixels: capture.load_reference_entry).
     """
     loaded = {}
     for photo in references:
         if photo.light is not None and photo.light.type == "envmap":
             read_envmap_pixels(photo.light.file)
         if photo_exists(photo):
-            loaded[photo.index] = capture.load_photo_entry(photo)
+            loaded[photo.index] = capture.load_reference_entry(photo)
     return loaded
 
 
@@ -160,8 +161,8 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
         write_preview(out_dir / f"{photo.stem}.png", image)
         row = {"photo": photo.stem, "method": method_name, "render": image, "mask": mask}
         if photo.index in loaded:
-            reference, usable = loaded[photo.index]
-            metrics, delta_e = write_comparison(out_dir, image, reference, mask & usable,
+            reference, measured = loaded[photo.index]
+            metrics, delta_e = write_comparison(out_dir, image, reference, mask & measured,
                                                 json_name=f"{photo.stem}_compare.json",
                                                 png_name=f"{photo.stem}_delta_e.png",
                                                 return_map=True)

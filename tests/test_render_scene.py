@@ -13,7 +13,8 @@ from brdf.views import table_2d, table_3d_from_2d
 from pipeline.cli import main
 from render.images import read_image, write_exr, write_png
 from synthetic import (directional_light, orthographic_camera, pinhole_camera, point_light,
-                       render, sphere_mesh, table_brdf, torus_mesh, write_synthetic_scene)
+                       render, sphere_mesh, table_brdf, torus_mesh, write_png16,
+                       write_synthetic_scene)
 
 
 def _as_references(folder):
@@ -189,3 +190,52 @@ def test_shadow_rays_cause_no_acne_on_a_convex_mesh(tmp_path):
                              occluded=lambda p, d, m: capture.occluded(mesh, p, d, m))
     change = np.abs(shadowed - free).max(axis=-1) / free.max(axis=-1)
     assert np.all(shadowed <= free + 1e-12) and change.max() < 0.01
+
+
+def test_compare_counts_a_float_photos_shadow_and_not_an_integer_code_0(tmp_path, gold):
+    """Table 2's error is over the object's pixels: where a float reference photo holds 0 (the
+    side the light does not reach) that 0 is measured and compared; NaN and clipped pixels are
+    not. In an integer photo a code 0 is censored (the true value is anywhere below one step)
+    and a saturated code too, so those pixels are left out."""
+    path, table = gold
+    folder = tmp_path / "scene"
+    folder.mkdir()
+    size = 32
+    c = (np.arange(size) - (size - 1) / 2) / (size / 2)
+    x, y = np.meshgrid(c, c)
+    inside = x ** 2 + y ** 2 < 0.95
+    normals_cam = np.stack([x, y, -np.sqrt(np.maximum(0, 1 - x ** 2 - y ** 2))], -1) \
+        * inside[..., None]
+    np.save(folder / "normals.npy", normals_cam)
+    write_png(folder / "mask.png", np.repeat((inside * 255).astype(np.uint8)[..., None], 3, -1))
+    pose = np.diag([1.0, -1.0, -1.0, 1.0])
+    light_dir = np.array([0.9, 0.0, 0.3]) / np.linalg.norm([0.9, 0.0, 0.3])  # grazing: half dark
+    light = directional_light(light_dir, [1.0, 1.0, 1.0])
+    scene = {"camera": orthographic_camera(size, size, 0.01, pose),
+             "geometry": {"normal_map": "normals.npy", "mask": "mask.png"},
+             "photos": [{"file": "float.exr", "role": "reference", "light": light},
+                        {"file": "int16.png", "role": "reference", "encoding": "linear",
+                         "light": light}]}
+    (folder / "scene.json").write_text(json.dumps(scene))
+    n_world = normals_cam[inside] @ pose[:3, :3].T
+    rho = evaluate_table(table, *half_diff_from_world(
+        np.broadcast_to(light_dir, n_world.shape), np.broadcast_to([0.0, 0.0, 1.0], n_world.shape),
+        n_world))
+    truth = np.zeros((size, size, 3), np.float32)
+    truth[inside] = rho * np.maximum(n_world @ light_dir, 0)[:, None]
+    dark = inside & ~truth.any(axis=-1)
+    assert 100 < dark.sum() < inside.sum() - 100        # both sides hold many pixels
+    reference = truth.copy()
+    lit = np.argwhere(inside & ~dark)
+    reference[tuple(lit[:3].T)] = np.nan                 # 3 unknown pixels
+    write_exr(folder / "float.exr", reference)
+    white = float(np.percentile(truth[inside & ~dark], 90))
+    write_png16(folder / "int16.png", truth, white=white)  # the top 10% saturate
+    out = tmp_path / "out"
+    assert main(["render", str(folder), "--brdf", str(path), "--out", str(out)]) == 0
+    float_cmp = json.loads((out / "float_compare.json").read_text())
+    assert float_cmp["pixels"] == inside.sum() - 3        # the dark side included
+    codes = np.round(np.clip(truth / white, 0, 1) * 65535)
+    measured = inside & (codes > 0).all(axis=-1) & (codes < 0.98 * 65535).all(axis=-1)
+    int_cmp = json.loads((out / "int16_compare.json").read_text())
+    assert int_cmp["pixels"] == measured.sum() < inside.sum() - dark.sum()
