@@ -19,7 +19,12 @@ def atomic_path(path, suffix=None):
     folder = os.path.dirname(os.path.abspath(path))
     created = make_parents(folder)
     if suffix is None:
-        suffix = os.path.splitext(path)[1]
+        # the text from the name's last dot: os.path.splitext skips leading dots, so it gives
+        # "..exr" (a reference photo "..exr" renders to OUT_DIR/..exr) no extension, and the
+        # writers that choose a format from the name (OpenImageIO) then found none
+        name = os.path.basename(path)
+        dot = name.rfind(".")
+        suffix = name[dot:] if dot > 0 else ""
     fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".part" + suffix,
                                dir=folder)
     os.close(fd)
