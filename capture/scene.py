@@ -144,6 +144,25 @@ class Scene:
         """The photos whose role is `role`, in file order."""
         return [p for p in self.photos if p.role == role]
 
+    def references(self):
+        """The `reference` photos, in file order, for the commands that write one output per
+        photo under its stem (render, run: OUT_DIR/<stem>.exr, <stem>_compare.json).
+
+        InputError naming the photo's field when two of them share a stem (ref.exr and ref.hdr,
+        or a/ref.exr and b/ref.exr): one render would silently replace the other.
+        """
+        photos = self.photos_with_role("reference")
+        seen = {}
+        for photo in photos:
+            if photo.stem in seen:
+                field = "file" if photo.file is not None else "brackets[0].file"
+                raise InputError(f"{photo.where}.{field}",
+                                 f"reference photo stem {photo.stem!r} is also "
+                                 f"photos[{seen[photo.stem].index}]'s; renders are written as "
+                                 "<stem>.exr, so give the reference photos distinct names")
+            seen[photo.stem] = photo
+        return photos
+
     def input_files(self):
         """Every file this scene reads (resolved Paths): scene.json, geometry, photos, brackets and
         environment maps, in that order without repeats. Outputs must never replace one."""

@@ -77,7 +77,7 @@ def render(args):
     # every file read is an input (each table, the labels and the albedo map with their sidecars)
     check_outputs(inputs=[args.scene_dir, *scene.input_files(), *paths, *side_inputs(
         labels_png, albedo_exr)], outputs=[args.out], folders=[args.out])
-    references = scene.photos_with_role("reference")
+    references = scene.references()
     if not references:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'reference'")
     if len(paths) > 1 and not labels_png:

@@ -185,7 +185,7 @@ def run(args, load_methods=None):
                   folders=[args.out])
     if model_path is not None:
         check_model_file(model_path)
-    references = scene.photos_with_role("reference")
+    references = scene.references()
     loaded = _check_references(references)
     with staged_output_dir(args.out, force=getattr(args, "force", False), command="run") as staged:
         stages, report = _run_stages(args, scene, methods, model_path, spp, references, loaded,
