@@ -219,6 +219,22 @@ def model_with_valid_3d(w, tmp, bins):
     return path
 
 
+def second_reference(name):
+    """An edit adding a second reference photo, `name` (a copy of the first's file is made by
+    the case's scene_copy only where the name exists: the stem clash is found before any read)."""
+    def edit(doc):
+        doc["photos"].append({**doc["photos"][1], "file": name})
+    return edit
+
+
+def two_of_one_stem(folder):
+    """A DiLiGenT folder whose filenames.txt lists a/x.png and b/x.png (and two more)."""
+    for sub, photo in (("a", "001.png"), ("b", "002.png")):
+        (folder / sub).mkdir()
+        shutil.copy(folder / photo, folder / sub / "x.png")
+    (folder / "filenames.txt").write_text("a/x.png\nb/x.png\n003.png\n004.png\n")
+
+
 def marked_folder(tmp):
     folder = tmp / "old"
     folder.mkdir()
@@ -687,6 +703,21 @@ CASES = [
         "import-diligent", str(diligent_copy(w, t, lambda f: scipy.io.savemat(
             f / "Normal_gt.mat", {"Normal_gt": "up"}))), "--flash", "1", "--out", _out(t)],
      "Normal_gt.mat"),
+    ("import-diligent", "filenames.txt not UTF-8 (a traceback)", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "filenames.txt").write_bytes(
+            b"\xff\xfe0\x000\x001\x00"))), "--flash", "1", "--out", _out(t)], "filenames.txt"),
+    ("import-diligent", "filenames.txt lists a photo twice (one EXR replaced the other)",
+     lambda w, t: ["import-diligent", str(diligent_copy(w, t, lambda f: (
+         f / "filenames.txt").write_text("001.png\n002.png\n003.png\n001.png\n"))), "--flash",
+        "1", "--out", _out(t)], "filenames.txt"),
+    ("import-diligent", "filenames.txt: a/x.png and b/x.png (both written as x.exr)",
+     lambda w, t: ["import-diligent", str(diligent_copy(w, t, two_of_one_stem)), "--flash", "1",
+                   "--out", _out(t)], "filenames.txt"),
+    ("render", "two reference photos of one stem (one render replaced the other)", lambda w, t:
+     _render(scene_copy(w, t, second_reference("ref_env.hdr")), w.brdf, _out(t)),
+     "photos[2].file"),
+    ("run", "two reference photos of one stem in two folders", lambda w, t: _run(
+        scene_copy(w, t, second_reference("sub/ref_env.exr")), _out(t)), "photos[2].file"),
 ]
 
 
