@@ -769,11 +769,43 @@ def npz_bytes(tmp):
     return data
 
 
-def rgb_exr(tmp, shape=(40, 40, 3)):
+def rgb_exr(tmp, name="albedo.exr", shape=(40, 40, 3), value=0.5):
     from render.images import write_exr
-    path = tmp / "albedo.exr"
-    write_exr(path, np.full(shape, 0.5, np.float32))
+    path = tmp / name
+    write_exr(path, np.full(shape, value, np.float32))
     return path
+
+
+def black_png(tmp):
+    path = tmp / "m.png"
+    cv2.imwrite(str(path), np.zeros((40, 40), np.uint8))
+    return path
+
+
+def model_with_params(w, tmp, params):
+    """A copy of the shipped model whose `params` JSON is `params`."""
+    path = tmp / "model.npz"
+    with np.load(w.model, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["params"] = np.array(json.dumps(params))
+    np.savez(path, **arrays)
+    return path
+
+
+def links_to(folder, table, count):
+    """`folder` holding t0.binary .. t<count-1>.binary, each a link to `table`."""
+    for k in range(count):
+        (folder / f"t{k}.binary").symlink_to(table)
+    return folder
+
+
+def no_theta_d_0(body):
+    """A table's stored values (flat: per channel, phi_d fastest, then theta_d, then theta_h)
+    with every theta_d = 0 value -1 (no data)."""
+    table = body.copy()
+    index = np.arange(body.size) % (90 * 90 * 180)
+    table[(index // 180) % 90 == 0] = -1.0
+    return table
 
 
 def one_channel_exr(tmp, shape=(40, 40)):
@@ -928,6 +960,15 @@ SWEEP_CASES = [
     ("evaluate", "experiments 0", lambda w, t: ["evaluate", "--merl-dir", str(w.merl_dir),
                                                 "--out", _out(t), "--experiments", "0"],
      "--experiments"),
+    # outputs no file can be made at (tracebacks from mkstemp / mkdtemp)
+    ("merl-slice", "out in /proc", lambda w, t: ["merl-slice", str(w.brdf), "--out",
+                                                "/proc/flashbrdf-s.csv"], "/proc/flashbrdf-s.csv"),
+    ("merl-slice", "out a name of 300 bytes", lambda w, t: [
+        "merl-slice", str(w.brdf), "--out", str(t / ("a" * 300 + ".csv"))], "a" * 40),
+    ("compare", "out a name of 300 bytes", lambda w, t: [
+        "compare", str(w.pred), str(w.ref), "--out", str(t / ("a" * 300))], "a" * 40),
+    ("render", "out in /proc", lambda w, t: _render(w.scene, w.brdf, "/proc/flashbrdf-out"),
+     "/proc/flashbrdf-out"),
 ]
 CASES += SWEEP_CASES
 
