@@ -155,7 +155,15 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
     methods = {}
     for name in names:
         start = time.perf_counter()
-        kw = {**params.get(name, {}), **(overrides or {}).get(name, {})}
+        stored = params.get(name, {})
+        if not isinstance(stored, dict):
+            raise InputError(path, f"damaged model: params[{name!r}] is not a JSON object of "
+                                   "hyperparameters")
+        kw = {**stored, **(overrides or {}).get(name, {})}
+        try:
+            make_method(name, **kw)  # hyperparameters the method does not take: a damaged file
+        except TypeError as err:
+            raise InputError(path, f"damaged model: params[{name!r}] ({err})") from None
         if name == "dsgplvm":
             if blob is None:
                 raise InputError(path, "model holds no DS-GPLVM")

@@ -969,6 +969,17 @@ SWEEP_CASES = [
         "compare", str(w.pred), str(w.ref), "--out", str(t / ("a" * 300))], "a" * 40),
     ("render", "out in /proc", lambda w, t: _render(w.scene, w.brdf, "/proc/flashbrdf-out"),
      "/proc/flashbrdf-out"),
+    # damaged model hyperparameters (tracebacks)
+    ("infer", "model params of pca not an object", lambda w, t: [
+        "infer", "--method", "pca", "--model", str(model_with_params(w, t, {"pca": "x"})),
+        "--slice", str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
+    ("infer", "model params with an unknown hyperparameter", lambda w, t: [
+        "infer", "--method", "noll", "--model", str(model_with_params(w, t, {"noll": {"k": 1}})),
+        "--slice", str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
+    # one table under several names (train: a LinAlgError traceback)
+    ("train", "five links to one table", lambda w, t: [
+        "train", "--merl-dir", str(links_to(empty(t), w.brdf, 5)), "--out", _out(t, "m.npz")],
+     "t1.binary"),
 ]
 CASES += SWEEP_CASES
 
