@@ -23,7 +23,7 @@ from pipeline.cmd_segment import faces_path, flash_photo_camera
 from pipeline.safety import check_outputs, staged_output_dir
 from render.albedo_map import DiffuseAlbedoMap
 from render.brdf_models import TabulatedBRDF
-from render.compare import write_comparison
+from render.compare import comparison_mask, write_comparison
 from render.images import read_image, read_mask, write_exr, write_preview
 from render.scene_render import MaterialMap, render_scene
 
@@ -136,6 +136,12 @@ def compare(args):
         raise InputError(args.ref, f"is {ref.shape[1]}x{ref.shape[0]} but {args.pred} is "
                                    f"{pred.shape[1]}x{pred.shape[0]}")
     mask = read_mask(args.mask, pred.shape) if getattr(args, "mask", None) else None
+    if not comparison_mask(pred, ref, mask).any():  # every metric would be null
+        if mask is not None:
+            raise InputError(args.mask, "selects no pixel where both images are finite: nothing "
+                                        "to compare")
+        raise InputError(args.pred, f"no pixel is finite and nonzero in both it and {args.ref}: "
+                                    "nothing to compare")
     with staged_output_dir(args.out, force=getattr(args, "force", False),
                            command="compare") as out:
         write_comparison(out, pred, ref, mask)

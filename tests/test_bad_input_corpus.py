@@ -980,6 +980,16 @@ SWEEP_CASES = [
     ("train", "five links to one table", lambda w, t: [
         "train", "--merl-dir", str(links_to(empty(t), w.brdf, 5)), "--out", _out(t, "m.npz")],
      "t1.binary"),
+    ("merl-slice", "no data at theta_d = 0 (an empty slice, exit 0)", lambda w, t: [
+        "merl-slice", str(write(t, "m.binary", merl_body(w, no_theta_d_0))), "--out",
+        _out(t, "s.csv")], "m.binary"),
+    # compare over no pixel (every metric null, exit 0)
+    ("compare", "both images black", lambda w, t: [
+        "compare", str(rgb_exr(t, value=0.0)), str(rgb_exr(t, "r.exr", value=0.0)), "--out",
+        _out(t)], "albedo.exr"),
+    ("compare", "mask of no pixel", lambda w, t: [
+        "compare", str(w.pred), str(w.ref), "--mask", str(black_png(t)), "--out", _out(t)],
+     "m.png"),
 ]
 CASES += SWEEP_CASES
 
