@@ -990,6 +990,33 @@ SWEEP_CASES = [
     ("compare", "mask of no pixel", lambda w, t: [
         "compare", str(w.pred), str(w.ref), "--mask", str(black_png(t)), "--out", _out(t)],
      "m.png"),
+    # factors that turned float32 photos and rays to 0 or inf (a slice of zeros, exit 0)
+    ("extract", "photos[0].scale 1e308", lambda w, t: ["extract", str(scene_copy(
+        w, t, set_field(("photos", 0, "scale"), 1e308))), "--out", _out(t, "s.csv")],
+     "photos[0].scale"),
+    ("extract", "intensity_rgb 1e308", lambda w, t: ["extract", str(scene_copy(
+        w, t, set_field(("photos", 0, "light", "intensity_rgb"), [1e308] * 3))), "--out",
+        _out(t, "s.csv")], "photos[0].light.intensity_rgb"),
+    ("extract", "exposure_s 1e-320", lambda w, t: ["extract", str(scene_copy(
+        w, t, lambda d: d["photos"][0].update(file=None, brackets=[
+            {"file": "flash0.exr", "exposure_s": 1e-320}]))), "--out", _out(t, "s.csv")],
+     "photos[0].brackets[0].exposure_s"),
+    ("extract", "camera.fx 1e308 (overflow warnings, exit 0)", lambda w, t: ["extract", str(
+        scene_copy(w, t, set_field(("camera", "fx"), 1e308))), "--out", _out(t, "s.csv")],
+     "camera.fx"),
+    ("render", "envmap scale 1e308 (a render of inf)", lambda w, t: _render(scene_copy(
+        w, t, lambda d: d["photos"][1]["light"].__setitem__("scale", 1e308)), w.brdf, _out(t)),
+     "photos[1].light.scale"),
+    ("extract", "flash photo of 3e38 (a slice infer refuses)", lambda w, t: ["extract", str(
+        scene_with_file(w, t, "flash0.exr", rgb_exr(t, value=3e38).read_bytes())), "--out",
+        _out(t, "s.csv")], "photos"),
+    ("extract", "intensity_rgb [true, 1, 1] (read as 1)", lambda w, t: ["extract", str(
+        scene_copy(w, t, set_field(("photos", 0, "light", "intensity_rgb"), [True, 1, 1]))),
+        "--out", _out(t, "s.csv")], "photos[0].light.intensity_rgb"),
+    ("extract", "world_from_camera with true on its diagonal", lambda w, t: ["extract", str(
+        scene_copy(w, t, set_field(("camera", "world_from_camera"), [
+            [True, 0, 0, 0], [0, True, 0, 0], [0, 0, True, 0], [0, 0, 0, True]]))), "--out",
+        _out(t, "s.csv")], "camera.world_from_camera"),
 ]
 CASES += SWEEP_CASES
 
