@@ -187,10 +187,15 @@ def evaluate(args):
                   folders=[args.out])
     options = dict(quick=args.quick, experiments=getattr(args, "experiments", None),
                    time_budget=getattr(args, "time_budget", None))
+    # never more local workers than experiments: a spare one costs its start and sits idle
+    workers = args.workers and min(args.workers, options["experiments"] or
+                                   (1 if args.quick else 25))
     with staged_output_dir(args.out, force=getattr(args, "force", False),
                            command="evaluate") as out:
+        if len(merl.list_merl(merl_dir)) < 5:  # before a cluster starts (run_evaluation's check)
+            raise InputError(merl_dir, "evaluate needs at least 5 MERL tables")
         if getattr(args, "workers", None) or getattr(args, "scheduler", None):
-            with dask_client(args.workers, args.scheduler) as client:  # experiments as Dask tasks
+            with dask_client(workers, args.scheduler) as client:  # experiments as Dask tasks
                 result = run_evaluation(merl_dir, out, client=client, **options)
         else:
             result = run_evaluation(merl_dir, out, **options)

@@ -960,6 +960,12 @@ SWEEP_CASES = [
     ("evaluate", "experiments 0", lambda w, t: ["evaluate", "--merl-dir", str(w.merl_dir),
                                                 "--out", _out(t), "--experiments", "0"],
      "--experiments"),
+    # a local cluster of 100000 processes (it forked until the machine gave out)
+    ("evaluate", "workers 100000", lambda w, t: [
+        "evaluate", "--merl-dir", str(w.merl_dir), "--out", _out(t), "--workers", "100000"],
+     "--workers"),
+    ("batch", "workers 100000", lambda w, t: _batch(captures(w, t, "a", "b"), _out(t),
+                                                    "--workers", "100000"), "--workers"),
     # outputs no file can be made at (tracebacks from mkstemp / mkdtemp)
     ("merl-slice", "out in /proc", lambda w, t: ["merl-slice", str(w.brdf), "--out",
                                                 "/proc/flashbrdf-s.csv"], "/proc/flashbrdf-s.csv"),
