@@ -792,6 +792,16 @@ def model_with_params(w, tmp, params):
     return path
 
 
+def model_edited(w, tmp, key, edit):
+    """A copy of the shipped model with array `key` replaced by edit(array)."""
+    path = tmp / "model.npz"
+    with np.load(w.model, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays[key] = edit(arrays[key])
+    np.savez(path, **arrays)
+    return path
+
+
 def links_to(folder, table, count):
     """`folder` holding t0.binary .. t<count-1>.binary, each a link to `table`."""
     for k in range(count):
@@ -982,6 +992,14 @@ SWEEP_CASES = [
     ("infer", "model params with an unknown hyperparameter", lambda w, t: [
         "infer", "--method", "noll", "--model", str(model_with_params(w, t, {"noll": {"k": 1}})),
         "--slice", str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
+    ("infer", "model slices of inf (noll: a traceback)", lambda w, t: [
+        "infer", "--method", "noll", "--model", str(model_edited(
+            w, t, "slices", lambda a: np.full_like(a, np.inf))), "--slice", str(w.slice),
+        "--out", _out(t, "b.binary")], "model.npz"),
+    ("infer", "model tables_2d all NaN (a table of NaN, exit 0)", lambda w, t: [
+        "infer", "--method", "pca", "--model", str(model_edited(
+            w, t, "tables_2d", lambda a: np.full_like(a, np.nan))), "--slice", str(w.slice),
+        "--out", _out(t, "b.binary")], "model.npz"),
     # one table under several names (train: a LinAlgError traceback)
     ("train", "five links to one table", lambda w, t: [
         "train", "--merl-dir", str(links_to(empty(t), w.brdf, 5)), "--out", _out(t, "m.npz")],
