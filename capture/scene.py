@@ -148,23 +148,27 @@ class Scene:
         """The photos whose role is `role`, in file order."""
         return [p for p in self.photos if p.role == role]
 
-    def references(self):
-        """The `reference` photos, in file order, for the commands that write one output per
-        photo under its stem (render, run: OUT_DIR/<stem>.exr, <stem>_compare.json).
+    def references(self, outputs=lambda stem: [f"{stem}.exr"]):
+        """The `reference` photos, in file order, for the commands that write files per photo
+        under its stem (render, run: OUT_DIR/<stem>.exr, <stem>_compare.json, ...).
 
-        InputError naming the photo's field when two of them share a stem (ref.exr and ref.hdr,
-        or a/ref.exr and b/ref.exr): one render would silently replace the other.
+        outputs(stem): the names written for one photo. InputError naming the photo's field when
+        two photos would write one name (ref.exr and ref.hdr, a/ref.exr and b/ref.exr, or x and
+        x_delta_e with outputs x_delta_e.png and x_delta_e.png): one would silently replace the
+        other.
         """
         photos = self.photos_with_role("reference")
-        seen = {}
+        written = {}
         for photo in photos:
-            if photo.stem in seen:
-                field = "file" if photo.file is not None else "brackets[0].file"
-                raise InputError(f"{photo.where}.{field}",
-                                 f"reference photo stem {photo.stem!r} is also "
-                                 f"photos[{seen[photo.stem].index}]'s; renders are written as "
-                                 "<stem>.exr, so give the reference photos distinct names")
-            seen[photo.stem] = photo
+            for name in outputs(photo.stem):
+                if name in written:
+                    other = written[name]
+                    field = "file" if photo.file is not None else "brackets[0].file"
+                    raise InputError(f"{photo.where}.{field}",
+                                     f"reference photo stem {photo.stem!r} would write {name}, "
+                                     f"as photos[{other.index}] ({other.stem!r}) does; give the "
+                                     "reference photos distinct names")
+            written.update(dict.fromkeys(outputs(photo.stem), photo))
         return photos
 
     def input_files(self):

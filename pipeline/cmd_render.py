@@ -57,6 +57,11 @@ def brdf_paths(text):
     return paths
 
 
+def reference_outputs(stem):
+    """The files render and run write for one reference photo (in OUT_DIR, or OUT_DIR/<method>)."""
+    return [f"{stem}.exr", f"{stem}.png", f"{stem}_compare.json", f"{stem}_delta_e.png"]
+
+
 def side_inputs(labels_png=None, albedo_exr=None):
     """The files `--labels LABELS.png` and `--albedo ALBEDO.exr` read beside them (LABELS.png,
     LABELS.faces.npy; ALBEDO.exr, ALBEDO.json, ALBEDO.faces.npy): inputs no output may touch."""
@@ -77,7 +82,7 @@ def render(args):
     # every file read is an input (each table, the labels and the albedo map with their sidecars)
     check_outputs(inputs=[args.scene_dir, *scene.input_files(), *paths, *side_inputs(
         labels_png, albedo_exr)], outputs=[args.out], folders=[args.out])
-    references = scene.references()
+    references = scene.references(reference_outputs)
     if not references:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'reference'")
     if len(paths) > 1 and not labels_png:

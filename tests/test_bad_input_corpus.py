@@ -718,6 +718,9 @@ CASES = [
      "photos[2].file"),
     ("run", "two reference photos of one stem in two folders", lambda w, t: _run(
         scene_copy(w, t, second_reference("sub/ref_env.exr")), _out(t)), "photos[2].file"),
+    ("render", "reference photos ref_env and ref_env_delta_e (both write ref_env_delta_e.png)",
+     lambda w, t: _render(scene_copy(w, t, second_reference("ref_env_delta_e.exr")), w.brdf,
+                          _out(t)), "photos[2].file"),
 ]
 
 
