@@ -125,12 +125,18 @@ def infer(args):
     return 0
 
 
+MAX_EXPERIMENTS = 10000
+
+
 def _check_protocol_options(args):
     """InputError for --experiments below 1 (0 would silently mean all 25) or a --time-budget
     that is not a positive number of seconds."""
     experiments = getattr(args, "experiments", None)
     if experiments is not None and experiments < 1:
         raise InputError("--experiments", f"must be at least 1, got {experiments}")
+    if experiments is not None and experiments > MAX_EXPERIMENTS:
+        # each trains the models (seconds to minutes); 10**9 hung drawing its splits
+        raise InputError("--experiments", f"must be at most {MAX_EXPERIMENTS}, got {experiments}")
     budget = getattr(args, "time_budget", None)
     if budget is not None and not (np.isfinite(budget) and budget > 0):
         raise InputError("--time-budget", f"must be a positive number of seconds, got {budget}")

@@ -979,6 +979,9 @@ SWEEP_CASES = [
      "--workers"),
     ("batch", "workers 100000", lambda w, t: _batch(captures(w, t, "a", "b"), _out(t),
                                                     "--workers", "100000"), "--workers"),
+    ("evaluate", "experiments 10**9 (it hung drawing the splits)", lambda w, t: [
+        "evaluate", "--merl-dir", str(w.merl_dir), "--out", _out(t), "--experiments",
+        str(10 ** 9)], "--experiments"),
     # outputs no file can be made at (tracebacks from mkstemp / mkdtemp)
     ("merl-slice", "out in /proc", lambda w, t: ["merl-slice", str(w.brdf), "--out",
                                                 "/proc/flashbrdf-s.csv"], "/proc/flashbrdf-s.csv"),
