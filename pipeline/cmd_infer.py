@@ -32,6 +32,8 @@ def train(args):
     """Train the DS-GPLVM on every MERL table of every --merl-dir folder (infer.training); store
     what the baselines need too."""
     folders = _merl_dirs(args.merl_dir)
+    if args.seed < 0:  # numpy's generators take none: a traceback after the tables were read
+        raise InputError("--seed", f"must be a non-negative integer, got {args.seed}")
     check_outputs(inputs=_merl_inputs(folders), outputs=[args.out])
     training = TrainingSet.from_merl_dirs(folders, keep_3d="3d" in args.views.split(","))
     check_training_size(len(training), folders[0] if len(folders) == 1 else "--merl-dir")

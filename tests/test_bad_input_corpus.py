@@ -979,6 +979,10 @@ SWEEP_CASES = [
      "--workers"),
     ("batch", "workers 100000", lambda w, t: _batch(captures(w, t, "a", "b"), _out(t),
                                                     "--workers", "100000"), "--workers"),
+    ("train", "seed -1 (a traceback from numpy)", lambda w, t: [
+        "train", "--merl-dir", str(merl_copy(w, t)), "--merl-dir", str(write(empty(t),
+        "x.binary", w.brdf.read_bytes()[:12] + np.full(90 * 90 * 180 * 3, 0.01).tobytes()
+        ).parent), "--out", _out(t, "m.npz"), "--seed=-1"], "--seed"),
     ("evaluate", "experiments 10**9 (it hung drawing the splits)", lambda w, t: [
         "evaluate", "--merl-dir", str(w.merl_dir), "--out", _out(t), "--experiments",
         str(10 ** 9)], "--experiments"),
