@@ -84,7 +84,8 @@ class TrainingSet:
         checked before any table is read: brdf.merl.list_merl_dirs)."""
         merl.list_merl_dirs(folders)
         parts = [cls.from_merl_dir(f, keep_3d=keep_3d) for f in folders]
-        _check_distinct([q for p in parts for q in p.paths], [t for p in parts for t in p.tables_2d])
+        _check_distinct([q for p in parts for q in p.paths],
+                        [t for p in parts for t in p.tables_2d])
         return cls(names=[n for p in parts for n in p.names],
                    slices=np.concatenate([p.slices for p in parts]),
                    tables_2d=np.concatenate([p.tables_2d for p in parts]),

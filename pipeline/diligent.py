@@ -95,11 +95,12 @@ def _photo_paths(folder):
         for path in paths:
             if not path.is_file():
                 raise InputError(path, "listed in filenames.txt but missing")
-            if path.stem + ".exr" in written:
-                raise InputError(listing, f"{os.path.relpath(path, folder)} and {written[path.stem + '.exr']} would "
-                                          f"both be written as {path.stem}.exr (a photo listed "
-                                          "twice, or two of one name): list each photo once")
-            written[path.stem + ".exr"] = os.path.relpath(path, folder)
+            name, given = path.stem + ".exr", os.path.relpath(path, folder)
+            if name in written:
+                raise InputError(listing, f"{given} and {written[name]} would both be written as "
+                                          f"{name} (a photo listed twice, or two of one name): "
+                                          "list each photo once")
+            written[name] = given
         if not paths:
             raise InputError(listing, "lists no photo")
         return paths
