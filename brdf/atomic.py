@@ -4,8 +4,23 @@ A crash or an error part-way leaves no partial output file behind.
 """
 
 import contextlib
+import errno
 import os
 import tempfile
+
+# What creating a file or folder at a path the user gave fails with when that path cannot hold
+# one (a name too long, a read-only or pseudo filesystem such as /proc, no permission): bad input
+# naming the path, not a traceback. A full disk or an I/O error stays an error of its own (exit 1).
+UNWRITABLE_ERRNOS = {errno.ENAMETOOLONG, errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOENT,
+                     errno.ENOTDIR, errno.EISDIR, errno.EINVAL}
+
+
+def unwritable(path, err):
+    """InputError naming `path` for an OSError `err` of UNWRITABLE_ERRNOS, else None."""
+    if getattr(err, "errno", None) not in UNWRITABLE_ERRNOS:
+        return None
+    from brdf.errors import InputError
+    return InputError(path, f"cannot be written there ({err.strerror or err})")
 
 
 @contextlib.contextmanager
@@ -17,11 +32,23 @@ def atomic_path(path, suffix=None):
     """
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
-    created = make_parents(folder)
+    try:
+        created = make_parents(folder)
+    except OSError as err:
+        raise unwritable(path, err) or err from None
     if suffix is None:
-        suffix = os.path.splitext(path)[1]
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".part" + suffix,
-                               dir=folder)
+        # the text from the name's last dot: os.path.splitext skips leading dots, so it gives
+        # "..exr" (a reference photo "..exr" renders to OUT_DIR/..exr) no extension, and the
+        # writers that choose a format from the name (OpenImageIO) then found none
+        name = os.path.basename(path)
+        dot = name.rfind(".")
+        suffix = name[dot:] if dot > 0 else ""
+    try:
+        fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".",
+                                   suffix=".part" + suffix, dir=folder)
+    except OSError as err:
+        remove_empty(created)
+        raise unwritable(path, err) or err from None
     os.close(fd)
     # mkstemp makes the file private (0600); the output should get the usual umask permissions.
     os.chmod(tmp, 0o666 & ~current_umask())
@@ -43,8 +70,12 @@ def make_parents(folder):
     while not os.path.isdir(folder):
         created.append(folder)
         folder = os.path.dirname(folder)
-    for f in reversed(created):
-        os.makedirs(f, exist_ok=True)
+    try:
+        for f in reversed(created):
+            os.makedirs(f, exist_ok=True)
+    except OSError:  # none of the folders made so far is left behind
+        remove_empty(created)
+        raise
     return created
 
 

@@ -26,6 +26,10 @@ LIGHT_TYPES = ("point", "directional", "envmap")
 ENCODINGS = ("linear", "srgb")
 MAX_IMAGE_SIDE = 1 << 16  # pixels; larger is a typo (or an attack), not a camera
 ROTATION_ATOL = 1e-4
+# Photos are float32 (up to 3.4e38, normal down to 1.2e-38), and so are the rays Embree traces: a
+# scale, intensity, exposure or intrinsic outside this range turned them to inf or to 0 (a slice
+# of zeros, a render of inf, with exit 0). Far beyond any camera or light.
+MIN_FACTOR, MAX_FACTOR = 1e-30, 1e30
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,6 +148,29 @@ class Scene:
         """The photos whose role is `role`, in file order."""
         return [p for p in self.photos if p.role == role]
 
+    def references(self, outputs=lambda stem: [f"{stem}.exr"]):
+        """The `reference` photos, in file order, for the commands that write files per photo
+        under its stem (render, run: OUT_DIR/<stem>.exr, <stem>_compare.json, ...).
+
+        outputs(stem): the names written for one photo. InputError naming the photo's field when
+        two photos would write one name (ref.exr and ref.hdr, a/ref.exr and b/ref.exr, or x and
+        x_delta_e with outputs x_delta_e.png and x_delta_e.png): one would silently replace the
+        other.
+        """
+        photos = self.photos_with_role("reference")
+        written = {}
+        for photo in photos:
+            for name in outputs(photo.stem):
+                if name in written:
+                    other = written[name]
+                    field = "file" if photo.file is not None else "brackets[0].file"
+                    raise InputError(f"{photo.where}.{field}",
+                                     f"reference photo stem {photo.stem!r} would write {name}, "
+                                     f"as photos[{other.index}] ({other.stem!r}) does; give the "
+                                     "reference photos distinct names")
+            written.update(dict.fromkeys(outputs(photo.stem), photo))
+        return photos
+
     def input_files(self):
         """Every file this scene reads (resolved Paths): scene.json, geometry, photos, brackets and
         environment maps, in that order without repeats. Outputs must never replace one."""
@@ -183,7 +210,9 @@ class _Fields:
             self.fail(key, "missing")
         return _Fields(self.json_path, self.name(key), self.obj[key])
 
-    def number(self, key, default=None, positive=False, nonnegative=False):
+    def number(self, key, default=None, positive=False, nonnegative=False, factor=False):
+        """A finite number; factor: one that multiplies or divides float32 pixels or rays, so
+        its magnitude must be 0 (where allowed) or within MIN_FACTOR..MAX_FACTOR."""
         if not self.has(key):
             if default is not None:
                 return float(default)
@@ -195,7 +224,15 @@ class _Fields:
             self.fail(key, f"expected a positive number, got {v!r}")
         if nonnegative and v < 0:
             self.fail(key, f"expected a non-negative number, got {v!r}")
+        if factor:
+            self._check_factors(key, [v])
         return float(v)
+
+    def _check_factors(self, key, values):
+        odd = [v for v in values if v != 0 and not MIN_FACTOR <= abs(v) <= MAX_FACTOR]
+        if odd:
+            self.fail(key, f"{odd[0]!r} is outside {MIN_FACTOR:g}..{MAX_FACTOR:g} in magnitude "
+                           "(photos and rays are 32-bit floats: it would turn them to inf or 0)")
 
     def integer(self, key, minimum=1, maximum=None):
         v = self.obj.get(key)
@@ -223,7 +260,7 @@ class _Fields:
             self.fail(key, f"expected one of {', '.join(choices)}, got {v!r}")
         return v
 
-    def array(self, key, shape, default=None, nonnegative=False):
+    def array(self, key, shape, default=None, nonnegative=False, factor=False):
         """A numeric array of exactly `shape` (nested JSON lists) as float64."""
         if not self.has(key):
             if default is not None:
@@ -231,6 +268,8 @@ class _Fields:
             self.fail(key, "missing")
         what = f"{shape[0]} numbers" if len(shape) == 1 else "a " + "x".join(map(str, shape)) + \
             " matrix of numbers"
+        if _holds_bool(self.obj[key]):  # numpy reads true as 1.0: JSON's true is no number
+            self.fail(key, f"expected {what}, got true/false")
         try:
             a = np.array(self.obj[key], dtype=float)
         except (TypeError, ValueError):
@@ -239,6 +278,8 @@ class _Fields:
             self.fail(key, f"expected {what}")
         if nonnegative and np.any(a < 0):
             self.fail(key, f"expected non-negative numbers, got {a.tolist()}")
+        if factor:
+            self._check_factors(key, a.ravel().tolist())
         return a
 
     def path(self, key, folder):
@@ -253,6 +294,13 @@ class _Fields:
             self.fail(key, f"cannot resolve the path {v!r} ({err})")
 
 
+def _holds_bool(value):
+    """Whether `value` is a bool or a (nested) list holding one."""
+    if isinstance(value, list):
+        return any(_holds_bool(v) for v in value)
+    return isinstance(value, bool)
+
+
 def _camera(f):
     model = f.choice("model", CAMERA_MODELS)
     width = f.integer("width", maximum=MAX_IMAGE_SIDE)
@@ -262,7 +310,8 @@ def _camera(f):
         f.fail("world_from_camera", "last row must be [0, 0, 0, 1]")
     f.rotation("world_from_camera", pose[:3, :3])
     if model == "orthographic":
-        return Camera(model, width, height, pose, pixel_size=f.number("pixel_size", positive=True))
+        return Camera(model, width, height, pose,
+                      pixel_size=f.number("pixel_size", positive=True, factor=True))
     distortion = None
     if f.has("distortion"):
         # the contract's [k1, k2, p1, p2, k3]; OpenCV's other lengths are accepted too
@@ -271,8 +320,9 @@ def _camera(f):
         distortion = f.array("distortion", (size if size in (4, 5, 8, 12, 14) else 5,))
         if not np.any(distortion):
             distortion = None
-    return Camera(model, width, height, pose, fx=f.number("fx", positive=True),
-                  fy=f.number("fy", positive=True), cx=f.number("cx"), cy=f.number("cy"),
+    return Camera(model, width, height, pose, fx=f.number("fx", positive=True, factor=True),
+                  fy=f.number("fy", positive=True, factor=True),
+                  cx=f.number("cx"), cy=f.number("cy"),
                   distortion=distortion)
 
 
@@ -280,18 +330,19 @@ def _light(f, folder):
     kind = f.choice("type", LIGHT_TYPES)
     if kind == "point":
         return Light(kind, position=f.array("position", (3,)),
-                     intensity_rgb=f.array("intensity_rgb", (3,), nonnegative=True))
+                     intensity_rgb=f.array("intensity_rgb", (3,), nonnegative=True, factor=True))
     if kind == "directional":
         d = f.array("direction", (3,))
         norm = np.linalg.norm(d)
         if norm < 1e-9:
             f.fail("direction", "must not be the zero vector")
         return Light(kind, direction=d / norm,
-                     irradiance_rgb=f.array("irradiance_rgb", (3,), nonnegative=True))
+                     irradiance_rgb=f.array("irradiance_rgb", (3,), nonnegative=True,
+                                            factor=True))
     return Light(kind, file=f.path("file", folder),
                  world_from_envmap=f.rotation("world_from_envmap", f.array(
                      "world_from_envmap", (3, 3), default=np.eye(3))),
-                 scale=f.number("scale", default=1.0, nonnegative=True))
+                 scale=f.number("scale", default=1.0, nonnegative=True, factor=True))
 
 
 def _photo(f, index, folder, camera):
@@ -308,16 +359,19 @@ def _photo(f, index, folder, camera):
         brackets = []
         for k, item in enumerate(items):
             b = _Fields(f.json_path, f.name(f"brackets[{k}]"), item)
-            brackets.append((b.path("file", folder), b.number("exposure_s", positive=True)))
+            brackets.append((b.path("file", folder),
+                             b.number("exposure_s", positive=True, factor=True)))
         brackets = tuple(brackets)
     light = _light(f.sub("light"), folder) if f.has("light") else None
     if role == "flash" and (light is None or light.type == "envmap"):
         f.fail("light", "a flash photo needs a point or directional light")
     encoding = f.choice("encoding", ENCODINGS) if f.has("encoding") else None
     cam = _camera(f.sub("camera")) if f.has("camera") else camera
-    saturation = f.number("saturation", positive=True) if f.has("saturation") else None
+    saturation = f.number("saturation", positive=True, factor=True) if f.has("saturation") \
+        else None
     return Photo(index=index, role=role, camera=cam, where=f"{f.json_path}: {f.prefix}",
-                 file=file, brackets=brackets, scale=f.number("scale", 1.0, positive=True),
+                 file=file, brackets=brackets,
+                 scale=f.number("scale", 1.0, positive=True, factor=True),
                  scale_given=f.has("scale"), light=light, encoding=encoding,
                  saturation=saturation)
 

@@ -93,6 +93,16 @@ def read_model(path, merl_dir=None):
             if n == 0 or array.shape != shape or not np.issubdtype(array.dtype, np.floating):
                 raise InputError(path, f"damaged model: {key} has shape {array.shape} "
                                        f"({array.dtype}), expected {shape} floats")
+            # rho in 1/sr, NaN where a table has no data: never inf or negative, and each
+            # material has some data (inf made noll raise a traceback, the rest exit 0 with a
+            # table of NaN or garbage)
+            with np.errstate(invalid="ignore"):
+                odd = np.isinf(array).any() or bool((array < 0).any())
+            empty = np.isnan(array).reshape(n, -1).all(axis=1)
+            if odd or empty.any():
+                raise InputError(path, f"damaged model: {key} holds " + (
+                    "infinite or negative values" if odd else
+                    f"no value for material {names[int(np.argmax(empty))]!r}"))
         training = TrainingSet(names, slices, tables_2d)
         if "valid_3d" in z.files:
             training.valid_3d = z["valid_3d"]
@@ -155,7 +165,15 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
     methods = {}
     for name in names:
         start = time.perf_counter()
-        kw = {**params.get(name, {}), **(overrides or {}).get(name, {})}
+        stored = params.get(name, {})
+        if not isinstance(stored, dict):
+            raise InputError(path, f"damaged model: params[{name!r}] is not a JSON object of "
+                                   "hyperparameters")
+        kw = {**stored, **(overrides or {}).get(name, {})}
+        try:
+            make_method(name, **kw)  # hyperparameters the method does not take: a damaged file
+        except TypeError as err:
+            raise InputError(path, f"damaged model: params[{name!r}] ({err})") from None
         if name == "dsgplvm":
             if blob is None:
                 raise InputError(path, "model holds no DS-GPLVM")

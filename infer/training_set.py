@@ -2,6 +2,7 @@
 one at a time (MERL files or stored rows). Values in 1/sr, NaN where MERL has no data.
 """
 
+import hashlib
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
@@ -25,6 +26,18 @@ def _read_views(path, keep_3d, bins_3d):
     table = merl.read_merl(path)
     rows = table[bins_3d].astype(np.float32) if keep_3d else None
     return views.flash_slice(table)[0], views.table_2d(table), rows
+
+
+def _check_distinct(paths, tables_2d):
+    """InputError naming the second of two files that hold the same table (2D view, bit for bit):
+    one material under two names, or copies of one file. Trained on, the same row twice made
+    the GP covariances singular (a LinAlgError traceback from `train` on copies of one table)."""
+    seen = {}
+    for path, table in zip(paths, tables_2d):
+        key = hashlib.sha256(np.ascontiguousarray(table).tobytes()).hexdigest()
+        if key in seen:
+            raise InputError(path, f"holds the same table as {seen[key]}; give each material once")
+        seen[key] = path
 
 
 @dataclass
@@ -60,6 +73,7 @@ class TrainingSet:
         with ThreadPoolExecutor(min(default_threads(), len(names))) as pool:
             read = list(pool.map(lambda n: _read_views(found[n], keep_3d, bins_3d), names))
         slices, tables, rows = ([r[k] for r in read] for k in range(3))
+        _check_distinct([found[n] for n in names], tables)
         return cls(names, np.array(slices), np.array(tables), [found[n] for n in names],
                    np.array(rows) if keep_3d else None)
 
@@ -70,6 +84,8 @@ class TrainingSet:
         checked before any table is read: brdf.merl.list_merl_dirs)."""
         merl.list_merl_dirs(folders)
         parts = [cls.from_merl_dir(f, keep_3d=keep_3d) for f in folders]
+        _check_distinct([q for p in parts for q in p.paths],
+                        [t for p in parts for t in p.tables_2d])
         return cls(names=[n for p in parts for n in p.names],
                    slices=np.concatenate([p.slices for p in parts]),
                    tables_2d=np.concatenate([p.tables_2d for p in parts]),

@@ -2,6 +2,9 @@
 
 import os
 
+import numpy as np
+
+from brdf.errors import InputError
 from brdf.merl import read_merl
 from brdf.views import flash_slice, write_slice_csv
 from pipeline.safety import check_outputs
@@ -11,6 +14,9 @@ def merl_slice(args):
     check_outputs(inputs=[args.brdf], outputs=[args.out])
     table = read_merl(args.brdf)
     rho, n = flash_slice(table)
+    if not np.any(n):  # a slice of 90 empty bins, which infer and run refuse
+        raise InputError(args.brdf, "no valid value at theta_d = 0 (every bin of the first "
+                                    "theta_d row is negative: no data): the slice would be empty")
     write_slice_csv(args.out, rho, n, comments=[
         f"flashbrdf merl-slice {os.path.basename(args.brdf)}",
         "theta_d = 0 slice: mean over the valid phi_d bins of theta_d bin 0; n = phi_d bins used"])

@@ -32,6 +32,8 @@ def train(args):
     """Train the DS-GPLVM on every MERL table of every --merl-dir folder (infer.training); store
     what the baselines need too."""
     folders = _merl_dirs(args.merl_dir)
+    if args.seed < 0:  # numpy's generators take none: a traceback after the tables were read
+        raise InputError("--seed", f"must be a non-negative integer, got {args.seed}")
     check_outputs(inputs=_merl_inputs(folders), outputs=[args.out])
     training = TrainingSet.from_merl_dirs(folders, keep_3d="3d" in args.views.split(","))
     check_training_size(len(training), folders[0] if len(folders) == 1 else "--merl-dir")
@@ -125,12 +127,18 @@ def infer(args):
     return 0
 
 
+MAX_EXPERIMENTS = 10000
+
+
 def _check_protocol_options(args):
     """InputError for --experiments below 1 (0 would silently mean all 25) or a --time-budget
     that is not a positive number of seconds."""
     experiments = getattr(args, "experiments", None)
     if experiments is not None and experiments < 1:
         raise InputError("--experiments", f"must be at least 1, got {experiments}")
+    if experiments is not None and experiments > MAX_EXPERIMENTS:
+        # each trains the models (seconds to minutes); 10**9 hung drawing its splits
+        raise InputError("--experiments", f"must be at most {MAX_EXPERIMENTS}, got {experiments}")
     budget = getattr(args, "time_budget", None)
     if budget is not None and not (np.isfinite(budget) and budget > 0):
         raise InputError("--time-budget", f"must be a positive number of seconds, got {budget}")
@@ -187,10 +195,15 @@ def evaluate(args):
                   folders=[args.out])
     options = dict(quick=args.quick, experiments=getattr(args, "experiments", None),
                    time_budget=getattr(args, "time_budget", None))
+    # never more local workers than experiments: a spare one costs its start and sits idle
+    workers = args.workers and min(args.workers, options["experiments"] or
+                                   (1 if args.quick else 25))
     with staged_output_dir(args.out, force=getattr(args, "force", False),
                            command="evaluate") as out:
+        if len(merl.list_merl(merl_dir)) < 5:  # before a cluster starts (run_evaluation's check)
+            raise InputError(merl_dir, "evaluate needs at least 5 MERL tables")
         if getattr(args, "workers", None) or getattr(args, "scheduler", None):
-            with dask_client(args.workers, args.scheduler) as client:  # experiments as Dask tasks
+            with dask_client(workers, args.scheduler) as client:  # experiments as Dask tasks
                 result = run_evaluation(merl_dir, out, client=client, **options)
         else:
             result = run_evaluation(merl_dir, out, **options)

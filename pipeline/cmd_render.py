@@ -24,7 +24,7 @@ from pipeline.cmd_segment import faces_path, flash_photo_camera
 from pipeline.safety import check_outputs, staged_output_dir
 from render.albedo_map import DiffuseAlbedoMap
 from render.brdf_models import TabulatedBRDF
-from render.compare import write_comparison
+from render.compare import comparison_mask, write_comparison
 from render.images import read_image, read_mask, write_exr, write_preview
 from render.scene_render import MaterialMap, render_scene
 
@@ -58,6 +58,11 @@ def brdf_paths(text):
     return paths
 
 
+def reference_outputs(stem):
+    """The files render and run write for one reference photo (in OUT_DIR, or OUT_DIR/<method>)."""
+    return [f"{stem}.exr", f"{stem}.png", f"{stem}_compare.json", f"{stem}_delta_e.png"]
+
+
 def side_inputs(labels_png=None, albedo_exr=None):
     """The files `--labels LABELS.png` and `--albedo ALBEDO.exr` read beside them (LABELS.png,
     LABELS.faces.npy; ALBEDO.exr, ALBEDO.json, ALBEDO.faces.npy): inputs no output may touch."""
@@ -78,7 +83,7 @@ def render(args):
     # every file read is an input (each table, the labels and the albedo map with their sidecars)
     check_outputs(inputs=[args.scene_dir, *scene.input_files(), *paths, *side_inputs(
         labels_png, albedo_exr)], outputs=[args.out], folders=[args.out])
-    references = scene.photos_with_role("reference")
+    references = scene.references(reference_outputs)
     if not references:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'reference'")
     if len(paths) > 1 and not labels_png:
@@ -137,6 +142,12 @@ def compare(args):
         raise InputError(args.ref, f"is {ref.shape[1]}x{ref.shape[0]} but {args.pred} is "
                                    f"{pred.shape[1]}x{pred.shape[0]}")
     mask = read_mask(args.mask, pred.shape) if getattr(args, "mask", None) else None
+    if not comparison_mask(pred, ref, mask).any():  # every metric would be null
+        if mask is not None:
+            raise InputError(args.mask, "selects no pixel where both images are finite: nothing "
+                                        "to compare")
+        raise InputError(args.pred, f"no pixel is finite and nonzero in both it and {args.ref}: "
+                                    "nothing to compare")
     with staged_output_dir(args.out, force=getattr(args, "force", False),
                            command="compare") as out:
         write_comparison(out, pred, ref, mask)

@@ -34,7 +34,7 @@ from infer.model_file import check_model_file, load_methods
 from infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
                           without_sparse_tail)
 from pipeline.cmd_extract import write_extraction
-from pipeline.cmd_render import photo_exists, samples_per_pixel
+from pipeline.cmd_render import photo_exists, reference_outputs, samples_per_pixel
 from pipeline.cmd_segment import materials_option, segment_scene, write_labels
 from pipeline.report import write_report
 from pipeline.run_export import export_for_report, export_method, scene_envmap
@@ -186,7 +186,7 @@ def run(args, load_methods=None):
                   folders=[args.out])
     if model_path is not None:
         check_model_file(model_path)
-    references = scene.photos_with_role("reference")
+    references = scene.references(reference_outputs)
     loaded = _check_references(references)
     with staged_output_dir(args.out, force=getattr(args, "force", False), command="run") as staged:
         stages, report = _run_stages(args, scene, methods, model_path, spp, references, loaded,

@@ -24,6 +24,9 @@ THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"
 ALLOWED_FAILURES = 1
 CONNECT_TIMEOUT = "20s"
 PROBE_TIMEOUT_S = 5.0  # a TCP handshake with a live scheduler takes milliseconds, even remote
+# --workers starts that many processes on this machine (each a Python with numpy, ~150 MB): a
+# typo such as 100000 forked until the machine gave out. Spread work wider with --scheduler.
+MAX_WORKERS = 256
 
 
 def add_engine_options(parser, what, default):
@@ -43,6 +46,9 @@ def check_engine_options(args):
     workers = getattr(args, "workers", None)
     if workers is not None and workers < 1:
         raise InputError("--workers", f"must be at least 1, got {workers}")
+    if workers is not None and workers > MAX_WORKERS:
+        raise InputError("--workers", f"must be at most {MAX_WORKERS} (worker processes on this "
+                                      f"machine), got {workers}; use --scheduler for more")
     scheduler = getattr(args, "scheduler", None)
     if scheduler is not None and not scheduler.strip():  # "" would silently mean a local cluster
         raise InputError("--scheduler", "is empty; give tcp://HOST:PORT")

@@ -85,11 +85,24 @@ def _photo_paths(folder):
     """Photos in light order: filenames.txt when present (DiLiGenT ships it), else sorted *.png."""
     listing = folder / "filenames.txt"
     if listing.is_file():
-        names = [line.strip() for line in listing.read_text().splitlines() if line.strip()]
+        try:
+            text = listing.read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as err:
+            raise InputError(listing, f"cannot read the list of photos ({err})") from None
+        names = [line.strip() for line in text.splitlines() if line.strip()]
         paths = [folder / name for name in names]
+        written = {}  # each photo is written as <stem>.exr: two of one stem would be one file
         for path in paths:
             if not path.is_file():
                 raise InputError(path, "listed in filenames.txt but missing")
+            name, given = path.stem + ".exr", os.path.relpath(path, folder)
+            if name in written:
+                raise InputError(listing, f"{given} and {written[name]} would both be written as "
+                                          f"{name} (a photo listed twice, or two of one name): "
+                                          "list each photo once")
+            written[name] = given
+        if not paths:
+            raise InputError(listing, "lists no photo")
         return paths
     paths = sorted(p for p in folder.glob("*.png") if p.name.lower() not in _NOT_PHOTOS)
     if not paths:

@@ -33,7 +33,7 @@ import tempfile
 import threading
 import time
 
-from brdf.atomic import current_umask, make_parents, remove_empty
+from brdf.atomic import current_umask, make_parents, remove_empty, unwritable
 from brdf.errors import InputError
 
 MARKER = ".flashbrdf-output"
@@ -119,8 +119,27 @@ def _check_parent(path):
         ancestor = os.path.dirname(ancestor)
     if not os.path.isdir(ancestor):
         raise InputError(path, f"cannot be made: {ancestor} is not a folder")
+    _check_name_length(path, ancestor)
     if not os.access(ancestor, os.W_OK | os.X_OK):
         raise InputError(path, f"cannot be made: no permission to write in {ancestor}")
+
+
+def _check_name_length(path, ancestor):
+    """InputError when a name in `path` below its existing `ancestor` is too long for the
+    filesystem, counting what the temporary output beside it adds ("." + name + ".XXXXXXXX.part"
+    + extension): found here, before the work, not when the result is written."""
+    try:
+        limit = os.pathconf(ancestor, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    rest = os.path.relpath(os.path.abspath(os.fspath(path)), ancestor)
+    for name in rest.split(os.sep):
+        dot = name.rfind(".")
+        extra = 16 + (len(os.fsencode(name[dot:])) if dot > 0 else 0)
+        if len(os.fsencode(name)) + extra > limit:
+            raise InputError(path, f"cannot be made: the name {name[:24]}... is "
+                                   f"{len(os.fsencode(name))} bytes long, over the "
+                                   f"{limit - extra} this filesystem allows here")
 
 
 def check_writable_folder(path):
@@ -180,8 +199,13 @@ def staged_output_dir(path, force=False, command=None):
     target = os.path.abspath(os.fspath(path))
     _check_replaceable(target, force)
     parent = os.path.dirname(target)
-    created = make_parents(parent)
-    tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.", suffix=".part", dir=parent)
+    created = []
+    try:
+        created = make_parents(parent)
+        tmp = tempfile.mkdtemp(prefix=f".{os.path.basename(target)}.", suffix=".part", dir=parent)
+    except OSError as err:  # a name too long, /proc, a read-only filesystem
+        remove_empty(created)
+        raise unwritable(path, err) or err from None
     try:
         os.chmod(tmp, 0o777 & ~current_umask())
         with open(os.path.join(tmp, MARKER), "w", encoding="utf-8") as f:

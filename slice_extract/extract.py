@@ -26,7 +26,7 @@ import capture
 from brdf.angles import merl_bin_index
 from brdf.errors import InputError
 from brdf.merl import N_THETA_H
-from brdf.views import slice_coverage
+from brdf.views import MAX_SLICE_VALUE, slice_coverage
 from slice_extract.binning import robust_bins
 from slice_extract.samples import REASONS, light_setup, photo_samples
 from slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
@@ -313,6 +313,11 @@ def bin_samples(samples):
     # slice.csv readers reject it), so such bins become 0 here, and the report counts them.
     negative = np.isfinite(estimate) & (estimate < 0)
     estimate = np.where(negative, 0.0, estimate)
+    known = estimate[~np.isnan(estimate)]
+    if known.size and not known.max() <= MAX_SLICE_VALUE:  # slice.csv readers refuse it
+        raise InputError(f"{scene.json_path}: photos", f"the flash photos give BRDF values up to "
+                         f"{known.max():.3g} 1/sr, above {MAX_SLICE_VALUE:g}: not a BRDF (check "
+                         "their pixel values, scale and the light's intensity)")
     clock.add("binning", t)
     clock.t["total"] = time.perf_counter() - samples.started
     report = _report(scene, options, samples.per_photo, theta_h, theta_d, inlier, n, clock.t,

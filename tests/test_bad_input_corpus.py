@@ -219,6 +219,22 @@ def model_with_valid_3d(w, tmp, bins):
     return path
 
 
+def second_reference(name):
+    """An edit adding a second reference photo, `name` (a copy of the first's file is made by
+    the case's scene_copy only where the name exists: the stem clash is found before any read)."""
+    def edit(doc):
+        doc["photos"].append({**doc["photos"][1], "file": name})
+    return edit
+
+
+def two_of_one_stem(folder):
+    """A DiLiGenT folder whose filenames.txt lists a/x.png and b/x.png (and two more)."""
+    for sub, photo in (("a", "001.png"), ("b", "002.png")):
+        (folder / sub).mkdir()
+        shutil.copy(folder / photo, folder / sub / "x.png")
+    (folder / "filenames.txt").write_text("a/x.png\nb/x.png\n003.png\n004.png\n")
+
+
 def marked_folder(tmp):
     folder = tmp / "old"
     folder.mkdir()
@@ -687,6 +703,24 @@ CASES = [
         "import-diligent", str(diligent_copy(w, t, lambda f: scipy.io.savemat(
             f / "Normal_gt.mat", {"Normal_gt": "up"}))), "--flash", "1", "--out", _out(t)],
      "Normal_gt.mat"),
+    ("import-diligent", "filenames.txt not UTF-8 (a traceback)", lambda w, t: [
+        "import-diligent", str(diligent_copy(w, t, lambda f: (f / "filenames.txt").write_bytes(
+            b"\xff\xfe0\x000\x001\x00"))), "--flash", "1", "--out", _out(t)], "filenames.txt"),
+    ("import-diligent", "filenames.txt lists a photo twice (one EXR replaced the other)",
+     lambda w, t: ["import-diligent", str(diligent_copy(w, t, lambda f: (
+         f / "filenames.txt").write_text("001.png\n002.png\n003.png\n001.png\n"))), "--flash",
+        "1", "--out", _out(t)], "filenames.txt"),
+    ("import-diligent", "filenames.txt: a/x.png and b/x.png (both written as x.exr)",
+     lambda w, t: ["import-diligent", str(diligent_copy(w, t, two_of_one_stem)), "--flash", "1",
+                   "--out", _out(t)], "filenames.txt"),
+    ("render", "two reference photos of one stem (one render replaced the other)", lambda w, t:
+     _render(scene_copy(w, t, second_reference("ref_env.hdr")), w.brdf, _out(t)),
+     "photos[2].file"),
+    ("run", "two reference photos of one stem in two folders", lambda w, t: _run(
+        scene_copy(w, t, second_reference("sub/ref_env.exr")), _out(t)), "photos[2].file"),
+    ("render", "reference photos ref_env and ref_env_delta_e (both write ref_env_delta_e.png)",
+     lambda w, t: _render(scene_copy(w, t, second_reference("ref_env_delta_e.exr")), w.brdf,
+                          _out(t)), "photos[2].file"),
 ]
 
 
@@ -738,11 +772,53 @@ def npz_bytes(tmp):
     return data
 
 
-def rgb_exr(tmp, shape=(40, 40, 3)):
+def rgb_exr(tmp, name="albedo.exr", shape=(40, 40, 3), value=0.5):
     from render.images import write_exr
-    path = tmp / "albedo.exr"
-    write_exr(path, np.full(shape, 0.5, np.float32))
+    path = tmp / name
+    write_exr(path, np.full(shape, value, np.float32))
     return path
+
+
+def black_png(tmp):
+    path = tmp / "m.png"
+    cv2.imwrite(str(path), np.zeros((40, 40), np.uint8))
+    return path
+
+
+def model_with_params(w, tmp, params):
+    """A copy of the shipped model whose `params` JSON is `params`."""
+    path = tmp / "model.npz"
+    with np.load(w.model, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["params"] = np.array(json.dumps(params))
+    np.savez(path, **arrays)
+    return path
+
+
+def model_edited(w, tmp, key, edit):
+    """A copy of the shipped model with array `key` replaced by edit(array)."""
+    path = tmp / "model.npz"
+    with np.load(w.model, allow_pickle=False) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays[key] = edit(arrays[key])
+    np.savez(path, **arrays)
+    return path
+
+
+def links_to(folder, table, count):
+    """`folder` holding t0.binary .. t<count-1>.binary, each a link to `table`."""
+    for k in range(count):
+        (folder / f"t{k}.binary").symlink_to(table)
+    return folder
+
+
+def no_theta_d_0(body):
+    """A table's stored values (flat: per channel, phi_d fastest, then theta_d, then theta_h)
+    with every theta_d = 0 value -1 (no data)."""
+    table = body.copy()
+    index = np.arange(body.size) % (90 * 90 * 180)
+    table[(index // 180) % 90 == 0] = -1.0
+    return table
 
 
 def one_channel_exr(tmp, shape=(40, 40)):
@@ -897,6 +973,84 @@ SWEEP_CASES = [
     ("evaluate", "experiments 0", lambda w, t: ["evaluate", "--merl-dir", str(w.merl_dir),
                                                 "--out", _out(t), "--experiments", "0"],
      "--experiments"),
+    # a local cluster of 100000 processes (it forked until the machine gave out)
+    ("evaluate", "workers 100000", lambda w, t: [
+        "evaluate", "--merl-dir", str(w.merl_dir), "--out", _out(t), "--workers", "100000"],
+     "--workers"),
+    ("batch", "workers 100000", lambda w, t: _batch(captures(w, t, "a", "b"), _out(t),
+                                                    "--workers", "100000"), "--workers"),
+    ("train", "seed -1 (a traceback from numpy)", lambda w, t: [
+        "train", "--merl-dir", str(merl_copy(w, t)), "--merl-dir", str(write(empty(t),
+        "x.binary", w.brdf.read_bytes()[:12] + np.full(90 * 90 * 180 * 3, 0.01).tobytes()
+        ).parent), "--out", _out(t, "m.npz"), "--seed=-1"], "--seed"),
+    ("evaluate", "experiments 10**9 (it hung drawing the splits)", lambda w, t: [
+        "evaluate", "--merl-dir", str(w.merl_dir), "--out", _out(t), "--experiments",
+        str(10 ** 9)], "--experiments"),
+    # outputs no file can be made at (tracebacks from mkstemp / mkdtemp)
+    ("merl-slice", "out in /proc", lambda w, t: ["merl-slice", str(w.brdf), "--out",
+                                                "/proc/flashbrdf-s.csv"], "/proc/flashbrdf-s.csv"),
+    ("merl-slice", "out a name of 300 bytes", lambda w, t: [
+        "merl-slice", str(w.brdf), "--out", str(t / ("a" * 300 + ".csv"))], "a" * 40),
+    ("compare", "out a name of 300 bytes", lambda w, t: [
+        "compare", str(w.pred), str(w.ref), "--out", str(t / ("a" * 300))], "a" * 40),
+    ("render", "out in /proc", lambda w, t: _render(w.scene, w.brdf, "/proc/flashbrdf-out"),
+     "/proc/flashbrdf-out"),
+    # damaged model hyperparameters (tracebacks)
+    ("infer", "model params of pca not an object", lambda w, t: [
+        "infer", "--method", "pca", "--model", str(model_with_params(w, t, {"pca": "x"})),
+        "--slice", str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
+    ("infer", "model params with an unknown hyperparameter", lambda w, t: [
+        "infer", "--method", "noll", "--model", str(model_with_params(w, t, {"noll": {"k": 1}})),
+        "--slice", str(w.slice), "--out", _out(t, "b.binary")], "model.npz"),
+    ("infer", "model slices of inf (noll: a traceback)", lambda w, t: [
+        "infer", "--method", "noll", "--model", str(model_edited(
+            w, t, "slices", lambda a: np.full_like(a, np.inf))), "--slice", str(w.slice),
+        "--out", _out(t, "b.binary")], "model.npz"),
+    ("infer", "model tables_2d all NaN (a table of NaN, exit 0)", lambda w, t: [
+        "infer", "--method", "pca", "--model", str(model_edited(
+            w, t, "tables_2d", lambda a: np.full_like(a, np.nan))), "--slice", str(w.slice),
+        "--out", _out(t, "b.binary")], "model.npz"),
+    # one table under several names (train: a LinAlgError traceback)
+    ("train", "five links to one table", lambda w, t: [
+        "train", "--merl-dir", str(links_to(empty(t), w.brdf, 5)), "--out", _out(t, "m.npz")],
+     "t1.binary"),
+    ("merl-slice", "no data at theta_d = 0 (an empty slice, exit 0)", lambda w, t: [
+        "merl-slice", str(write(t, "m.binary", merl_body(w, no_theta_d_0))), "--out",
+        _out(t, "s.csv")], "m.binary"),
+    # compare over no pixel (every metric null, exit 0)
+    ("compare", "both images black", lambda w, t: [
+        "compare", str(rgb_exr(t, value=0.0)), str(rgb_exr(t, "r.exr", value=0.0)), "--out",
+        _out(t)], "albedo.exr"),
+    ("compare", "mask of no pixel", lambda w, t: [
+        "compare", str(w.pred), str(w.ref), "--mask", str(black_png(t)), "--out", _out(t)],
+     "m.png"),
+    # factors that turned float32 photos and rays to 0 or inf (a slice of zeros, exit 0)
+    ("extract", "photos[0].scale 1e308", lambda w, t: ["extract", str(scene_copy(
+        w, t, set_field(("photos", 0, "scale"), 1e308))), "--out", _out(t, "s.csv")],
+     "photos[0].scale"),
+    ("extract", "intensity_rgb 1e308", lambda w, t: ["extract", str(scene_copy(
+        w, t, set_field(("photos", 0, "light", "intensity_rgb"), [1e308] * 3))), "--out",
+        _out(t, "s.csv")], "photos[0].light.intensity_rgb"),
+    ("extract", "exposure_s 1e-320", lambda w, t: ["extract", str(scene_copy(
+        w, t, lambda d: d["photos"][0].update(file=None, brackets=[
+            {"file": "flash0.exr", "exposure_s": 1e-320}]))), "--out", _out(t, "s.csv")],
+     "photos[0].brackets[0].exposure_s"),
+    ("extract", "camera.fx 1e308 (overflow warnings, exit 0)", lambda w, t: ["extract", str(
+        scene_copy(w, t, set_field(("camera", "fx"), 1e308))), "--out", _out(t, "s.csv")],
+     "camera.fx"),
+    ("render", "envmap scale 1e308 (a render of inf)", lambda w, t: _render(scene_copy(
+        w, t, lambda d: d["photos"][1]["light"].__setitem__("scale", 1e308)), w.brdf, _out(t)),
+     "photos[1].light.scale"),
+    ("extract", "flash photo of 3e38 (a slice infer refuses)", lambda w, t: ["extract", str(
+        scene_with_file(w, t, "flash0.exr", rgb_exr(t, value=3e38).read_bytes())), "--out",
+        _out(t, "s.csv")], "photos"),
+    ("extract", "intensity_rgb [true, 1, 1] (read as 1)", lambda w, t: ["extract", str(
+        scene_copy(w, t, set_field(("photos", 0, "light", "intensity_rgb"), [True, 1, 1]))),
+        "--out", _out(t, "s.csv")], "photos[0].light.intensity_rgb"),
+    ("extract", "world_from_camera with true on its diagonal", lambda w, t: ["extract", str(
+        scene_copy(w, t, set_field(("camera", "world_from_camera"), [
+            [True, 0, 0, 0], [0, True, 0, 0], [0, 0, True, 0], [0, 0, 0, True]]))), "--out",
+        _out(t, "s.csv")], "camera.world_from_camera"),
 ]
 CASES += SWEEP_CASES
 

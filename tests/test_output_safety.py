@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from brdf.errors import InputError
@@ -153,3 +154,19 @@ def test_signal_inside_a_command_exits_130_or_143_with_nothing_written(tmp_path,
     assert os.listdir(tmp_path) == []
     assert "no output written" in capsys.readouterr().err
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL or sig == signal.SIGINT
+
+
+@pytest.mark.parametrize("name,suffix", [("..exr", ".exr"), ("a.b.exr", ".exr"),
+                                         (".hidden", ""), ("plain", "")])
+def test_atomic_path_keeps_the_extension_of_a_dotted_name(tmp_path, name, suffix):
+    """The temporary file ends in the target's extension, from the name's last dot: a reference
+    photo "..exr" renders to OUT_DIR/..exr, whose extension os.path.splitext does not see (it
+    skips leading dots), and OpenImageIO, which picks the format from the name, found none (a
+    traceback from render and run)."""
+    from brdf.atomic import atomic_path
+    from render.images import read_image, write_exr
+    with atomic_path(tmp_path / name) as tmp:
+        assert tmp.endswith(".part" + suffix)
+    if suffix == ".exr":
+        write_exr(tmp_path / name, np.ones((2, 3, 3), np.float32))
+        assert read_image(tmp_path / name).shape == (2, 3, 3)
