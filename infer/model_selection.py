@@ -15,12 +15,12 @@ from sklearn.model_selection import ParameterGrid
 from brdf import metrics
 from brdf.errors import InputError
 from infer import make_method
+from infer.training_set import MIN_TRAINING_TABLES
 from infer.uncertainty import calibration_factor
 
 DS_GRID = {"q": [None], "beta": [50.0, 100.0], "feature_space": ["lab", "rgb"]}
 DS_FIXED = {"anchor": True}                      # "dsgplvm" is the anchored DS-GPLVM of infer/run
 # tune_baselines holds max(1, n // 5) tables out to validate, and a DS-GPLVM needs 3 to fit
-MIN_TRAINING_TABLES = 4
 PCA_GRID = {"n_components": [3, 6, 12, 24, None], "ridge": [1e-3, 1e-2, 1e-1, 1.0, 10.0]}
 
 

@@ -28,16 +28,29 @@ def _read_views(path, keep_3d, bins_3d):
     return views.flash_slice(table)[0], views.table_2d(table), rows
 
 
+# Fewest training tables (`train` holds a fifth of them out to validate; the GPs need a spread).
+MIN_TRAINING_TABLES = 4
+
+
 def _check_distinct(paths, tables_2d):
-    """InputError naming the second of two files that hold the same table (2D view, bit for bit):
-    one material under two names, or copies of one file. Trained on, the same row twice made
-    the GP covariances singular (a LinAlgError traceback from `train` on copies of one table)."""
-    seen = {}
+    """InputError when fewer than MIN_TRAINING_TABLES of the tables differ (2D view, bit for
+    bit), naming the first copy. Copies of a table (one material under two names, links to one
+    file) are allowed as near-duplicates are: the jittered Cholesky takes a repeated row. But five
+    copies of one table leave nothing to learn (the GP covariances went singular: a LinAlgError
+    traceback from `train`)."""
+    if len(paths) < MIN_TRAINING_TABLES:
+        return  # too few in any case: check_training_size names the folder
+    seen, first_copy = {}, None
     for path, table in zip(paths, tables_2d):
         key = hashlib.sha256(np.ascontiguousarray(table).tobytes()).hexdigest()
-        if key in seen:
-            raise InputError(path, f"holds the same table as {seen[key]}; give each material once")
-        seen[key] = path
+        if key in seen and first_copy is None:
+            first_copy = (path, seen[key])
+        seen.setdefault(key, path)
+    if len(seen) < MIN_TRAINING_TABLES:
+        path, original = first_copy
+        raise InputError(path, f"holds the same table as {original}: only {len(seen)} of the "
+                               f"{len(paths)} tables differ, and training needs "
+                               f"{MIN_TRAINING_TABLES} different ones")
 
 
 @dataclass

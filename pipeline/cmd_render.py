@@ -5,7 +5,8 @@ render SCENE_DIR --brdf BRDF.binary --out OUT_DIR [--spp N] [--seed N] [--interp
     OUT_DIR/<stem>.png (tone-mapped preview), and where the reference photo exists
     OUT_DIR/<stem>_compare.json (+ <stem>_delta_e.png), compared over the pixels that see the
     geometry and that the photo measures (a float photo's 0 is a measurement, a clipped pixel or
-    an integer code 0 is not: capture.load_reference_entry). OUT_DIR/render.json lists timings and settings.
+    an integer code 0 is not: capture.load_reference_entry). OUT_DIR/render.json lists timings
+    and settings.
 compare PRED.exr REF.exr [--mask MASK.png] --out OUT_DIR
     OUT_DIR/compare.json {"delta_e_log_mean", "delta_e_log_median", "rel_rmse", "pixels"} and
     OUT_DIR/delta_e.png (false colour, with a colour bar).

@@ -74,6 +74,31 @@ def test_train_refuses_duplicate_names_and_empty_folders(folders, tmp_path, caps
     assert not list(tmp_path.glob(".*"))                      # no staged leftovers
 
 
+def test_train_takes_a_copy_of_a_table_under_another_name(folders, tmp_path, capsys):
+    """A table given twice (a user's folder holding a copy of one of MERL's) is a duplicate
+    training BRDF, which the GPs' jittered Cholesky takes: train succeeds and the copy is a
+    material of the model. Four tables of which only three differ are refused, naming the copy."""
+    root, a, b, test, model = folders
+    copy = tmp_path / "copy"
+    copy.mkdir()
+    shutil.copy(a / f"{FOLDER_A[0]}.binary", copy / "my-gold.binary")
+    out = tmp_path / "m.npz"
+    assert main(["train", "--merl-dir", str(a), "--merl-dir", str(b), "--merl-dir", str(copy),
+                 "--out", str(out)]) == 0
+    slice_csv = tmp_path / "s.csv"
+    assert main(["merl-slice", str(test / f"{TEST[0]}.binary"), "--out", str(slice_csv)]) == 0
+    assert main(["infer", "--model", str(out), "--slice", str(slice_csv), "--out",
+                 str(tmp_path / "p.binary")]) == 0
+    predicted = merl.read_merl(tmp_path / "p.binary")
+    assert np.isfinite(predicted[merl.merl_valid_mask()]).all()   # NaN: below the horizon
+    capsys.readouterr()
+    out3 = tmp_path / "m3.npz"
+    assert main(["train", "--merl-dir", str(a), "--merl-dir", str(copy), "--out", str(out3)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(copy / "my-gold.binary") in err[0] and "3 of the 4" in err[0]
+    assert not out3.exists()
+
+
 def test_band_errors_partition_theta_d():
     rng = np.random.default_rng(0)
     truth = np.where(merl.merl_valid_mask().any(axis=2)[..., None],
