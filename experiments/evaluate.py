@@ -24,6 +24,7 @@ from brdf.atomic import write_text
 from brdf.errors import InputError
 from brdf.bins import valid_mask_2d
 from infer import TrainingSet, make_method, method_from_model
+from infer.training_set import check_distinct
 from brdf.microfacet import inverse_denominator
 from infer.baselines.pca import cosine_weights
 from infer.model_selection import DS_FIXED, DS_GRID, PCA_GRID, errors_2d, lab_log, select
@@ -362,6 +363,7 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
     if len(merl.list_merl(merl_dir)) < 5:
         raise InputError(merl_dir, "evaluate needs at least 5 MERL tables")
     data = TrainingSet.from_merl_dir(merl_dir)
+    check_distinct(data.paths, data.tables_2d)
     n = len(data)
     n_exp = experiments or (1 if quick else 25)
     all_splits = splits(n, -(-n_exp // 5), seed)[:n_exp]

@@ -32,9 +32,9 @@ def _read_views(path, keep_3d, bins_3d):
 MIN_TRAINING_TABLES = 4
 
 
-def _check_distinct(paths, tables_2d):
-    """InputError when fewer than MIN_TRAINING_TABLES of the tables differ (2D view, bit for
-    bit), naming the first copy. Copies of a table (one material under two names, links to one
+def check_distinct(paths, tables_2d):
+    """InputError when fewer than MIN_TRAINING_TABLES of the training tables differ (2D view, bit
+    for bit), naming the first copy; for a training set only (a test set may hold copies). Copies of a table (one material under two names, links to one
     file) are allowed as near-duplicates are: the jittered Cholesky takes a repeated row. But five
     copies of one table leave nothing to learn (the GP covariances went singular: a LinAlgError
     traceback from `train`)."""
@@ -86,7 +86,10 @@ class TrainingSet:
         with ThreadPoolExecutor(min(default_threads(), len(names))) as pool:
             read = list(pool.map(lambda n: _read_views(found[n], keep_3d, bins_3d), names))
         slices, tables, rows = ([r[k] for r in read] for k in range(3))
-        _check_distinct([found[n] for n in names], tables)
+        for n, flash_slice in zip(names, slices):
+            if not np.isfinite(flash_slice).any():  # every method starts from this slice
+                raise InputError(found[n], "has no value at theta_d = 0 (its flash slice is "
+                                           "empty): not a usable MERL table")
         return cls(names, np.array(slices), np.array(tables), [found[n] for n in names],
                    np.array(rows) if keep_3d else None)
 
@@ -97,8 +100,8 @@ class TrainingSet:
         checked before any table is read: brdf.merl.list_merl_dirs)."""
         merl.list_merl_dirs(folders)
         parts = [cls.from_merl_dir(f, keep_3d=keep_3d) for f in folders]
-        _check_distinct([q for p in parts for q in p.paths],
-                        [t for p in parts for t in p.tables_2d])
+        check_distinct([q for p in parts for q in p.paths],
+                       [t for p in parts for t in p.tables_2d])
         return cls(names=[n for p in parts for n in p.names],
                    slices=np.concatenate([p.slices for p in parts]),
                    tables_2d=np.concatenate([p.tables_2d for p in parts]),

@@ -143,12 +143,14 @@ def compare(args):
         raise InputError(args.ref, f"is {ref.shape[1]}x{ref.shape[0]} but {args.pred} is "
                                    f"{pred.shape[1]}x{pred.shape[0]}")
     mask = read_mask(args.mask, pred.shape) if getattr(args, "mask", None) else None
-    if not comparison_mask(pred, ref, mask).any():  # every metric would be null
-        if mask is not None:
-            raise InputError(args.mask, "selects no pixel where both images are finite: nothing "
-                                        "to compare")
-        raise InputError(args.pred, f"no pixel is finite and nonzero in both it and {args.ref}: "
-                                    "nothing to compare")
+    # A reference with nothing in it, or a mask selecting nothing, is bad input. A black (or
+    # all-NaN) prediction is a valid, bad prediction: its metrics are null over no pixel, as
+    # render and run write them.
+    if mask is not None and not comparison_mask(pred, ref, mask).any():
+        raise InputError(args.mask, "selects no pixel where both images are finite: nothing "
+                                    "to compare")
+    if mask is None and not comparison_mask(ref, ref).any():
+        raise InputError(args.ref, "no pixel is finite and nonzero: nothing to compare with")
     with staged_output_dir(args.out, force=getattr(args, "force", False),
                            command="compare") as out:
         write_comparison(out, pred, ref, mask)

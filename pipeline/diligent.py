@@ -242,13 +242,19 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
                 raise InputError(src, f"is {raw.dtype.itemsize * 8}-bit but the other photos are "
                                       f"{(depths - {raw.dtype.itemsize * 8}).pop()}-bit")
             clipped = np.any(raw >= top, axis=2)
+            is_flash = k + 1 == int(flash_index)
+            # Code 0 in every channel says only "below one step": in a float EXR a 0 would read
+            # as a measured black (a render is compared there), so a reference photo stores it
+            # as NaN, unknown, as a saturated pixel. The flash photo keeps it: extraction leaves
+            # a 0 out either way.
+            black = np.zeros_like(clipped) if is_flash else np.all(raw == 0, axis=2)
             linear = raw.astype(np.float32) / np.float32(top) \
                 / obj.light_intensities[k].astype(np.float32)
-            linear[clipped] = np.nan
+            linear[clipped | black] = np.nan
             name = src.stem + ".exr"
             write_exr(tmp / name, linear)
             photos.append({
-                "file": name, "role": "flash" if k + 1 == int(flash_index) else "reference",
+                "file": name, "role": "flash" if is_flash else "reference",
                 "scale": 1.0,
                 "light": {"type": "directional",
                           "direction": [float(x) for x in obj.light_directions[k]],
@@ -256,7 +262,8 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
                 "source": {"file": src.name, "index": k + 1, "bit_depth": raw.dtype.itemsize * 8,
                            f"divided_by_{top}_and_intensity_rgb":
                                [float(x) for x in obj.light_intensities[k]],
-                           "clipped_pixels_set_to_nan": int(clipped.sum())},
+                           "clipped_pixels_set_to_nan": int(clipped.sum()),
+                           "black_pixels_set_to_nan": int(black.sum())},
             })
         # The flash photo first: readers that take "the first flash" find it at once.
         photos.sort(key=lambda p: p["role"] != "flash")

@@ -126,16 +126,18 @@ def _check_parent(path):
 
 def _check_name_length(path, ancestor):
     """InputError when a name in `path` below its existing `ancestor` is too long for the
-    filesystem, counting what the temporary output beside it adds ("." + name + ".XXXXXXXX.part"
-    + extension): found here, before the work, not when the result is written."""
+    filesystem, counting for the last one what the temporary output beside it adds ("." + name +
+    ".XXXXXXXX.part" + extension; the folders above are made as named): found here, before the
+    work, not when the result is written."""
     try:
         limit = os.pathconf(ancestor, "PC_NAME_MAX")
     except (OSError, ValueError):
         limit = 255
-    rest = os.path.relpath(os.path.abspath(os.fspath(path)), ancestor)
-    for name in rest.split(os.sep):
+    names = os.path.relpath(os.path.abspath(os.fspath(path)), ancestor).split(os.sep)
+    for k, name in enumerate(names):
         dot = name.rfind(".")
-        extra = 16 + (len(os.fsencode(name[dot:])) if dot > 0 else 0)
+        extra = 0 if k < len(names) - 1 else \
+            16 + (len(os.fsencode(name[dot:])) if dot > 0 else 0)
         if len(os.fsencode(name)) + extra > limit:
             raise InputError(path, f"cannot be made: the name {name[:24]}... is "
                                    f"{len(os.fsencode(name))} bytes long, over the "

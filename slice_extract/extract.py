@@ -66,6 +66,11 @@ class SliceResult:
         return self.report["timings_s"]
 
 
+class NotABRDFError(InputError):
+    """The photos give values no BRDF has (above MAX_SLICE_VALUE): bad input for the whole
+    capture, never one material's missing coverage."""
+
+
 def _stats_deg(values):
     if len(values) == 0:
         return None
@@ -315,7 +320,7 @@ def bin_samples(samples):
     estimate = np.where(negative, 0.0, estimate)
     known = estimate[~np.isnan(estimate)]
     if known.size and not known.max() <= MAX_SLICE_VALUE:  # slice.csv readers refuse it
-        raise InputError(f"{scene.json_path}: photos", f"the flash photos give BRDF values up to "
+        raise NotABRDFError(f"{scene.json_path}: photos", f"the flash photos give BRDF values up to "
                          f"{known.max():.3g} 1/sr, above {MAX_SLICE_VALUE:g}: not a BRDF (check "
                          "their pixel values, scale and the light's intensity)")
     clock.add("binning", t)
@@ -362,7 +367,9 @@ def extract_material_slices(samples, labels, where="--labels"):
         keep = _interior_samples(mine, interior, bins)
         try:
             slices[k] = bin_samples(samples.subset(keep))
-        except InputError:
+        except NotABRDFError:  # the photos' fault, not this material's coverage
+            raise
+        except InputError:  # no usable sample for this material: the others go on
             slices[k] = None
             continue
         slices[k].report["material_border"] = {

@@ -1014,13 +1014,17 @@ SWEEP_CASES = [
     ("train", "five links to one table", lambda w, t: [
         "train", "--merl-dir", str(links_to(empty(t), w.brdf, 5)), "--out", _out(t, "m.npz")],
      "t1.binary"),
+    ("train", "a table with no data at theta_d = 0 (a LinAlgError traceback)", lambda w, t: [
+        "train", "--merl-dir", str(w.merl_dir), "--merl-dir",
+        str(write(empty(t), "m.binary", merl_body(w, no_theta_d_0)).parent), "--out",
+        _out(t, "m.npz")], "m.binary"),
     ("merl-slice", "no data at theta_d = 0 (an empty slice, exit 0)", lambda w, t: [
         "merl-slice", str(write(t, "m.binary", merl_body(w, no_theta_d_0))), "--out",
         _out(t, "s.csv")], "m.binary"),
     # compare over no pixel (every metric null, exit 0)
     ("compare", "both images black", lambda w, t: [
         "compare", str(rgb_exr(t, value=0.0)), str(rgb_exr(t, "r.exr", value=0.0)), "--out",
-        _out(t)], "albedo.exr"),
+        _out(t)], "r.exr"),
     ("compare", "mask of no pixel", lambda w, t: [
         "compare", str(w.pred), str(w.ref), "--mask", str(black_png(t)), "--out", _out(t)],
      "m.png"),
@@ -1044,6 +1048,9 @@ SWEEP_CASES = [
     ("extract", "flash photo of 3e38 (a slice infer refuses)", lambda w, t: ["extract", str(
         scene_with_file(w, t, "flash0.exr", rgb_exr(t, value=3e38).read_bytes())), "--out",
         _out(t, "s.csv")], "photos"),
+    ("extract", "--labels, flash photo of 3e38 (empty slices, exit 0)", lambda w, t: [
+        "extract", str(scene_with_file(w, t, "flash0.exr", rgb_exr(t, value=3e38).read_bytes())),
+        "--labels", str(labels_png(w, t)), "--out", _out(t)], "photos"),
     ("extract", "intensity_rgb [true, 1, 1] (read as 1)", lambda w, t: ["extract", str(
         scene_copy(w, t, set_field(("photos", 0, "light", "intensity_rgb"), [True, 1, 1]))),
         "--out", _out(t, "s.csv")], "photos[0].light.intensity_rgb"),

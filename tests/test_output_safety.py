@@ -170,3 +170,16 @@ def test_atomic_path_keeps_the_extension_of_a_dotted_name(tmp_path, name, suffix
     if suffix == ".exr":
         write_exr(tmp_path / name, np.ones((2, 3, 3), np.float32))
         assert read_image(tmp_path / name).shape == (2, 3, 3)
+
+
+def test_name_length_counts_the_temporary_suffix_on_the_last_name_only(tmp_path):
+    """A folder on the way to an output is made as named, so it may use the filesystem's whole
+    NAME_MAX (255 here); only the output itself is built beside its final name as
+    ".NAME.XXXXXXXX.part" + extension, which needs 16 bytes and the extension more."""
+    from pipeline.safety import check_outputs
+    limit = os.pathconf(tmp_path, "PC_NAME_MAX")
+    check_outputs([], [tmp_path / ("d" * limit) / "slice.csv"])          # a long folder: fine
+    check_outputs([], [tmp_path / ("s" * (limit - 16 - 8) + ".csv")])    # the longest file
+    with pytest.raises(InputError, match="bytes long"):
+        check_outputs([], [tmp_path / ("s" * (limit - 16 - 7) + ".csv")])
+    assert not any(tmp_path.iterdir())                                   # nothing was made

@@ -85,3 +85,21 @@ def test_compare_command(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 2 and "small.exr" in err[0] and "nope.exr" in err[1]
     assert not bad.exists() or not any(bad.iterdir())
+
+
+def test_compare_a_black_prediction_has_null_metrics(tmp_path):
+    """Without a mask the contract compares the pixels finite and nonzero in both images: a
+    black prediction leaves none, a valid (bad) prediction, so the metrics are null over 0
+    pixels and the exit is 0, as render and run write them; a black reference is bad input."""
+    ref = np.full((8, 10, 3), 0.3, np.float32)
+    write_exr(tmp_path / "black.exr", np.zeros_like(ref))
+    write_exr(tmp_path / "ref.exr", ref)
+    out = tmp_path / "out"
+    assert main(["compare", str(tmp_path / "black.exr"), str(tmp_path / "ref.exr"),
+                 "--out", str(out)]) == 0
+    result = json.loads((out / "compare.json").read_text())
+    assert result == {"delta_e_log_mean": None, "delta_e_log_median": None, "rel_rmse": None,
+                      "pixels": 0}
+    assert main(["compare", str(tmp_path / "ref.exr"), str(tmp_path / "black.exr"),
+                 "--out", str(tmp_path / "out2")]) == 2
+    assert not (tmp_path / "out2").exists()

@@ -97,6 +97,15 @@ def test_train_takes_a_copy_of_a_table_under_another_name(folders, tmp_path, cap
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and str(copy / "my-gold.binary") in err[0] and "3 of the 4" in err[0]
     assert not out3.exists()
+    # the rule is on the whole training set, not per folder: a folder of two tables given twice
+    # each (2 of 4 differ) trains beside folder b
+    pairs = tmp_path / "pairs"
+    pairs.mkdir()
+    for name in FOLDER_A[:2]:
+        for copy_name in (name, f"{name}-again"):
+            shutil.copy(a / f"{name}.binary", pairs / f"{copy_name}.binary")
+    assert main(["train", "--merl-dir", str(pairs), "--merl-dir", str(b), "--out",
+                 str(tmp_path / "m4.npz")]) == 0
 
 
 def test_band_errors_partition_theta_d():
