@@ -70,6 +70,10 @@ def load_mesh(path):
         raise InputError(path, "mesh file not found")
     try:
         loaded = trimesh.load(str(path), process=False)
+    except ImportError as err:  # a loader's optional dependency, often for a format it is not
+        raise InputError(path, "cannot read mesh: trimesh cannot decode it (corrupt, or of a "
+                               f"kind that needs {err.name or 'a module'}, not installed)") \
+            from None
     except Exception as err:  # trimesh raises many types for bad files
         raise InputError(path, f"cannot read mesh: {err}") from None
     # loaders hand file normals to the constructor, which caches them (force="mesh",

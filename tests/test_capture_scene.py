@@ -168,6 +168,12 @@ def test_mesh_file_normals_are_used(tmp_path):
     (tmp_path / "bad.ply").write_text("ply\nnonsense\n")
     with pytest.raises(InputError, match="bad.ply"):
         capture.load_mesh(tmp_path / "bad.ply")
+    # a binary STL claiming 2^31 triangles: trimesh falls back to a text reader whose optional
+    # dependency may be absent: one line says the file cannot be decoded (not "No module named")
+    (tmp_path / "bomb.stl").write_bytes(b"\0" * 80 + (2 ** 31).to_bytes(4, "little") + b"\0" * 50)
+    with pytest.raises(InputError, match="bomb.stl: cannot read mesh") as err:
+        capture.load_mesh(tmp_path / "bomb.stl")
+    assert "No module named" not in str(err.value) and "\n" not in str(err.value)
 
 
 def test_gltf_file_normals_are_used_and_placed_by_the_scene_graph(tmp_path):
