@@ -23,6 +23,14 @@ def unwritable(path, err):
     return InputError(path, f"cannot be written there ({err.strerror or err})")
 
 
+def name_extension(name):
+    """The extension of a file name, from its last dot ("..exr" -> ".exr", "a.b.exr" -> ".exr",
+    ".hidden" -> ""): os.path.splitext skips leading dots, so it gives "..exr" none, and writers
+    that choose a format from the name (OpenImageIO) then find none."""
+    dot = name.rfind(".")
+    return name[dot:] if dot > 0 else ""
+
+
 @contextlib.contextmanager
 def atomic_path(path, suffix=None):
     """Yield a temporary path in the target's folder; rename it to `path` on success.
@@ -37,12 +45,7 @@ def atomic_path(path, suffix=None):
     except OSError as err:
         raise unwritable(path, err) or err from None
     if suffix is None:
-        # the text from the name's last dot: os.path.splitext skips leading dots, so it gives
-        # "..exr" (a reference photo "..exr" renders to OUT_DIR/..exr) no extension, and the
-        # writers that choose a format from the name (OpenImageIO) then found none
-        name = os.path.basename(path)
-        dot = name.rfind(".")
-        suffix = name[dot:] if dot > 0 else ""
+        suffix = name_extension(os.path.basename(path))  # a reference photo "..exr" -> "..exr"
     try:
         fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".",
                                    suffix=".part" + suffix, dir=folder)

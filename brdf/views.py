@@ -45,6 +45,14 @@ def flash_slice(merl_table):
     return _nanmean(first, axis=1), n
 
 
+def check_flash_slice(rho, where):
+    """InputError naming `where` when the flash slice rho (90, 3) (flash_slice) holds no value:
+    the table has no data at theta_d = 0, where every method starts."""
+    if not np.isfinite(rho).any():
+        raise InputError(where, "has no value at theta_d = 0 (every bin of its first theta_d row "
+                                "is negative: no data): its flash slice is empty")
+
+
 def table_2d(merl_table):
     """rho(theta_h, theta_d): (90, 90, 3), the mean over the valid phi_d bins, NaN where none."""
     return _nanmean(np.asarray(merl_table), axis=2)

@@ -58,7 +58,7 @@ __all__ = [
     "Camera", "FlashImage", "Geometry", "Hits", "Light", "MeshIntersector", "Photo", "Scene",
     "Surface", "camera_rays", "embree_rays", "intersect", "is_convex", "load_brackets",
     "load_flash_images", "load_mesh", "load_normal_map", "load_photo", "load_photo_entry",
-    "load_reference_entry", "load_scene", "occluded", "pixel_box", "pixel_rays", "project_points", "read_float_image",
-    "scene_intersector", "srgb_to_linear", "surface_at_pixels", "surface_from_mesh",
+    "load_reference_entry", "load_scene", "occluded", "pixel_box", "pixel_rays", "project_points",
+    "read_float_image", "scene_intersector", "srgb_to_linear", "surface_at_pixels", "surface_from_mesh",
     "surface_from_normal_map", "view_directions",
 ]

@@ -350,6 +350,13 @@ def _3d_on_dask(client, data, order, records, all_splits, cache_file, costs, str
     return len(order)
 
 
+def check_protocol_tables(merl_dir):
+    """InputError naming merl_dir when it holds too few tables for the protocol (5: each fold's
+    train / validation / test split needs some), counted before any is read."""
+    if len(merl.list_merl(merl_dir)) < 5:
+        raise InputError(merl_dir, "evaluate needs at least 5 MERL tables")
+
+
 def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments_3d=None,
                    time_budget=None, seed=0, command=None, keep_cache=False, cache_dir=None,
                    client=None):
@@ -360,8 +367,7 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
     25, or 1 with quick)."""
     start = time.perf_counter()
     _warm_up()
-    if len(merl.list_merl(merl_dir)) < 5:
-        raise InputError(merl_dir, "evaluate needs at least 5 MERL tables")
+    check_protocol_tables(merl_dir)
     data = TrainingSet.from_merl_dir(merl_dir)
     check_distinct(data.paths, data.tables_2d)
     n = len(data)

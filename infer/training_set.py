@@ -34,10 +34,10 @@ MIN_TRAINING_TABLES = 4
 
 def check_distinct(paths, tables_2d):
     """InputError when fewer than MIN_TRAINING_TABLES of the training tables differ (2D view, bit
-    for bit), naming the first copy; for a training set only (a test set may hold copies). Copies of a table (one material under two names, links to one
-    file) are allowed as near-duplicates are: the jittered Cholesky takes a repeated row. But five
-    copies of one table leave nothing to learn (the GP covariances went singular: a LinAlgError
-    traceback from `train`)."""
+    for bit), naming the first copy; for a training set only (a test set may hold copies).
+    Copies of a table (one material under two names, links to one file) are allowed as
+    near-duplicates are: the jittered Cholesky takes a repeated row. But five copies of one table
+    leave nothing to learn (the GP covariances went singular: a LinAlgError traceback)."""
     if len(paths) < MIN_TRAINING_TABLES:
         return  # too few in any case: check_training_size names the folder
     seen, first_copy = {}, None
@@ -87,9 +87,7 @@ class TrainingSet:
             read = list(pool.map(lambda n: _read_views(found[n], keep_3d, bins_3d), names))
         slices, tables, rows = ([r[k] for r in read] for k in range(3))
         for n, flash_slice in zip(names, slices):
-            if not np.isfinite(flash_slice).any():  # every method starts from this slice
-                raise InputError(found[n], "has no value at theta_d = 0 (its flash slice is "
-                                           "empty): not a usable MERL table")
+            views.check_flash_slice(flash_slice, found[n])
         return cls(names, np.array(slices), np.array(tables), [found[n] for n in names],
                    np.array(rows) if keep_3d else None)
 

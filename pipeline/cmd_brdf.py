@@ -2,11 +2,8 @@
 
 import os
 
-import numpy as np
-
-from brdf.errors import InputError
 from brdf.merl import read_merl
-from brdf.views import flash_slice, write_slice_csv
+from brdf.views import check_flash_slice, flash_slice, write_slice_csv
 from pipeline.safety import check_outputs
 
 
@@ -14,9 +11,7 @@ def merl_slice(args):
     check_outputs(inputs=[args.brdf], outputs=[args.out])
     table = read_merl(args.brdf)
     rho, n = flash_slice(table)
-    if not np.any(n):  # a slice of 90 empty bins, which infer and run refuse
-        raise InputError(args.brdf, "no valid value at theta_d = 0 (every bin of the first "
-                                    "theta_d row is negative: no data): the slice would be empty")
+    check_flash_slice(rho, args.brdf)  # a slice of 90 empty bins, which infer and run refuse
     write_slice_csv(args.out, rho, n, comments=[
         f"flashbrdf merl-slice {os.path.basename(args.brdf)}",
         "theta_d = 0 slice: mean over the valid phi_d bins of theta_d bin 0; n = phi_d bins used"])

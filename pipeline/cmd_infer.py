@@ -10,7 +10,7 @@ import numpy as np
 from brdf import merl, views
 from brdf.atomic import write_text
 from brdf.errors import InputError
-from experiments.evaluate import experiment_predictor, run_evaluation
+from experiments.evaluate import check_protocol_tables, experiment_predictor, run_evaluation
 from experiments.test_set import run_test_set
 from infer import TrainingSet, load_method, make_method, novelty_warning
 from infer.model_selection import check_training_size
@@ -200,8 +200,7 @@ def evaluate(args):
                                    (1 if args.quick else 25))
     with staged_output_dir(args.out, force=getattr(args, "force", False),
                            command="evaluate") as out:
-        if len(merl.list_merl(merl_dir)) < 5:  # before a cluster starts (run_evaluation's check)
-            raise InputError(merl_dir, "evaluate needs at least 5 MERL tables")
+        check_protocol_tables(merl_dir)  # before a cluster starts, not in run_evaluation
         if getattr(args, "workers", None) or getattr(args, "scheduler", None):
             with dask_client(workers, args.scheduler) as client:  # experiments as Dask tasks
                 result = run_evaluation(merl_dir, out, client=client, **options)

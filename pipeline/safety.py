@@ -33,7 +33,7 @@ import tempfile
 import threading
 import time
 
-from brdf.atomic import current_umask, make_parents, remove_empty, unwritable
+from brdf.atomic import current_umask, make_parents, name_extension, remove_empty, unwritable
 from brdf.errors import InputError
 
 MARKER = ".flashbrdf-output"
@@ -135,9 +135,7 @@ def _check_name_length(path, ancestor):
         limit = 255
     names = os.path.relpath(os.path.abspath(os.fspath(path)), ancestor).split(os.sep)
     for k, name in enumerate(names):
-        dot = name.rfind(".")
-        extra = 0 if k < len(names) - 1 else \
-            16 + (len(os.fsencode(name[dot:])) if dot > 0 else 0)
+        extra = 0 if k < len(names) - 1 else 16 + len(os.fsencode(name_extension(name)))
         if len(os.fsencode(name)) + extra > limit:
             raise InputError(path, f"cannot be made: the name {name[:24]}... is "
                                    f"{len(os.fsencode(name))} bytes long, over the "

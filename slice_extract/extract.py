@@ -320,9 +320,9 @@ def bin_samples(samples):
     estimate = np.where(negative, 0.0, estimate)
     known = estimate[~np.isnan(estimate)]
     if known.size and not known.max() <= MAX_SLICE_VALUE:  # slice.csv readers refuse it
-        raise NotABRDFError(f"{scene.json_path}: photos", f"the flash photos give BRDF values up to "
-                         f"{known.max():.3g} 1/sr, above {MAX_SLICE_VALUE:g}: not a BRDF (check "
-                         "their pixel values, scale and the light's intensity)")
+        raise NotABRDFError(f"{scene.json_path}: photos", "the flash photos give BRDF values up "
+                            f"to {known.max():.3g} 1/sr, above {MAX_SLICE_VALUE:g}: not a BRDF "
+                            "(check their pixel values, scale and the light's intensity)")
     clock.add("binning", t)
     clock.t["total"] = time.perf_counter() - samples.started
     report = _report(scene, options, samples.per_photo, theta_h, theta_d, inlier, n, clock.t,
