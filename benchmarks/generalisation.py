@@ -254,8 +254,8 @@ def add_methods_panel(result):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--merl-dir", required=True)
-    p.add_argument("--test-dir", required=True)
+    p.add_argument("--merl-dir", help="training tables (required unless --merge)")
+    p.add_argument("--test-dir", help="test tables (required unless --merge)")
     p.add_argument("--folds", type=int, default=5)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--settings", default="merl-only,merl+test-folds")
@@ -273,6 +273,8 @@ def main(argv=None):
     args = p.parse_args(argv)
     if args.merge:
         return merge_parts(args.merge, Path(args.out))
+    if not (args.merl_dir and args.test_dir):
+        p.error("--merl-dir and --test-dir are required (or --merge)")
     merl_set = TrainingSet.from_merl_dir(args.merl_dir)
     test = TrainingSet.from_merl_dir(args.test_dir)
     result = {"command": "PYTHONPATH=$PWD nice -n 10 python benchmarks/generalisation.py "
