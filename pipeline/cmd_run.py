@@ -39,8 +39,8 @@ from pipeline.cmd_segment import materials_option, segment_scene, write_labels
 from pipeline.report import write_report
 from pipeline.run_export import export_for_report, export_method, scene_envmap
 from pipeline.safety import check_outputs, staged_output_dir
-from render import (MaterialMap, TabulatedBRDF, render_scene, write_comparison, write_exr,
-                    write_preview)
+from render import (MaterialMap, TabulatedBRDF, level_ratio, render_scene, write_comparison,
+                    write_exr, write_preview)
 from render.albedo_map import DiffuseAlbedoMap
 from render.envmap import read_envmap_pixels
 from render.scene_render import SceneGeometry
@@ -166,7 +166,8 @@ def _render_and_compare(scene, geometry, method_name, table, spp, out_dir, refer
                                                 json_name=f"{photo.stem}_compare.json",
                                                 png_name=f"{photo.stem}_delta_e.png",
                                                 return_map=True)
-            row.update(metrics, reference=reference, delta_e_map=delta_e)
+            row.update(metrics, reference=reference, delta_e_map=delta_e,
+                       level_ratio_rgb=level_ratio(image, reference, mask & measured).tolist())
         else:
             row.update(delta_e_log_mean=None, rel_rmse=None)
         rows.append(row)

@@ -7,7 +7,9 @@ Built from plain inputs, so any caller can use it:
   "variance_label": str, "file": path}} (a bare table is accepted as the value too).
 - references: [{"photo", "method", "delta_e_log_mean", "rel_rmse", optional "delta_e_log_median",
   "pixels", "render", "reference", "delta_e_map", "mask" (arrays or image paths), and any extra
-  JSON scalars such as "light_angle_deg"}]. A "compare" dict (compare.json) may carry the numbers.
+  JSON scalars such as "light_angle_deg", or "level_ratio_rgb" (3,) (render.compare.level_ratio):
+  the summary gives its median over photos and report.md a level check}]. A "compare" dict
+  (compare.json) may carry the numbers.
 
 report.json follows the contract, {"stages": {name: seconds}, "references": [{"photo", "method",
 "delta_e_log_mean", "rel_rmse"}, ...]}, plus summary, slice, predictions, coverage, warnings and
@@ -46,6 +48,9 @@ HOW_TO_READ = """\
 - **rel_rmse**: the root-mean-square pixel difference divided by the RMS of the reference (0 is
   perfect, 1 means the error is as large as the signal). It is dominated by the brightest pixels,
   i.e. by the highlights.
+- **reference / render** (`level_ratio_rgb`): per channel, the median over the compared pixels of
+  photo / render, then the median over the photos; 1.00 when the levels agree. Methods differ
+  here where their BRDFs do; an offset they all share points at exposure or light calibration.
 - **Observed vs predicted.** A flash photo measures only the θd = 0 slice ρ(θh) of the BRDF. Every
   value at θd > 0, and every θh bin with no observed pixels, is predicted by the method from what
   it learned from the model's training tables (MERL, plus RGL for the shipped model), not measured.
@@ -208,7 +213,46 @@ def _summary(rows):
         out[method] = {key: summarise([r[key] for r in mine])
                        for key in ("delta_e_log_mean", "rel_rmse")}
         out[method]["references"] = len(mine)
+        levels = [r["level_ratio_rgb"] for r in mine if r.get("level_ratio_rgb") is not None]
+        if levels:
+            with warnings.catch_warnings():     # an all-NaN channel stays NaN
+                warnings.simplefilter("ignore", RuntimeWarning)
+                out[method]["level_ratio_rgb"] = np.nanmedian(np.asarray(levels, float),
+                                                              axis=0).tolist()
     return out
+
+
+LEVEL_NOTE = 0.03     # |reference / render − 1| beyond which a shared level offset is pointed out
+
+
+def level_note(summary):
+    """One line when every method's renders are darker (or brighter) than the reference photos
+    by more than LEVEL_NOTE in every channel (summary: _summary's dict), else None.
+
+    A BRDF error moves each method its own way; an exposure `scale` or a light intensity that
+    differs between the flash photo and the references moves them all alike (on the DiLiGenT
+    ball every method reads ~1.05: the flash light's calibration against the others). 3% is well
+    above what pixel noise does to a median over thousands of pixels, and a uniform 3% level
+    error is already ~0.1 of ΔE-log.
+    """
+    levels = [s.get("level_ratio_rgb") for s in summary.values()]
+    if not levels or any(v is None for v in levels):
+        return None
+    levels = np.asarray(levels, float)
+    if not np.isfinite(levels).all():
+        return None
+    for sign, word in ((1, "brighter"), (-1, "darker")):
+        if (sign * (levels - 1) > LEVEL_NOTE).all():
+            low, high = np.abs(levels - 1).min(), np.abs(levels - 1).max()
+            whose = "every method's renders" if len(levels) > 1 else "the renders"
+            why = ("Methods that disagree on the BRDF rarely agree on such an offset"
+                   if len(levels) > 1 else "With one method a BRDF error can do this too (a "
+                   "second method, e.g. `--methods dsgplvm,chandraker`, tells the two apart)")
+            return (f"**Level check:** the reference photos are {100 * low:.0f}–{100 * high:.0f}% "
+                    f"{word} than {whose}, in every channel (median of reference / render over the "
+                    f"compared pixels, then over the photos). {why}: check the reference photos' "
+                    "`scale` and their lights' intensities against the flash photo's.")
+    return None
 
 
 def write_report(out_dir, *, stages, references=(), observed=None, predictions=None, warnings=(),
@@ -272,12 +316,18 @@ def _markdown(report, n_photos, sections=()):
     summary = report["summary"]
     if summary:
         lines += ["## Summary", "", "| method | references | ΔE log mean (mean / median over "
-                  "references) | rel_rmse (mean / median) |", "|---|---|---|---|"]
+                  "references) | rel_rmse (mean / median) | reference / render (R, G, B) |",
+                  "|---|---|---|---|---|"]
         for method, s in summary.items():
+            level = s.get("level_ratio_rgb")
+            level = "–" if level is None else ", ".join(_fmt(v) for v in level)
             lines.append(f"| {method} | {s['references']} | {_fmt(s['delta_e_log_mean']['mean'])} / "
                          f"{_fmt(s['delta_e_log_mean']['median'])} | {_fmt(s['rel_rmse']['mean'], 3)}"
-                         f" / {_fmt(s['rel_rmse']['median'], 3)} |")
+                         f" / {_fmt(s['rel_rmse']['median'], 3)} | {level} |")
         lines.append("")
+        note = level_note(summary)
+        if note:
+            lines += [note, ""]
     lines += [HOW_TO_READ]
     for note in report["notes"]:
         lines += [note, ""]

@@ -20,12 +20,13 @@ Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
   render_sphere(table, envmap_path, size=128, spp=64, seed=0, ...) -> (size, size, 3) float32
   compare_images(pred, ref, mask=None) -> (metrics dict, delta_e (H, W))
   write_comparison(out_dir, pred, ref, mask=None, ...) -> metrics (compare.json + delta_e.png)
+  level_ratio(pred, ref, used) -> (3,) median ref / pred per channel (a level diagnostic)
   write_exr(path, rgb), read_image(path), read_mask(path, shape=None), write_preview(path, rgb)
 """
 
 from render.albedo_map import DiffuseAlbedoMap
 from render.brdf_models import GGX, BRDFModel, Lambert, TabulatedBRDF
-from render.compare import compare_images, write_comparison, write_delta_e_png
+from render.compare import compare_images, level_ratio, write_comparison, write_delta_e_png
 from render.envmap import EnvMap, read_envmap_pixels
 from render.images import read_image, read_mask, tonemap, write_exr, write_preview
 from render.integrator import render_directional_light, render_envmap, render_point_light
@@ -33,8 +34,9 @@ from render.scene_render import (MaterialMap, SceneGeometry, render_scene, rende
                                  sphere_view)
 
 __all__ = [
-    "BRDFModel", "DiffuseAlbedoMap", "EnvMap", "GGX", "Lambert", "SceneGeometry", "TabulatedBRDF", "compare_images",
-    "read_envmap_pixels", "read_image", "read_mask", "render_directional_light", "render_envmap",
+    "BRDFModel", "DiffuseAlbedoMap", "EnvMap", "GGX", "Lambert", "SceneGeometry", "TabulatedBRDF",
+    "compare_images", "level_ratio", "read_envmap_pixels", "read_image", "read_mask",
+    "render_directional_light", "render_envmap",
     "MaterialMap", "render_point_light", "render_scene", "render_sphere", "sphere_view", "tonemap",
     "write_comparison", "write_delta_e_png", "write_exr", "write_preview",
 ]

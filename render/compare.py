@@ -54,6 +54,25 @@ def compare_images(pred, ref, mask=None):
              "pixels": count}, delta_e)
 
 
+def level_ratio(pred, ref, used):
+    """(3,) per channel, the median of ref / pred over the `used` (H, W) pixels where both are
+    > 0 in that channel; NaN where none is.
+
+    A level diagnostic, not a metric of the contract: a wrong exposure `scale`, or a light
+    intensity calibrated differently for the flash and for a reference, moves every method's
+    ratio alike, while a BRDF error moves each method its own way (the DiLiGenT ball's
+    reference lights read ~1.05 for every method: README, "DiLiGenT ball").
+    """
+    pred = np.asarray(pred, dtype=np.float64)[used]
+    ref = np.asarray(ref, dtype=np.float64)[used]
+    out = np.full(3, np.nan)
+    for c in range(3):
+        both = (pred[:, c] > 0) & (ref[:, c] > 0)
+        if both.any():
+            out[c] = float(np.median(ref[both, c] / pred[both, c]))
+    return out
+
+
 def write_delta_e_png(path, delta_e, title="log-CIELAB $\\Delta E^*_{ab}$", vmax=None):
     """False-colour Delta E map with a colour bar, cropped to the compared pixels (plus a
     4-pixel margin); NaN (not compared) pixels are grey."""

@@ -129,3 +129,23 @@ def test_run_export_puts_the_export_and_the_principled_render_beside_the_report(
     assert f'<string name="filename" value="{table}"/>' in (
         out / "export" / "mitsuba_tabulated.xml").read_text()
     assert json.loads((out / "export" / "principled.json").read_text())["table"] == table
+
+
+def test_run_reports_a_reference_exposure_error_as_its_level(sphere_scene, tmp_path):
+    """The same scene with the reference photo 10% too bright: run's report reads the level
+    (median reference / render) 1.10x the unchanged scene's, per channel. The renders are the
+    same (same slice, method and seed), and a median scales with its values, so the ratio is
+    exact up to float32 rounding of the photo (1e-6)."""
+    import shutil
+    from render import read_image, write_exr
+    scaled = tmp_path / "scaled"
+    shutil.copytree(sphere_scene, scaled)
+    write_exr(scaled / "ref_pisa.exr", 1.1 * read_image(sphere_scene / "ref_pisa.exr"))
+    levels = []
+    for scene, out in ((sphere_scene, tmp_path / "a"), (scaled, tmp_path / "b")):
+        assert main(["run", str(scene), "--out", str(out), "--methods", "chandraker",
+                     "--spp", "16"]) == 0
+        report = json.loads((out / "report.json").read_text())
+        levels.append(np.array(report["summary"]["chandraker"]["level_ratio_rgb"]))
+        assert "reference / render (R, G, B)" in (out / "report.md").read_text()
+    assert np.allclose(levels[1] / levels[0], 1.1, rtol=1e-5)

@@ -103,3 +103,21 @@ def test_compare_a_black_prediction_has_null_metrics(tmp_path):
     assert main(["compare", str(tmp_path / "ref.exr"), str(tmp_path / "black.exr"),
                  "--out", str(tmp_path / "out2")]) == 2
     assert not (tmp_path / "out2").exists()
+
+
+def test_level_ratio_is_the_median_reference_over_render_per_channel():
+    """A photo at 1.1x / 1.0x / 0.9x a render per channel reads exactly that; pixels outside
+    `used`, or 0 in either image, do not count; a channel with no such pixel is NaN."""
+    from render.compare import level_ratio
+    rng = np.random.default_rng(3)
+    pred = rng.uniform(0.1, 2.0, (20, 30, 3))
+    ref = pred * np.array([1.1, 1.0, 0.9])
+    used = np.ones((20, 30), bool)
+    used[:5] = False
+    ref[:5] = 100.0                       # outside `used`: would move the median if read
+    pred[5:8, :, 0] = 0.0                 # render 0 in R: left out, not inf
+    ref[8:10, :, 1] = 0.0                 # photo 0 in G (censored or black): left out, not 0
+    assert np.allclose(level_ratio(pred, ref, used), [1.1, 1.0, 0.9], rtol=1e-12)
+    pred[..., 2] = 0.0
+    level = level_ratio(pred, ref, used)
+    assert np.isnan(level[2]) and np.allclose(level[:2], [1.1, 1.0], rtol=1e-12)

@@ -136,3 +136,22 @@ def test_report_tolerates_missing_metrics_and_3d_inputs(tmp_path):
                                predictions["pca"][:, 0, :])
     assert (tmp_path / "figures" / "brdf_dsgplvm.png").is_file()
     assert (tmp_path / "figures" / "ref_ref_env.png").is_file()
+
+
+def test_level_note_only_when_every_method_shares_the_offset():
+    """The level check speaks when every method's median reference / render is beyond 3% the
+    same way in every channel (the DiLiGenT ball: 1.04-1.06 for all), and not when the methods
+    disagree (the sample capture: 0.93-1.28 across methods) or stay within 3%."""
+    from pipeline.report import level_note
+
+    def summary(*levels):
+        return {f"m{k}": {"level_ratio_rgb": list(v)} for k, v in enumerate(levels)}
+    note = level_note(summary((1.04, 1.05, 1.06), (1.045, 1.05, 1.06)))
+    assert note is not None and "4–6% brighter than every method's renders" in note
+    assert "darker" in level_note(summary((0.9, 0.92, 0.95), (0.8, 0.9, 0.96)))
+    assert level_note(summary((1.04, 1.05, 1.06), (0.99, 1.05, 1.06))) is None   # one disagrees
+    assert level_note(summary((1.02, 1.02, 1.02), (1.025, 1.01, 1.0))) is None   # within 3%
+    assert level_note(summary((1.1, 1.1, None), (1.1, 1.1, 1.1))) is None        # unknown channel
+    assert level_note({"m": {}}) is None                                          # no photo
+    single = level_note(summary((1.2, 1.2, 1.2)))
+    assert "than the renders" in single and "a second method" in single
