@@ -229,11 +229,12 @@ def level_note(summary):
     """One line when every method's renders are darker (or brighter) than the reference photos
     by more than LEVEL_NOTE in every channel (summary: _summary's dict), else None.
 
-    A BRDF error moves each method its own way; an exposure `scale` or a light intensity that
-    differs between the flash photo and the references moves them all alike (on the DiLiGenT
-    ball every method reads ~1.05: the flash light's calibration against the others). 3% is well
-    above what pixel noise does to a median over thousands of pixels, and a uniform 3% level
-    error is already ~0.1 of ΔE-log.
+    A BRDF error moves each method its own way; what none of them models moves them all alike:
+    an exposure `scale` or a light intensity that differs between the flash photo and the
+    references (the DiLiGenT ball: every method reads 1.04–1.06, the flash light's calibration
+    against the others), or shadows and interreflections a normal map does not give (DiLiGenT
+    pot2, 0.87–0.93). 3% is well above what pixel noise does to a median over thousands of
+    pixels, and a uniform 3% level error is already ~0.1 of ΔE-log.
     """
     levels = [s.get("level_ratio_rgb") for s in summary.values()]
     if not levels or any(v is None for v in levels):
@@ -245,13 +246,16 @@ def level_note(summary):
         if (sign * (levels - 1) > LEVEL_NOTE).all():
             low, high = np.abs(levels - 1).min(), np.abs(levels - 1).max()
             whose = "every method's renders" if len(levels) > 1 else "the renders"
-            why = ("Methods that disagree on the BRDF rarely agree on such an offset"
-                   if len(levels) > 1 else "With one method a BRDF error can do this too (a "
-                   "second method, e.g. `--methods dsgplvm,chandraker`, tells the two apart)")
             return (f"**Level check:** the reference photos are {100 * low:.0f}–{100 * high:.0f}% "
                     f"{word} than {whose}, in every channel (median of reference / render over the "
-                    f"compared pixels, then over the photos). {why}: check the reference photos' "
-                    "`scale` and their lights' intensities against the flash photo's.")
+                    "compared pixels, then over the photos). Every method starts from the same "
+                    "flash slice, so an offset they share is something none of them predicts: an "
+                    "exposure `scale` or a light intensity calibrated differently from the flash "
+                    "photo's, shadows or interreflections the geometry does not give (a normal map "
+                    "casts no shadow), or a material that changes away from the flash direction more "
+                    "than any method expects (a rough material's back-scatter)."
+                    + ("" if len(levels) > 1 else " With one method its own BRDF error can do this "
+                       "too: a second method (`--methods dsgplvm,chandraker`) tells them apart."))
     return None
 
 
