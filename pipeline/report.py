@@ -232,8 +232,9 @@ def level_note(summary):
     A BRDF error moves each method its own way; what none of them models moves them all alike:
     an exposure `scale` or a light intensity that differs between the flash photo and the
     references (the DiLiGenT ball: every method reads 1.04–1.06, the flash light's calibration
-    against the others), or shadows and interreflections a normal map does not give (DiLiGenT
-    pot2, 0.87–0.93). 3% is well above what pixel noise does to a median over thousands of
+    against the others), shadows and interreflections a normal map does not give, or a material
+    darker away from the flash than any method expects (DiLiGenT pot2, a rough clay, reads
+    0.87–0.93; which of these it is, the check cannot tell). 3% is well above what pixel noise does to a median over thousands of
     pixels, and a uniform 3% level error is already ~0.1 of ΔE-log.
     """
     levels = [s.get("level_ratio_rgb") for s in summary.values()]
