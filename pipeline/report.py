@@ -50,7 +50,8 @@ HOW_TO_READ = """\
   i.e. by the highlights.
 - **reference / render** (`level_ratio_rgb`): per channel, the median over the compared pixels of
   photo / render, then the median over the photos; 1.00 when the levels agree. Methods differ
-  here where their BRDFs do; an offset they all share points at exposure or light calibration.
+  here where their BRDFs do; an offset they all share is something none of them models:
+  exposure or light calibration, unmodelled shadows, or the material itself.
 - **Observed vs predicted.** A flash photo measures only the θd = 0 slice ρ(θh) of the BRDF. Every
   value at θd > 0, and every θh bin with no observed pixels, is predicted by the method from what
   it learned from the model's training tables (MERL, plus RGL for the shipped model), not measured.
@@ -234,8 +235,9 @@ def level_note(summary):
     references (the DiLiGenT ball: every method reads 1.04–1.06, the flash light's calibration
     against the others), shadows and interreflections a normal map does not give, or a material
     darker away from the flash than any method expects (DiLiGenT pot2, a rough clay, reads
-    0.87–0.93; which of these it is, the check cannot tell). 3% is well above what pixel noise does to a median over thousands of
-    pixels, and a uniform 3% level error is already ~0.1 of ΔE-log.
+    0.87–0.93; which of these it is, the check cannot tell). 3% is well above what pixel noise
+    does to a median over thousands of pixels, and a uniform 3% level error is already ~0.1 of
+    ΔE-log.
     """
     levels = [s.get("level_ratio_rgb") for s in summary.values()]
     if not levels or any(v is None for v in levels):
