@@ -46,6 +46,7 @@ class DiligentObject:
     light_intensities: (K, 3) RGB, > 0.
     mask: (H, W) bool, object pixels with a valid normal.
     normals: (H, W, 3) float64 unit normals, DiLiGenT frame (0 outside the mask).
+    unseen: (H, W) bool, mask pixels whose normal faces away from the camera (n_z <= 0).
     """
     folder: Path
     photo_paths: list
@@ -53,6 +54,7 @@ class DiligentObject:
     light_intensities: np.ndarray
     mask: np.ndarray
     normals: np.ndarray
+    unseen: np.ndarray = None
 
 
 def _require(folder, name):
@@ -190,7 +192,13 @@ def read_diligent(obj_dir):
     if not mask.any():
         raise InputError(mask_path, "no object pixel with a valid normal")
     normals = np.where(mask[..., None], normals / np.where(mask, length, 1.0)[..., None], 0.0)
-    return DiligentObject(folder, photos, directions / norm[:, None], intensities, mask, normals)
+    # The view is along -z: a normal with n_z <= 0 (the silhouette's n_z = 0 in Normal_gt, 72
+    # pixels of the ball; a registered mesh's rim facing away) is a surface the camera cannot
+    # see. The pixel model renders it 0 (wo at or below the horizon) and extraction rejects it,
+    # while the photo shows it lit: import_diligent marks it unknown (NaN) in reference photos.
+    unseen = mask & (normals[..., 2] <= 0)
+    return DiligentObject(folder, photos, directions / norm[:, None], intensities, mask, normals,
+                          unseen)
 
 
 def normals_to_camera(normals_diligent):
@@ -251,6 +259,10 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
             linear = raw.astype(np.float32) / np.float32(top) \
                 / obj.light_intensities[k].astype(np.float32)
             linear[clipped | black] = np.nan
+            # a rim normal facing away (n_z <= 0): the pixel model cannot predict the pixel,
+            # so a reference photo does not state it (extraction rejects it in the flash photo)
+            unseen = np.zeros_like(clipped) if is_flash or obj.unseen is None else obj.unseen
+            linear[unseen] = np.nan
             name = src.stem + ".exr"
             write_exr(tmp / name, linear)
             photos.append({
@@ -263,7 +275,8 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
                            f"divided_by_{top}_and_intensity_rgb":
                                [float(x) for x in obj.light_intensities[k]],
                            "clipped_pixels_set_to_nan": int(clipped.sum()),
-                           "black_pixels_set_to_nan": int(black.sum())},
+                           "black_pixels_set_to_nan": int(black.sum()),
+                           "unseen_normal_pixels_set_to_nan": int(unseen.sum())},
             })
         # The flash photo first: readers that take "the first flash" find it at once.
         photos.sort(key=lambda p: p["role"] != "flash")
