@@ -15,12 +15,12 @@ WORK/<method>.binary). Two measurements:
    over pixels with θh between 10° and 40° under k and both cosines above 0.3. A pixel is its own
    reference, so normals, albedo texture and the mask cancel; what is left is how ρ changes from
    θd ≈ 2° (the flash) to the light's θd, times any error in the two lights' calibrated
-   intensities. On this ball, ρ of every method's table changes by < 0.5% between θd 2° and 6° at
-   these θh, so a step there is the lights' calibration, not the BRDF.
-2. **ΔE-log with the flash's level corrected.** Every method's table multiplied, per channel, by the
-   median ratio of the ring of lights nearest the central four (`--ring-deg`, 10–13° off axis,
-   θd ≈ 5.5–6.5°), then the 95 lights rendered again with the benchmark's direct pixel model; the
-   ranking is also given over the lights outside that ring, which took no part in the factor.
+   intensities. On this ball, ρ of every method's table changes by < 0.5% between θd 2° and 6°
+   at these θh, so a step there is the lights' calibration, not the BRDF.
+2. **ΔE-log with the flash's level corrected.** Every method's table multiplied, per channel, by
+   the median ratio of the ring of lights nearest the central four (`--ring-deg`, 10–13° off
+   axis, θd ≈ 5.5–6.5°), then the 95 lights rendered again with the benchmark's direct pixel model;
+   the ranking is also given over the lights outside that ring, which took no part in the factor.
 
 The headline benchmark (`diligent_ball.py`) stays as it is: this is a diagnostic of what decides
 its ranking. Writes benchmarks/results/ball_calibration.{json,md}.
@@ -115,8 +115,8 @@ def markdown(result, angles, ratios):
     lines = ["# DiLiGenT ball: the flash light's level against the other lights", "",
              f"Command: `{result['command']}` (after `benchmarks/diligent_ball.py`). Per light, "
              "the median over the ball's pixels (θh 10–40° under that light, both cosines "
-             f"> {MIN_COS}) of ln(ρ_light / ρ_flash) at the same pixel, ρ = photo / cos θi, the photos "
-             "divided by DiLiGenT's calibrated intensities.", "",
+             f"> {MIN_COS}) of ln(ρ_light / ρ_flash) at the same pixel, ρ = photo / cos θi, "
+             "the photos divided by DiLiGenT's calibrated intensities.", "",
              "| light angle (deg) | lights | median θd (deg) | ln-ratio R | G | B |",
              "|---|---|---|---|---|---|"]
     theta_d = np.array([light["theta_d_deg"] for light in result["lights"]])
@@ -127,10 +127,15 @@ def markdown(result, angles, ratios):
             lines.append(f"| {lo}–{hi} | {sel.sum()} | {np.median(theta_d[sel]):.1f} | "
                          + " | ".join(f"{v:+.3f}" for v in med) + " |")
     f = result["factor_rgb"]
-    lines += ["", "The three other lights within 6° of the view agree with the flash within 1%; "
-              "every light from 11° on is 4–7% brighter, a step between θd 3° and 5.5° that stays "
-              "flat to θd 21°. No method's table changes by more than 0.5% over that step, and a BRDF "
-              "that jumps there and then stays flat is not a material: it is the flash light's "
+    near = angles < result["ring_deg"][0]
+    inner = np.expm1(np.abs(ratios[near]).max()) if near.any() else np.nan
+    outer = np.expm1(ratios[~near, 1])      # G, the channel with the most signal
+    lines += ["", f"The {int(near.sum())} other lights within {result['ring_deg'][0]:g}° of the "
+              f"view agree with the flash within {100 * inner:.1f}% (any channel); in G the "
+              f"lights from {result['ring_deg'][0]:g}° on are {100 * outer.min():+.1f}% to "
+              f"{100 * outer.max():+.1f}% off it. A step there that stays flat out to the "
+              "farthest light is no material's θd behaviour (on the DiLiGenT ball no method's "
+              "table changes by more than 0.5% between θd 3° and 5.5°): it is the flash light's "
               "calibration against the others.", "",
               f"ΔE-log mean with every table multiplied by the {result['ring_deg'][0]:g}–"
               f"{result['ring_deg'][1]:g}° ring's median ratio (R {f[0]:.4f}, G {f[1]:.4f}, "
@@ -139,6 +144,8 @@ def markdown(result, angles, ratios):
               "| method | as measured (95 lights) | flash level corrected | outside the ring, as "
               "measured | outside the ring, corrected |", "|---|---|---|---|---|"]
     methods = result["methods"]
+    if not methods:
+        return "\n".join(lines + ["(no method table in the work folder)"]) + "\n"
     best = {key: min(m[key] for m in methods.values()) for key in next(iter(methods.values()))}
     for name, m in methods.items():
         cells = [(f"**{m[k]:.4f}**" if m[k] == best[k] else f"{m[k]:.4f}")

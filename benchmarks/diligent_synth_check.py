@@ -87,12 +87,15 @@ def check_case(case_dir, work, flash, extra):
         return result
     report = json.loads((out / "report.json").read_text())
     refs = report["references"]
-    de = [r["delta_e_log_mean"] for r in refs]
+    # report.json writes NaN as null
+    de = np.array([np.nan if r["delta_e_log_mean"] is None else r["delta_e_log_mean"]
+                   for r in refs], float)
+    rel = np.array([np.nan if r["rel_rmse"] is None else r["rel_rmse"] for r in refs], float)
     result["K"] = len(report.get("materials") or [None])
     result["materials"] = [(m["label"], m["pixels"]) for m in report.get("materials") or []]
-    result["delta_e_log_mean"] = float(np.nanmean(de)) if de else None
+    result["delta_e_log_mean"] = float(np.nanmean(de)) if np.isfinite(de).any() else None
     result["delta_e_nan"] = int(np.sum(~np.isfinite(de)))
-    result["rel_rmse_mean"] = float(np.nanmean([r["rel_rmse"] for r in refs])) if refs else None
+    result["rel_rmse_mean"] = float(np.nanmean(rel)) if np.isfinite(rel).any() else None
     result["n_references"] = len(refs)
     result["report_warnings"] = report.get("warnings")
     if truth.get("true_slice_photo_units") and (out / "slice.csv").is_file():
@@ -111,7 +114,10 @@ def check_case(case_dir, work, flash, extra):
         elif cmd == "render":
             brdf = out / "dsgplvm" / "brdf.binary"
             if not brdf.is_file():
-                brdf = next(out.rglob("*.binary"))
+                brdf = next(out.rglob("*.binary"), None)
+            if brdf is None:
+                result["render"] = {"skipped": "run wrote no BRDF table"}
+                continue
             result["render"] = _timed(["render", scene, "--brdf", brdf, "--out", work / "render"],
                                       work / "render.log")
     return result

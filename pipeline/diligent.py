@@ -276,7 +276,9 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
                                [float(x) for x in obj.light_intensities[k]],
                            "clipped_pixels_set_to_nan": int(clipped.sum()),
                            "black_pixels_set_to_nan": int(black.sum()),
-                           "unseen_normal_pixels_set_to_nan": int(unseen.sum())},
+                           # counted apart from the clipped and black ones it overlaps
+                           "unseen_normal_pixels_set_to_nan":
+                               int((unseen & ~(clipped | black)).sum())},
             })
         # The flash photo first: readers that take "the first flash" find it at once.
         photos.sort(key=lambda p: p["role"] != "flash")

@@ -48,10 +48,9 @@ HOW_TO_READ = """\
 - **rel_rmse**: the root-mean-square pixel difference divided by the RMS of the reference (0 is
   perfect, 1 means the error is as large as the signal). It is dominated by the brightest pixels,
   i.e. by the highlights.
-- **reference / render** (`level_ratio_rgb`): per channel, the median over the compared pixels of
-  photo / render, then the median over the photos; 1.00 when the levels agree. Methods differ
-  here where their BRDFs do; an offset they all share is something none of them models:
-  exposure or light calibration, unmodelled shadows, or the material itself.
+- **reference / render** (`level_ratio_rgb`): per channel, the sum of the photo over the sum of
+  the render on the compared pixels, median over the photos; 1.00 when the levels agree. Methods
+  differ here where their BRDFs do; an offset they all share gets a level-check note.
 - **Observed vs predicted.** A flash photo measures only the θd = 0 slice ρ(θh) of the BRDF. Every
   value at θd > 0, and every θh bin with no observed pixels, is predicted by the method from what
   it learned from the model's training tables (MERL, plus RGL for the shipped model), not measured.
@@ -228,37 +227,44 @@ LEVEL_NOTE = 0.03     # |reference / render − 1| beyond which a shared level o
 
 def level_note(summary):
     """One line when every method's renders are darker (or brighter) than the reference photos
-    by more than LEVEL_NOTE in every channel (summary: _summary's dict), else None.
+    by more than LEVEL_NOTE in every channel (summary: _summary's dict; entries without a level,
+    such as an export's fit of a method's own table, do not count), else None.
 
-    A BRDF error moves each method its own way; what none of them models moves them all alike:
-    an exposure `scale` or a light intensity that differs between the flash photo and the
-    references (the DiLiGenT ball: every method reads 1.04–1.06, the flash light's calibration
-    against the others), shadows and interreflections a normal map does not give, or a material
-    darker away from the flash than any method expects (DiLiGenT pot2, a rough clay, reads
-    0.87–0.93; which of these it is, the check cannot tell). 3% is well above what pixel noise
-    does to a median over thousands of pixels, and a uniform 3% level error is already ~0.1 of
-    ΔE-log.
+    The level is render.compare.level_ratio per photo (sum of photo / sum of render over the
+    compared pixels), then its median over the photos. A BRDF error moves each method its own
+    way; what none of them models moves them all alike: an exposure `scale` or a light intensity
+    that differs between the flash photo and the references (the DiLiGenT ball: 1.04–1.07 for
+    every method, the flash light's calibration against the others), shadows and
+    interreflections the geometry does not give, or a material darker away from the flash than
+    any method expects (DiLiGenT pot2, a rough clay, reads 0.89–0.96; which of these it is, the
+    check cannot tell). 3% is well above what photo or render noise do to a ratio of sums over
+    thousands of pixels (the sample capture's noll level moved ≤ 0.01 from its default spp to 4
+    spp), and a uniform 3% level error is ~0.1 of ΔE-log.
     """
-    levels = [s.get("level_ratio_rgb") for s in summary.values()]
-    if not levels or any(v is None for v in levels):
-        return None
-    levels = np.asarray(levels, float)
-    if not np.isfinite(levels).all():
+    levels = np.asarray([s.get("level_ratio_rgb") or [None] * 3 for s in summary.values()],
+                        dtype=float)
+    levels = levels[np.isfinite(levels).any(axis=1)]    # no level at all: not a method here
+    if not len(levels) or not np.isfinite(levels).all():    # a channel unknown: say nothing
         return None
     for sign, word in ((1, "brighter"), (-1, "darker")):
         if (sign * (levels - 1) > LEVEL_NOTE).all():
-            low, high = np.abs(levels - 1).min(), np.abs(levels - 1).max()
-            whose = "every method's renders" if len(levels) > 1 else "the renders"
-            return (f"**Level check:** the reference photos are {100 * low:.0f}–{100 * high:.0f}% "
-                    f"{word} than {whose}, in every channel (median of reference / render over the "
-                    "compared pixels, then over the photos). Every method starts from the same "
-                    "flash slice, so an offset they share is something none of them predicts: an "
-                    "exposure `scale` or a light intensity calibrated differently from the flash "
-                    "photo's, shadows or interreflections the geometry does not give (a normal map "
-                    "casts no shadow), or a material that changes away from the flash direction more "
-                    "than any method expects (a rough material's back-scatter)."
-                    + ("" if len(levels) > 1 else " With one method its own BRDF error can do this "
-                       "too: a second method (`--methods dsgplvm,chandraker`) tells them apart."))
+            low, high = (f"{100 * v:.0f}" for v in (abs(levels - 1).min(), abs(levels - 1).max()))
+            span = low if low == high else f"{low}–{high}"
+            seen = (f"**Level check:** the reference photos are {span}% "
+                    f"{word} than {{}}, in every channel (sum of photo / sum of render over the "
+                    "compared pixels, median over the photos). ")
+            causes = ("an exposure `scale` or a light intensity calibrated differently from the "
+                      "flash photo's, shadows or interreflections the geometry does not give (a "
+                      "normal map casts no shadow), or a material that changes away from the "
+                      "flash direction more than a method expects (a rough material's "
+                      "back-scatter).")
+            if len(levels) == 1:
+                return (seen.format("the renders") + "Either this method's BRDF is off, or "
+                        + causes + " A second method (`--methods dsgplvm,chandraker`) tells "
+                        "the two apart: what none of them models moves them all alike.")
+            return (seen.format("every method's renders") + "Every method starts from the same "
+                    "flash slice, so an offset they share is something none of them predicts: "
+                    + causes)
     return None
 
 

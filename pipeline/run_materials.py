@@ -104,7 +104,7 @@ def run_materials(ctx, samples, segmentation, faces):
                                camera, faces)
             rows += stages.run(f"render+compare {label}", _render_and_compare, ctx.scene,
                                geometry, label, fits, ctx.spp, out / label, references,
-                               ctx.loaded)
+                               ctx.loaded, level=False)
     else:
         ctx.notes.append("The scene has no reference photo: nothing was rendered or compared.")
     fig_dir = out / "figures"

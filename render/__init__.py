@@ -20,7 +20,7 @@ Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
   render_sphere(table, envmap_path, size=128, spp=64, seed=0, ...) -> (size, size, 3) float32
   compare_images(pred, ref, mask=None) -> (metrics dict, delta_e (H, W))
   write_comparison(out_dir, pred, ref, mask=None, ...) -> metrics (compare.json + delta_e.png)
-  level_ratio(pred, ref, used) -> (3,) median ref / pred per channel (a level diagnostic)
+  level_ratio(pred, ref, mask=None) -> (3,) sum(ref) / sum(pred) per channel (a level check)
   write_exr(path, rgb), read_image(path), read_mask(path, shape=None), write_preview(path, rgb)
 """
 

@@ -105,19 +105,26 @@ def test_compare_a_black_prediction_has_null_metrics(tmp_path):
     assert not (tmp_path / "out2").exists()
 
 
-def test_level_ratio_is_the_median_reference_over_render_per_channel():
-    """A photo at 1.1x / 1.0x / 0.9x a render per channel reads exactly that; pixels outside
-    `used`, or 0 in either image, do not count; a channel with no such pixel is NaN."""
+def test_level_ratio_is_the_ratio_of_sums_over_the_compared_pixels():
+    """sum(ref) / sum(pred) per channel over mask & finite, computed by hand on a photo whose
+    per-pixel ratio spreads (lognormal, sigma 0.3) around 1.1 / 1.0 / 0.9: a median of per-pixel
+    ratios differs from it by several percent, and reading the 3/4 of the image
+    outside the mask (photo 100x brighter there) or a NaN pixel would change it by far more."""
     from render.compare import level_ratio
     rng = np.random.default_rng(3)
     pred = rng.uniform(0.1, 2.0, (20, 30, 3))
-    ref = pred * np.array([1.1, 1.0, 0.9])
-    used = np.ones((20, 30), bool)
-    used[:5] = False
-    ref[:5] = 100.0                       # outside `used`: would move the median if read
-    pred[5:8, :, 0] = 0.0                 # render 0 in R: left out, not inf
-    ref[8:10, :, 1] = 0.0                 # photo 0 in G (censored or black): left out, not 0
-    assert np.allclose(level_ratio(pred, ref, used), [1.1, 1.0, 0.9], rtol=1e-12)
-    pred[..., 2] = 0.0
-    level = level_ratio(pred, ref, used)
-    assert np.isnan(level[2]) and np.allclose(level[:2], [1.1, 1.0], rtol=1e-12)
+    ref = pred * np.array([1.1, 1.0, 0.9]) * rng.lognormal(0.0, 0.3, pred.shape)
+    mask = np.zeros((20, 30), bool)
+    mask[15:] = True                      # 150 of 600 pixels compared
+    ref[:15] *= 100.0
+    ref[19, 0] = np.nan                   # not finite: not compared
+    used = mask.copy()
+    used[19, 0] = False
+    expected = ref[used].sum(axis=0) / pred[used].sum(axis=0)
+    level = level_ratio(pred, ref, mask.astype(np.uint8))       # a 0/1 mask reads as bool
+    assert np.allclose(level, expected, rtol=1e-12)
+    per_pixel_median = np.median(ref[used] / pred[used], axis=0)
+    assert np.all(np.abs(per_pixel_median / expected - 1) > 0.01)   # the test tells them apart
+    pred[..., 2] = 0.0                    # a black render in B: no level there
+    level = level_ratio(pred, ref, mask)
+    assert np.isnan(level[2]) and np.allclose(level[:2], expected[:2], rtol=1e-12)

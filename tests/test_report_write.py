@@ -139,9 +139,9 @@ def test_report_tolerates_missing_metrics_and_3d_inputs(tmp_path):
 
 
 def test_level_note_only_when_every_method_shares_the_offset():
-    """The level check speaks when every method's median reference / render is beyond 3% the
-    same way in every channel (the DiLiGenT ball: 1.04-1.06 for all; pot2 0.87-0.93), and not
-    when the methods disagree (the sample capture: 0.91-1.28 across methods) or stay within 3%."""
+    """The level check speaks when every method's level is beyond 3% the same way in every
+    channel (the DiLiGenT ball: 1.04-1.07 for all; pot2 0.89-0.96), and not when the methods
+    disagree (the sample capture: 0.92-2.35 across methods) or stay within 3%."""
     from pipeline.report import level_note
 
     def summary(*levels):
@@ -154,5 +154,28 @@ def test_level_note_only_when_every_method_shares_the_offset():
     assert level_note(summary((1.1, 1.1, None), (1.1, 1.1, 1.1))) is None        # unknown channel
     assert level_note({"m": {}}) is None                                          # no photo
     single = level_note(summary((1.2, 1.2, 1.2)))
-    assert "than the renders," in single and "a second method" in single
-    assert "a second method" not in note
+    assert single.startswith("**Level check:** the reference photos are 20% brighter than the "
+                             "renders") and "Either this method's BRDF is off" in single
+    # an entry without a level (an export's fit of the same table) is not a second method
+    with_export = {**summary((1.2, 1.2, 1.2)), "m0-principled": {"references": 1}}
+    assert level_note(with_export) == single
+
+
+def test_report_levels_are_medians_over_photos_and_the_note_is_written(tmp_path):
+    """3 photos x 2 methods: the summary's level is the per-channel median over the photos (not
+    the mean, not the first photo), a method whose photos have no level shows '–, –, –' and does
+    not count, and report.md carries the note when the levels agree beyond 3%."""
+    levels = {"a": [(1.10, 1.2, 1.05), (1.06, 1.0, 1.04), (1.20, 1.1, 1.30)],
+              "b": [(1.05, 1.05, 1.05), (1.08, 1.08, 1.08), (1.07, 1.07, 1.07)]}
+    rows = [{"photo": f"p{k}", "method": m, "delta_e_log_mean": 1.0, "rel_rmse": 0.1,
+             "level_ratio_rgb": list(v)} for m, vs in levels.items() for k, v in enumerate(vs)]
+    rows += [{"photo": f"p{k}", "method": "c", "delta_e_log_mean": 1.0, "rel_rmse": 0.1,
+              "level_ratio_rgb": [float("nan")] * 3} for k in range(3)]
+    report = write_report(tmp_path, stages={"x": 1.0}, references=rows)
+    assert np.allclose(report["summary"]["a"]["level_ratio_rgb"], [1.10, 1.1, 1.05])
+    assert np.allclose(report["summary"]["b"]["level_ratio_rgb"], [1.07, 1.07, 1.07])
+    text = (tmp_path / "report.md").read_text()
+    assert "| 1.10, 1.10, 1.05 |" in text and "| –, –, – |" in text
+    # c has no finite level, so the check is over a and b alone: 5-10% brighter for both
+    assert report["summary"]["c"]["level_ratio_rgb"] == [None, None, None]
+    assert "**Level check:** the reference photos are 5–10% brighter than every method's" in text
