@@ -46,7 +46,6 @@ class DiligentObject:
     light_intensities: (K, 3) RGB, > 0.
     mask: (H, W) bool, object pixels with a valid normal.
     normals: (H, W, 3) float64 unit normals, DiLiGenT frame (0 outside the mask).
-    unseen: (H, W) bool, mask pixels whose normal faces away from the camera (n_z <= 0).
     """
     folder: Path
     photo_paths: list
@@ -54,7 +53,6 @@ class DiligentObject:
     light_intensities: np.ndarray
     mask: np.ndarray
     normals: np.ndarray
-    unseen: np.ndarray = None
 
 
 def _require(folder, name):
@@ -192,13 +190,7 @@ def read_diligent(obj_dir):
     if not mask.any():
         raise InputError(mask_path, "no object pixel with a valid normal")
     normals = np.where(mask[..., None], normals / np.where(mask, length, 1.0)[..., None], 0.0)
-    # The view is along -z: a normal with n_z <= 0 (the silhouette's n_z = 0 in Normal_gt, 72
-    # pixels of the ball; a registered mesh's rim facing away) is a surface the camera cannot
-    # see. The pixel model renders it 0 (wo at or below the horizon) and extraction rejects it,
-    # while the photo shows it lit: import_diligent marks it unknown (NaN) in reference photos.
-    unseen = mask & (normals[..., 2] <= 0)
-    return DiligentObject(folder, photos, directions / norm[:, None], intensities, mask, normals,
-                          unseen)
+    return DiligentObject(folder, photos, directions / norm[:, None], intensities, mask, normals)
 
 
 def normals_to_camera(normals_diligent):
@@ -231,6 +223,11 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
     if not 1 <= int(flash_index) <= k_photos:
         raise InputError("--flash", f"index {flash_index} outside 1..{k_photos}")
     height, width = obj.mask.shape
+    # The view is along -z: a normal with n_z <= 0 (the silhouette's n_z = 0 in Normal_gt, 72
+    # pixels of the ball; a registered mesh's rim facing away) is a surface the camera cannot
+    # see. The pixel model renders it 0 and extraction rejects it, while the photo shows it lit:
+    # the reference photos mark it unknown (NaN), as a saturated pixel.
+    facing_away = obj.mask & (obj.normals[..., 2] <= 0)
     loop = progress(range(k_photos)) if progress else range(k_photos)
     check_outputs(inputs=[obj.folder, *obj.photo_paths, obj.folder / "light_directions.txt",
                           obj.folder / "light_intensities.txt", obj.folder / "mask.png",
@@ -259,9 +256,7 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
             linear = raw.astype(np.float32) / np.float32(top) \
                 / obj.light_intensities[k].astype(np.float32)
             linear[clipped | black] = np.nan
-            # a rim normal facing away (n_z <= 0): the pixel model cannot predict the pixel,
-            # so a reference photo does not state it (extraction rejects it in the flash photo)
-            unseen = np.zeros_like(clipped) if is_flash or obj.unseen is None else obj.unseen
+            unseen = np.zeros_like(clipped) if is_flash else facing_away
             linear[unseen] = np.nan
             name = src.stem + ".exr"
             write_exr(tmp / name, linear)
