@@ -136,7 +136,8 @@ def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geomet
     image (H, W, 3) float32 in the photo's own pixel units (the pixel model times the photo's
     `scale`), 0 where the pixel misses the geometry; mask (H, W) bool of the pixels that see it.
     geometry: a SceneGeometry of this scene to reuse (its primary hits are cached per camera).
-    Every light is checked (and every envmap loaded) before the first render.
+    Every light is checked (and every envmap loaded), and every camera must see the object,
+    before the first render.
     """
     photos = scene.photos_with_role("reference") if photos is None else photos
     envmaps = {}
@@ -153,6 +154,12 @@ def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geomet
                 envmaps[key] = EnvMap.from_file(light.file, light.world_from_envmap, light.scale)
     # A SceneGeometry passed in keeps its primary hits across calls (e.g. one render per method).
     geometry = SceneGeometry(scene) if geometry is None else geometry
+    for photo in photos:                       # and every camera: a view of nothing is no render
+        if len(geometry.surface(photo.camera).rows) == 0:
+            field = (f"{scene.json_path}: camera" if photo.camera is scene.camera
+                     else f"{photo.where}.camera")
+            raise InputError(field, f"no pixel of {photo.stem}'s view sees the object (check "
+                                    "fx, fy, cx, cy, world_from_camera and units)")
     occluded = geometry.occluder()
     for photo in photos:
         camera = photo.camera

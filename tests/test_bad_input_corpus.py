@@ -575,6 +575,13 @@ CASES = [
         w.brdf, _out(t)), "photos[1].light.world_from_envmap"),
     ("render", "reference photo wrong size", lambda w, t: _render(scene_with_file(
         w, t, "ref_env.exr", small_exr(t).read_bytes()), w.brdf, _out(t)), "ref_env.exr"),
+    ("render", "camera cx 1e35 (no pixel sees the object)", lambda w, t: _render(scene_copy(
+        w, t, lambda d: d["camera"].__setitem__("cx", 1e35)), w.brdf, _out(t)), "camera"),
+    ("render", "a reference photo's own camera looks away", lambda w, t: _render(scene_copy(
+        w, t, lambda d: d["photos"][1].__setitem__("camera", d["camera"] | {
+            "world_from_camera": (np.diag([1.0, -1.0, -1.0, 1.0])
+                                  @ np.asarray(d["camera"]["world_from_camera"])).tolist()})),
+        w.brdf, _out(t)), "photos[1].camera"),
     ("render", "spp 0", lambda w, t: _render(w.scene, w.brdf, _out(t), "--spp", "0"), "--spp"),
     ("render", "spp 10**11 (out of memory)", lambda w, t: _render(
         w.scene, w.brdf, _out(t), "--spp", str(10 ** 11)), "--spp"),
