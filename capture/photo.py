@@ -26,6 +26,7 @@ import OpenImageIO as oiio
 from brdf.errors import InputError
 
 SATURATION_FRACTION = 0.98
+FLOAT32_MAX = float(np.finfo(np.float32).max)
 MAX_IMAGE_PIXELS = 1 << 28  # 268 M: above any camera's sensor or a 16K x 8K envmap
 FLOAT_EXTENSIONS = (".exr", ".hdr", ".pfm")
 CV_EXTENSIONS = (".png", ".tif", ".tiff", ".jpg", ".jpeg")
@@ -131,7 +132,8 @@ def _float_masks(rgb, saturation):
     # elementwise over channel views: much faster than a reduction along a length-3 axis
     low = np.minimum(np.minimum(rgb[..., 0], rgb[..., 1]), rgb[..., 2])
     high = np.maximum(np.maximum(rgb[..., 0], rgb[..., 1]), rgb[..., 2])
-    ceiling = np.inf if saturation is None else saturation
+    # past float32's largest value no pixel reaches the ceiling (and casting it would overflow)
+    ceiling = np.inf if saturation is None or saturation > FLOAT32_MAX else saturation
     with np.errstate(invalid="ignore"):
         clipped = (high >= ceiling) & ~np.isnan(low)
         usable = (low >= 0) & (high > 0) & (high < ceiling)

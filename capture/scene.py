@@ -367,7 +367,7 @@ def _photo(f, index, folder, camera):
         f.fail("light", "a flash photo needs a point or directional light")
     encoding = f.choice("encoding", ENCODINGS) if f.has("encoding") else None
     cam = _camera(f.sub("camera")) if f.has("camera") else camera
-    saturation = f.number("saturation", positive=True, factor=True) if f.has("saturation") \
+    saturation = f.number("saturation", positive=True) if f.has("saturation") \
         else None
     return Photo(index=index, role=role, camera=cam, where=f"{f.json_path}: {f.prefix}",
                  file=file, brackets=brackets,

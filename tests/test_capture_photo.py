@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+import warnings
 from pathlib import Path
 
 import cv2
@@ -31,6 +32,23 @@ def test_exr_roundtrip_and_masks(tmp_path):
     assert usable.tolist()[0] == [False, False, False, False, True]
     assert not usable[1, 0] and clipped[1, 0] and clipped[0, 1] and not clipped[0, 0]
     assert usable[1:].sum() == 14
+
+
+@pytest.mark.parametrize("saturation, largest_usable", [(np.finfo(np.float32).max, False),
+                                                        (1e39, True), (1e300, True)])
+def test_saturation_up_to_and_past_float32(tmp_path, saturation, largest_usable):
+    """A ceiling at FLT_MAX clips a FLT_MAX pixel (">= saturation"); one past float32 means "no
+    ceiling": only +Inf is clipped, and casting it to float32 raises no overflow warning."""
+    img = np.full((1, 3, 3), 0.5, np.float32)
+    img[0, 1] = np.finfo(np.float32).max
+    img[0, 2] = [np.inf, 1, 1]
+    write_exr(tmp_path / "a.exr", img)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _, usable, clipped = capture.load_photo(tmp_path / "a.exr", saturation=float(saturation),
+                                                return_clipped=True)
+    assert usable[0].tolist() == [True, largest_usable, False]
+    assert clipped[0].tolist() == [False, not largest_usable, True]
 
 
 def test_pfm_rows_are_top_first(tmp_path):
