@@ -1,7 +1,7 @@
 """Generalisation beyond MERL: every method scored on measured materials it was not trained on.
 
     PYTHONPATH=$PWD nice -n 10 python benchmarks/generalisation.py --merl-dir MERL --test-dir RGL
-        [--folds 5] [--seed 0] [--out benchmarks/results]
+        [--folds 5 | --fold-groups benchmarks/rgl_kinds.json] [--seed 0] [--out benchmarks/results]
 
 MERL and RGL here are the MERL (NBRDF proxy) and RGL (NBRDF proxy) tables written by
 ../shared/tools/merl_proxy.py (the RGL ones with --weights ../shared/data/rgl-nbrdf-dev/...).
@@ -60,12 +60,27 @@ def band_errors(pred, true):
     return out
 
 
-def fold_training(merl_set, test, k, n_folds=5, seed=0):
-    """(training set, sorted held-out test indices) of fold k of the "merl+test-folds" setting;
-    k = "merl-only": MERL alone, every test table held out."""
+def kind_folds(names, groups):
+    """One fold per kind: groups {kind: [fnmatch patterns of material names]} -> [index arrays],
+    in the groups' order. Every name must match exactly one kind."""
+    from fnmatch import fnmatchcase
+    kinds = [[k for k, patterns in groups.items() if any(fnmatchcase(n, p) for p in patterns)]
+             for n in names]
+    odd = [(n, k) for n, k in zip(names, kinds) if len(k) != 1]
+    if odd:
+        raise SystemExit(f"--fold-groups: {odd[0][0]} matches {len(odd[0][1])} kinds, not one")
+    return [np.array([i for i, k in enumerate(kinds) if k[0] == kind], dtype=np.int64)
+            for kind in groups]
+
+
+def fold_training(merl_set, test, k, n_folds=5, seed=0, folds=None):
+    """(training set, sorted held-out test indices) of fold k of the "merl+test-folds" setting
+    (seeded folds, or the given index arrays, e.g. kind_folds); k = "merl-only": MERL alone,
+    every test table held out."""
     if k == "merl-only":
         return merl_set, np.arange(len(test))
-    folds = np.array_split(np.random.default_rng(seed).permutation(len(test)), n_folds)
+    if folds is None:
+        folds = np.array_split(np.random.default_rng(seed).permutation(len(test)), n_folds)
     rest = np.sort(np.concatenate([f for j, f in enumerate(folds) if j != int(k)]))
     both = TrainingSet(list(merl_set.names) + [test.names[i] for i in rest],
                        np.concatenate([merl_set.slices, test.slices[rest]]),
@@ -104,8 +119,8 @@ def fit_all(training, seed, methods=METHODS):
     return fitted, seconds, params
 
 
-def score(fitted, test, index, records):
-    """Append one record per (method, test material) to `records`."""
+def score(fitted, test, index, records, kind=None):
+    """Append one record per (method, test material) to `records` (with its kind, if given)."""
     for name, method in fitted.items():
         for i in index:
             start = time.perf_counter()
@@ -113,7 +128,7 @@ def score(fitted, test, index, records):
             ms = 1e3 * (time.perf_counter() - start)
             errs = band_errors(pred, test.tables_2d[i])
             rec = {"method": name, "material": test.names[i], "lab_log": errs[0],
-                   "bands": errs[1:], "predict_ms": ms}
+                   "bands": errs[1:], "predict_ms": ms} | ({"kind": kind} if kind else {})
             if name == "dsgplvm":
                 rec["hits"], rec["bins"] = interval_hits(method, test.slices[i], test.tables_2d[i])
                 rec["novelty"], warning = novelty_warning(method, test.slices[i])
@@ -170,9 +185,30 @@ def markdown(result):
             row = {r["method"]: r["lab_log"] for r in block["records"] if r["material"] == mat}
             if row:   # a --fold-runs part scores only its folds' materials
                 lines.append(f"| {mat} | " + " | ".join(f"{row[m]:.2f}" for m in present) + " |")
+        lines += kinds_markdown(block, present)
         lines.append("")
     lines += checks_markdown(result)
     return "\n".join(lines)
+
+
+def kinds_markdown(block, present):
+    """Per held-out kind, each method's 2D LAB-log mean, and dsgplvm over the best baseline of
+    that kind (only for a merl+test-kinds block)."""
+    kinds = list(dict.fromkeys(r["kind"] for r in block["records"] if "kind" in r))
+    if not kinds:
+        return []
+    lines = ["", "Per held-out kind, 2D LAB-log mean:", "",
+             "| kind | n | " + " | ".join(present) + " | dsgplvm / best baseline |",
+             "|---|---|" + "---|" * len(present) + "---|"]
+    for kind in kinds:
+        mean = {m: float(np.mean([r["lab_log"] for r in block["records"]
+                                  if r.get("kind") == kind and r["method"] == m]))
+                for m in present}
+        best = min((m for m in BASELINES if m in mean), key=mean.get)
+        n = sum(1 for r in block["records"] if r.get("kind") == kind and r["method"] == "dsgplvm")
+        lines.append(f"| {kind} | {n} | " + " | ".join(f"{mean[m]:.2f}" for m in present)
+                     + f" | {mean['dsgplvm'] / mean[best]:.2f}× {best} |")
+    return lines
 
 
 def band_check(summary):
@@ -265,6 +301,10 @@ def main(argv=None):
     p.add_argument("--ball-merl-dir", metavar="DIR",
                    help="the ball model's training tables, for its 3D predictions (default: "
                         "--merl-dir; the shipped model also needs the RGL tables beside them)")
+    p.add_argument("--fold-groups", metavar="JSON",
+                   help="hold out one kind at a time instead of seeded folds: a JSON file "
+                        "{kind: [fnmatch patterns of test material names]} (e.g. "
+                        "benchmarks/rgl_kinds.json); the setting is then merl+test-kinds")
     p.add_argument("--fold-runs", default=None, metavar="K,K",
                    help="compute only these folds (default all): split one run over processes")
     p.add_argument("--merge", nargs="+", metavar="JSON",
@@ -292,21 +332,28 @@ def main(argv=None):
             "materials": list(test.names), "summary": summarise(records)}
         print("merl-only", json.dumps(summarise(records)["dsgplvm"]), flush=True)
     if "merl+test-folds" in wanted:
+        groups = json.loads(Path(args.fold_groups).read_text()) if args.fold_groups else None
+        folds = kind_folds(test.names, groups) if groups else None
+        n_folds = len(folds) if groups else args.folds
         records, fit_s = [], {}
-        runs = range(args.folds) if args.fold_runs is None else \
+        runs = range(n_folds) if args.fold_runs is None else \
             [int(k) for k in args.fold_runs.split(",")]
         for k in runs:
-            both, fold = fold_training(merl_set, test, k, args.folds, args.seed)
+            both, fold = fold_training(merl_set, test, k, args.folds, args.seed, folds)
             fitted, seconds, _ = fit_all(both, args.seed, methods)
-            score(fitted, test, fold, records)
+            score(fitted, test, fold, records, kind=list(groups)[k] if groups else None)
             for name, s in seconds.items():
                 fit_s[name] = fit_s.get(name, 0.0) + s / len(runs)
             print(f"fold {k}", json.dumps(summarise(records)["dsgplvm"]), flush=True)
-        result["settings"]["merl+test-folds"] = {
-            "what": f"{args.folds} seeded folds of the test tables: each fold predicted by methods "
-                    f"trained on MERL plus the other folds (never on the fold itself).",
-            "fit_seconds": fit_s, "records": records, "materials": list(test.names),
-            "summary": summarise(records)}
+        what = (f"{n_folds} seeded folds of the test tables: each fold predicted by methods "
+                f"trained on MERL plus the other folds (never on the fold itself)." if not groups
+                else f"One kind held out at a time ({args.fold_groups}: "
+                     + ", ".join(f"{k} {len(f)}" for k, f in zip(groups, folds))
+                     + "): each kind predicted by methods trained on MERL plus the other kinds, "
+                       "so no material of its kind was trained on.")
+        result["settings"]["merl+test-kinds" if groups else "merl+test-folds"] = {
+            "what": what, "fit_seconds": fit_s, "records": records,
+            "materials": list(test.names), "summary": summarise(records)}
     for block in result["settings"].values():
         block["check"] = band_check(block["summary"])
     add_methods_panel(result)
