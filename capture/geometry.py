@@ -68,6 +68,8 @@ def load_mesh(path):
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "mesh file not found")
+    if path.suffix.lower() == ".ply":
+        _check_ascii_ply_length(path)
     try:
         loaded = trimesh.load(str(path), process=False)
     except ImportError as err:  # a loader's optional dependency, often for a format it is not
@@ -101,6 +103,32 @@ def load_mesh(path):
         bad = int(faces.min() if faces.min() < 0 else faces.max())
         raise InputError(path, f"a face refers to vertex {bad}, but the mesh has {count} vertices")
     return mesh, has_normals
+
+
+def _check_ascii_ply_length(path):
+    """InputError naming an ASCII PLY whose body holds more or fewer data lines than its header's
+    elements declare (a truncated or appended file): trimesh reads such a file silently, and a
+    binary PLY of the same damage is already refused by its length. No-op for binary PLY."""
+    with open(path, "rb") as f:
+        if f.readline().strip() != b"ply":
+            return                                 # trimesh names what it is not
+        declared, ascii_format = 0, False
+        for line in f:
+            words = line.split()
+            if words[:2] == [b"format", b"ascii"]:
+                ascii_format = True
+            elif words[:1] == [b"element"] and len(words) == 3 and words[2].isdigit():
+                declared += int(words[2])
+            elif words[:1] == [b"end_header"]:
+                break
+        else:
+            return
+        if not ascii_format:
+            return
+        held = sum(1 for line in f if line.strip())
+    if held != declared:
+        raise InputError(path, f"ASCII PLY header declares {declared} vertex/face lines, the file "
+                               f"holds {held} (truncated or appended)")
 
 
 def _scene_parts(scene, path):

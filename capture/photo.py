@@ -52,10 +52,11 @@ def _to_rgb(img, path):
     return img[..., :3]
 
 
-def read_float_image(path):
-    """Read an image through OpenImageIO as float32 (H, W, 3) RGB (channels R, G, B by name when
-    present); a .pfm through read_pfm, top row first. InputError naming the file when missing or
-    unreadable."""
+def read_float_image(path, require_float=False):
+    """Read an image through OpenImageIO as float32 (H, W, 3) RGB: channels R, G, B by name, or
+    a grey Y replicated; a .pfm through read_pfm, top row first. InputError naming the file when
+    missing, unreadable, of other channels (A alone, R and G, X Y Z), or, with require_float,
+    when it stores integer codes (an 8-bit PNG named .exr), whose scale and curve are unknown."""
     path = Path(path)
     if not path.is_file():
         raise InputError(path, "file not found")
@@ -75,6 +76,11 @@ def read_float_image(path):
         if data is None:
             raise InputError(path, f"cannot read image: {inp.geterror() or 'corrupt data'}")
         names = [n.split(".")[-1].upper() for n in spec.channelnames]
+        stored = spec.format.basetype
+        if require_float and stored not in (oiio.BASETYPE.FLOAT, oiio.BASETYPE.HALF,
+                                            oiio.BASETYPE.DOUBLE):
+            raise InputError(path, f"holds {inp.format_name()} integer codes ({stored.name.lower()}), "
+                                   "not floats: name it for what it is (.png, .tif, ...)")
     finally:
         inp.close()
     data = np.asarray(data, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)
@@ -82,6 +88,11 @@ def read_float_image(path):
         data = data[..., :3]
     elif all(c in names for c in "RGB"):
         data = data[..., [names.index(c) for c in "RGB"]]
+    elif "Y" in names and set(names) <= {"Y", "A"}:   # grey, maybe with alpha; not X, Y, Z
+        data = np.repeat(data[..., names.index("Y"):names.index("Y") + 1], 3, axis=2)
+    else:
+        raise InputError(path, f"channels {', '.join(names) or 'none'}: expected R, G and B, or "
+                               "a grey Y")
     data = np.ascontiguousarray(_to_rgb(data, path))
     window = (spec.x, spec.y, spec.width, spec.height)
     full = (spec.full_x, spec.full_y, spec.full_width, spec.full_height)
@@ -193,9 +204,18 @@ def _linear_from_cv(img, path, encoding, saturation):
             rgb = srgb_to_linear(rgb)
         return rgb, usable, clipped
     if img.dtype in (np.float32, np.float64):
+        _check_float_encoding(path, encoding)
         rgb = img.astype(np.float32)
         return (rgb, *_float_masks(rgb, saturation))
     raise InputError(path, f"unsupported pixel type {img.dtype} (expected 8/16-bit or float)")
+
+
+def _check_float_encoding(path, encoding):
+    """InputError naming a float image given "encoding": "srgb": floats are linear radiance, and
+    the sRGB curve is defined on 0..1 display codes."""
+    if encoding == "srgb":
+        raise InputError(path, 'stores floats, which are linear: "encoding": "srgb" is for 8- and '
+                               "16-bit codes (leave it out, or give \"linear\")")
 
 
 def _check_shape(rgb, path, shape):
@@ -251,12 +271,14 @@ def _load_photo(path, encoding, saturation, shape):
             raise InputError(path, "cannot read image (corrupt or unsupported)")
         stored_float = img.dtype in (np.float32, np.float64)
         rgb, usable, clipped = _linear_from_cv(img, path, encoding, saturation)
-    else:
-        rgb = read_pfm(path) if ext == ".pfm" else read_float_image(path)
+    elif ext in FLOAT_EXTENSIONS:
+        _check_float_encoding(path, encoding)
+        rgb = read_pfm(path) if ext == ".pfm" else read_float_image(path, require_float=True)
         stored_float = True
-        if encoding == "srgb":
-            rgb = srgb_to_linear(rgb)
         usable, clipped = _float_masks(rgb, saturation)
+    else:   # .bmp, .gif, .webp...: 8-bit codes whose curve and clipping nobody states
+        raise InputError(path, f"unsupported photo format {ext or '(no extension)'}: photos are "
+                               f"{', '.join(FLOAT_EXTENSIONS + CV_EXTENSIONS)} or camera RAW")
     _check_shape(rgb, path, shape)
     return rgb, usable, clipped, stored_float
 

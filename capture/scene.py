@@ -361,6 +361,11 @@ def _photo(f, index, folder, camera):
             b = _Fields(f.json_path, f.name(f"brackets[{k}]"), item)
             brackets.append((b.path("file", folder),
                              b.number("exposure_s", positive=True, factor=True)))
+        files = [path for path, _ in brackets]
+        twice = next((k for k, path in enumerate(files) if path in files[:k]), None)
+        if twice is not None:
+            f.fail(f"brackets[{twice}].file", "the same file as an earlier bracket: each exposure "
+                                              "is its own photo")
         brackets = tuple(brackets)
     light = _light(f.sub("light"), folder) if f.has("light") else None
     if role == "flash" and (light is None or light.type == "envmap"):
@@ -374,6 +379,21 @@ def _photo(f, index, folder, camera):
                  scale=f.number("scale", 1.0, positive=True, factor=True),
                  scale_given=f.has("scale"), light=light, encoding=encoding,
                  saturation=saturation)
+
+
+class _RepeatedKey(ValueError):
+    pass
+
+
+def _no_repeats(pairs):
+    """json object hook: a dict, or _RepeatedKey for a key given twice ("fx": 100, "fx": 5000),
+    which json would settle silently by keeping the last."""
+    doc = dict(pairs)
+    if len(doc) != len(pairs):
+        seen = set()
+        key = next(k for k, _ in pairs if k in seen or seen.add(k))
+        raise _RepeatedKey(f"key {key!r} is given twice in one object")
+    return doc
 
 
 def _check_finite(value, json_path, where):
@@ -409,7 +429,8 @@ def load_scene(scene_dir):
     if not json_path.is_file():
         raise InputError(json_path, "not found (a scene folder needs a scene.json)")
     try:
-        doc = json.loads(json_path.read_text(encoding="utf-8"))
+        # utf-8-sig: a byte-order mark (Windows editors write one) is no JSON text
+        doc = json.loads(json_path.read_text(encoding="utf-8-sig"), object_pairs_hook=_no_repeats)
         _check_finite(doc, str(json_path), "")
     except InputError:
         raise

@@ -34,6 +34,7 @@ LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722])
 # uffizi (USC ICT, research use only) stay in ../shared: pass them with --envmap.
 DEFAULT_ENVMAPS = ("sky", "studio")
 DEFAULT_ENVMAP_HEIGHT = 128  # the USC probes' size: Table 2 renders stay as fast
+ENVMAP_RINGING = 0.01  # negative values down to 1% of the brightest are filter ringing, clamped
 
 
 def envmap_directions(height):
@@ -96,6 +97,15 @@ def read_envmap_pixels(path):
                                f"got {width}x{height}")
     if not np.all(np.isfinite(pixels)):
         raise InputError(path, "environment map holds non-finite values")
+    # Radiance is >= 0. Resampling filters leave small negative ringing beside bright pixels,
+    # clamped to 0 here; a negative value beyond 1% of the map's brightest is no such artefact
+    # (a map of negatives would render black), so it is refused.
+    floor = -ENVMAP_RINGING * max(float(pixels.max()), 0.0)
+    if pixels.min() < floor:
+        count = int(np.count_nonzero(np.any(pixels < floor, axis=-1)))
+        raise InputError(path, f"environment map holds negative radiance ({count} pixels, down to "
+                               f"{float(pixels.min()):.3g}; the brightest is "
+                               f"{max(float(pixels.max()), 0.0):.3g})")
     return np.maximum(pixels, 0.0)
 
 

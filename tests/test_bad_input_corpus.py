@@ -129,6 +129,20 @@ def scene_with_literal(w, tmp, path, literal):
     return folder
 
 
+def scene_with_envmap(w, tmp, name, data):
+    """A copy of the world's scene whose reference photo is lit by the map `data` as `name`."""
+    folder = scene_copy(w, tmp, lambda doc: doc["photos"][1]["light"].update(file=name))
+    (folder / name).write_bytes(data)
+    return folder
+
+
+def same_file_bracketed(doc):
+    """scene_copy edit: the flash photo as brackets of one file at two exposures."""
+    flash = doc["photos"][0]
+    name = flash.pop("file")
+    flash["brackets"] = [{"file": name, "exposure_s": t} for t in (1.0, 2.0)]
+
+
 def scene_with_file(w, tmp, name, data):
     folder = scene_copy(w, tmp)
     (folder / name).write_bytes(data)
@@ -178,6 +192,43 @@ def normal_map_scene(w, tmp, save):
 def truncated(path, fraction=0.5):
     data = Path(path).read_bytes()
     return data[:int(len(data) * fraction)]
+
+
+def exr_channels(tmp, names, values=0.5, name="c.exr", width=40, height=40):
+    """The bytes of a width x height EXR with the given channel names (e.g. ("A",), ("X", "Y",
+    "Z"))."""
+    import OpenImageIO as oiio
+    path = tmp / name
+    spec = oiio.ImageSpec(width, height, len(names), oiio.FLOAT)
+    spec.channelnames = tuple(names)
+    out = oiio.ImageOutput.create(str(path))
+    out.open(str(path), spec)
+    out.write_image(np.full((height, width, len(names)), values, np.float32))
+    out.close()
+    data = path.read_bytes()
+    path.unlink()
+    return data
+
+
+def image_bytes(ext, img):
+    import cv2
+    ok, buf = cv2.imencode(ext, img)
+    assert ok
+    return buf.tobytes()
+
+
+def ascii_ply_cut(w):
+    """The world's mesh as an ASCII PLY whose header declares every face and whose body holds
+    half of them (a truncated download): trimesh reads it silently."""
+    import trimesh
+    mesh = trimesh.load(w.scene / "object.ply", process=False)
+    head = ["ply", "format ascii 1.0", f"element vertex {len(mesh.vertices)}",
+            "property float x", "property float y", "property float z",
+            f"element face {len(mesh.faces)}", "property list uchar int vertex_indices",
+            "end_header"]
+    body = [" ".join(map(str, v)) for v in mesh.vertices] + \
+        ["3 " + " ".join(map(str, f)) for f in mesh.faces[:len(mesh.faces) // 2]]
+    return ("\n".join(head + body) + "\n").encode()
 
 
 def write(tmp, name, data):
@@ -418,6 +469,33 @@ CASES = [
     ("extract", "flash photo truncated", lambda w, t: ["extract", str(scene_with_file(
         w, t, "flash0.exr", truncated(w.scene / "flash0.exr"))), "--out", _out(t, "s.csv")],
      "flash0.exr"),
+    ("extract", "flash EXR of an alpha channel only", lambda w, t: ["extract", str(
+        scene_with_file(w, t, "flash0.exr", exr_channels(t, ("A",)))), "--out",
+        _out(t, "s.csv")], "flash0.exr"),
+    ("extract", "flash EXR of X, Y, Z channels", lambda w, t: ["extract", str(
+        scene_with_file(w, t, "flash0.exr", exr_channels(t, ("X", "Y", "Z")))), "--out",
+        _out(t, "s.csv")], "flash0.exr"),
+    ("extract", "flash EXR of R and G only", lambda w, t: ["extract", str(
+        scene_with_file(w, t, "flash0.exr", exr_channels(t, ("R", "G")))), "--out",
+        _out(t, "s.csv")], "flash0.exr"),
+    ("extract", "flash photo an 8-bit PNG named .exr", lambda w, t: ["extract", str(
+        scene_with_file(w, t, "flash0.exr", image_bytes(".png", np.full((40, 40, 3), 90,
+                                                                         np.uint8)))),
+        "--out", _out(t, "s.csv")], "flash0.exr"),
+    ("extract", "flash photo a BMP", lambda w, t: ["extract", str(scene_with_flash(
+        w, t, "f.bmp", image_bytes(".bmp", np.full((40, 40, 3), 90, np.uint8)))), "--out",
+        _out(t, "s.csv")], "f.bmp"),
+    ("extract", "encoding srgb on a float EXR", lambda w, t: ["extract", str(scene_copy(
+        w, t, lambda d: d["photos"][0].__setitem__("encoding", "srgb"))), "--out",
+        _out(t, "s.csv")], "flash0.exr"),
+    ("extract", "a key given twice in scene.json", lambda w, t: ["extract", str(
+        scene_with_literal(w, t, ("camera", "fx"), '100.0, "fx": 5000.0')), "--out",
+        _out(t, "s.csv")], "'fx' is given twice"),
+    ("extract", "one file twice in brackets", lambda w, t: ["extract", str(scene_copy(
+        w, t, same_file_bracketed)), "--out", _out(t, "s.csv")], "photos[0].brackets[1].file"),
+    ("extract", "ASCII PLY holding half its declared faces", lambda w, t: ["extract", str(
+        scene_with_file(w, t, "object.ply", ascii_ply_cut(w))), "--out", _out(t, "s.csv")],
+     "object.ply"),
     ("extract", "flash photo's display window 60000x60000", lambda w, t: ["extract", str(
         scene_with_file(w, t, "flash0.exr", window_bomb(t).read_bytes())), "--out",
         _out(t, "s.csv")], "flash0.exr"),
@@ -582,6 +660,9 @@ CASES = [
             "world_from_camera": (np.diag([1.0, -1.0, -1.0, 1.0])
                                   @ np.asarray(d["camera"]["world_from_camera"])).tolist()})),
         w.brdf, _out(t)), "photos[1].camera"),
+    ("render", "envmap of negative radiance", lambda w, t: _render(scene_with_envmap(
+        w, t, "neg.exr", exr_channels(t, ("R", "G", "B"), values=-1.0, width=32, height=16)), w.brdf, _out(t)),
+     "neg.exr"),
     ("render", "spp 0", lambda w, t: _render(w.scene, w.brdf, _out(t), "--spp", "0"), "--spp"),
     ("render", "spp 10**11 (out of memory)", lambda w, t: _render(
         w.scene, w.brdf, _out(t), "--spp", str(10 ** 11)), "--spp"),
@@ -1165,6 +1246,10 @@ CONTROLS = [
     ("run", lambda w, t: _run(w.scene, w.scene / "out"),
      lambda w, t: [w.scene / "out" / "report.json", w.scene / "out" / "chandraker" /
                    "ref_env_compare.json"]),
+    # a byte-order mark before scene.json's text (Windows editors write one)
+    ("extract", lambda w, t: ["extract", str(scene_with_file(
+        w, t, "scene.json", b"\xef\xbb\xbf" + (w.scene / "scene.json").read_bytes())), "--out",
+        str(t / "s.csv")], lambda w, t: [t / "s.csv", t / "s.json"]),
     ("import-diligent", lambda w, t: ["import-diligent", str(diligent_copy(w, t, png8_all)),
                                       "--flash", "1", "--out", str(t / "s")],
      lambda w, t: [t / "s" / "scene.json", t / "s" / "001.exr"]),

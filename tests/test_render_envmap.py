@@ -108,6 +108,28 @@ def test_read_envmap_file(tmp_path):
         read_envmap_pixels(str(tmp_path / "missing.hdr"))
 
 
+@pytest.mark.parametrize("negative, refused", [(-0.005, False), (-0.02, True)])
+def test_envmap_negative_ringing_is_clamped_and_negative_radiance_refused(tmp_path, negative,
+                                                                          refused):
+    """A negative pixel within 1% of the brightest (a resampling filter's ringing) reads as 0;
+    one beyond it is radiance no map holds, refused naming the file."""
+    import OpenImageIO as oiio
+    pixels = np.full((8, 16, 3), 0.5, np.float32)
+    pixels[0, 0] = 1.0
+    pixels[4, 4] = negative
+    path = str(tmp_path / "map.exr")
+    out = oiio.ImageOutput.create(path)
+    out.open(path, oiio.ImageSpec(16, 8, 3, oiio.FLOAT))
+    out.write_image(pixels)
+    out.close()
+    if refused:
+        with pytest.raises(InputError, match="map.exr.*negative radiance \\(1 pixels"):
+            read_envmap_pixels(path)
+    else:
+        read = read_envmap_pixels(path)
+        assert np.all(read[4, 4] == 0.0) and np.allclose(read[0, 0], 1.0)
+
+
 def test_pfm_envmap_and_compare_images_are_top_row_first(tmp_path):
     """PFM stores rows bottom to top. A .pfm envmap's top row is +y (contract: "The top edge is
     +y"), and `compare` reads .pfm images the way photos are read; OpenImageIO alone gave the rows
