@@ -62,12 +62,13 @@ def level_ratio(pred, ref, mask=None):
     skewed, and the median of ref / pred read 1.04 at 8 spp for the true BRDF, where the sums
     stay unbiased. What the level tells: pipeline.report.level_note.
     """
-    pred = np.asarray(pred, dtype=np.float64)
-    ref = np.asarray(ref, dtype=np.float64)
+    pred, ref = np.asarray(pred), np.asarray(ref)
     used = comparison_mask(pred, ref, None if mask is None else np.asarray(mask, dtype=bool))
-    total_pred = pred[used].sum(axis=0)
+    # sums in float64 of the compared pixels only: no float64 copy of whole images per photo
+    total_pred = pred[used].sum(axis=0, dtype=np.float64)
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(total_pred > 0, ref[used].sum(axis=0) / total_pred, np.nan)
+        return np.where(total_pred > 0, ref[used].sum(axis=0, dtype=np.float64) / total_pred,
+                        np.nan)
 
 
 def write_delta_e_png(path, delta_e, title="log-CIELAB $\\Delta E^*_{ab}$", vmax=None):
