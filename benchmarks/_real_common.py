@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from brdf.angles import half_diff_from_world, merl_bin_index
-from brdf.lookup import evaluate_table
-from brdf.merl import theta_h_centres
+from flashbrdf.brdf.angles import half_diff_from_world, merl_bin_index
+from flashbrdf.brdf.lookup import evaluate_table
+from flashbrdf.brdf.merl import theta_h_centres
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("FLASHBRDF_SHARED", REPO.parent / "shared"))
@@ -39,7 +39,7 @@ def argument_parser(description, data_name, work_name):
 
 def run_cli(argv):
     """Run `flashbrdf ARGV` in-process: (exit status, stderr text, seconds)."""
-    from pipeline.cli import main
+    from flashbrdf.pipeline.cli import main
     err = io.StringIO()
     start = time.perf_counter()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
@@ -135,6 +135,6 @@ def theta_h_deg():
 
 
 def write_json(path, data):
-    from brdf.atomic import write_text
-    from pipeline.report import _clean
+    from flashbrdf.brdf.atomic import write_text
+    from flashbrdf.pipeline.report import _clean
     write_text(path, json.dumps(_clean(data), indent=1) + "\n")

@@ -46,8 +46,8 @@ MIN_COS = 0.3
 def brightness_against_flash(scene_dir):
     """Per reference light: (file, angle from the view in deg, median θd in deg, (3,) median
     ln-ratio of its ρ to the flash's at the same pixels, pixels used)."""
-    from brdf.angles import half_diff_from_world
-    from pipeline.report import read_image
+    from flashbrdf.brdf.angles import half_diff_from_world
+    from flashbrdf.pipeline.report import read_image
     scene, mask, normals, view = _load_scene(scene_dir)
     flash = next(p for p in scene["photos"] if p["role"] == "flash")
     light_f = np.asarray(flash["light"]["direction"], float)
@@ -77,7 +77,7 @@ def main(argv=None):
     ap.add_argument("--ring-deg", type=float, nargs=2, default=(10.0, 13.0),
                     help="light angles (deg) of the ring whose median ratio corrects the flash")
     args = ap.parse_args(argv)
-    from brdf.merl import read_merl
+    from flashbrdf.brdf.merl import read_merl
     scene_dir = args.work / "scene"
     rows = brightness_against_flash(scene_dir)
     angles = np.array([r[1] for r in rows])

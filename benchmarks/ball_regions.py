@@ -28,7 +28,7 @@ THETA_H_BANDS = ((0, 11), (11, 30), (30, 50), (50, 70), (70, 90))   # MERL θh b
 
 def per_light_errors(table, scene_dir):
     """ΔE-log mean over the mask for each reference light -> ((L,) errors, (L,) angles in deg)."""
-    from pipeline.report import image_errors, read_image
+    from flashbrdf.pipeline.report import image_errors, read_image
     scene, mask, normals, view = _load_scene(scene_dir)
     errors, angles = [], []
     for photo in (p for p in scene["photos"] if p["role"] == "reference"):
@@ -47,7 +47,7 @@ def main(argv=None):
     ap.add_argument("--work", type=Path, required=True)
     ap.add_argument("--against", default="ashikhmin")
     args = ap.parse_args(argv)
-    from brdf.merl import read_merl
+    from flashbrdf.brdf.merl import read_merl
     scene_dir = args.work / "scene"
     ours, other = (read_merl(args.work / f"{m}.binary") for m in ("dsgplvm", args.against))
     err_ours, angles = per_light_errors(ours, scene_dir)

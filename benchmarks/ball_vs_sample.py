@@ -36,8 +36,8 @@ THETA_D_BINS = (5, 10, 15, 20, 30, 45, 60)     # where the weights are reported 
 def row_extension_variance(training):
     """(90, 90) mean over training tables and channels of (ln(ρ + e) − ln(ρ_row g + e))²: how far
     each training table is from its own θd = 0 row extended by the microfacet ratio g."""
-    from brdf.colour import FEATURE_OFFSET
-    from brdf.microfacet import geometry_ratio_2d
+    from flashbrdf.brdf.colour import FEATURE_OFFSET
+    from flashbrdf.brdf.microfacet import geometry_ratio_2d
     e = FEATURE_OFFSET
     ratio = np.nan_to_num(geometry_ratio_2d(), nan=1.0)[None, ..., None]
     tables = np.asarray(training.tables_2d, float)
@@ -51,10 +51,10 @@ def row_extension_variance(training):
 def precision_weighted_table(unblended_3d, method, rho, v_row):
     """The anchored, unblended 3D table blended toward the observed row with w = v_m / (v_m + v_row)
     on the observed θh bins (1 at θd = 0), as infer.row_blend does with its Gaussian w(θd)."""
-    from brdf import merl
-    from brdf.bins import valid_bins_3d
-    from brdf.microfacet import geometry_ratio_valid
-    from infer.row_blend import blend_log, blend_weights
+    from flashbrdf.brdf import merl
+    from flashbrdf.brdf.bins import valid_bins_3d
+    from flashbrdf.brdf.microfacet import geometry_ratio_valid
+    from flashbrdf.infer.row_blend import blend_log, blend_weights
     variance = np.nanmean(method.predict(rho, "2d")[1], axis=-1)
     row, gaussian = blend_weights(rho)
     w = np.where(gaussian > 0, np.nan_to_num(variance / (variance + v_row + 1e-300)), 0.0)
@@ -66,7 +66,7 @@ def precision_weighted_table(unblended_3d, method, rho, v_row):
 
 def sample_error(table, work, name):
     """ΔE-log mean over the sample capture's references, rendered by `render`."""
-    from brdf.merl import write_merl
+    from flashbrdf.brdf.merl import write_merl
     path, out = work / f"sample_{name}.binary", work / f"sample_render_{name}"
     write_merl(path, table)
     rc, err, _ = run_cli(["render", REPO / "sample_data" / "capture", "--brdf", path, "--out", out,
@@ -84,9 +84,9 @@ def main(argv=None):
     ap.add_argument("--model", default=str(REPO / "sample_data" / "models" / "merl100_1d2d.npz"))
     ap.add_argument("--work", type=Path, default=None)
     args = ap.parse_args(argv)
-    from brdf.views import read_slice_csv
-    from infer.model_file import load_method
-    from infer.row_blend import row_weights
+    from flashbrdf.brdf.views import read_slice_csv
+    from flashbrdf.infer.model_file import load_method
+    from flashbrdf.infer.row_blend import row_weights
     work = args.work or Path(tempfile.mkdtemp(prefix="ball_vs_sample_"))
     work.mkdir(parents=True, exist_ok=True)
     capture = REPO / "sample_data" / "capture"

@@ -49,7 +49,7 @@ BEFORE = {"k": 5, "purity": 0.849, "flat": 12.77, "renamed_flat": 12.95,
 
 
 def _views(work):
-    from pipeline.real_scenes import planar_card_scenes
+    from flashbrdf.pipeline.real_scenes import planar_card_scenes
     folder = work / "planar_scenes"
     if (folder / "view_00" / "scene.json").is_file():
         return sorted(p for p in folder.iterdir() if (p / "scene.json").is_file())
@@ -89,10 +89,10 @@ def _label_images(work, views):
 
 def _albedo_maps(labels_png, views):
     """{name: ALBEDO.exr}: as segment --albedo makes it, and trusting every pixel."""
-    import capture
-    from pipeline.albedo_files import write_albedo
-    from slice_extract.albedo import AlbedoOptions, estimate_albedo_map
-    from slice_extract.extract import ExtractOptions, collect_samples
+    from flashbrdf import capture
+    from flashbrdf.pipeline.albedo_files import write_albedo
+    from flashbrdf.slice_extract.albedo import AlbedoOptions, estimate_albedo_map
+    from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
     samples = collect_samples(capture.load_scene(views[0]), ExtractOptions())
     labels = _read_labels(labels_png)
     out = {}
@@ -107,7 +107,7 @@ def _albedo_maps(labels_png, views):
 
 
 def _pipeline_rows(work, views, images, methods):
-    from pipeline.cmd_run import DEFAULT_MODEL
+    from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
     rows = []
     for label_name, labels in images.items():
         slices = labels.parent / "slices"
@@ -145,8 +145,8 @@ class _FlatRenderer:
     """The factors' renderer: flat-in-θd tables per material, every predicted view."""
 
     def __init__(self, views):
-        import capture
-        from slice_extract.extract import ExtractOptions, collect_samples
+        from flashbrdf import capture
+        from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
         self.views = views
         self.samples = collect_samples(capture.load_scene(views[0]), ExtractOptions())
         self.geometry = {}
@@ -159,7 +159,7 @@ class _FlatRenderer:
 
     def flash_slices(self, labels):
         """[(90, 3) rho per material 1..K]: per-bin medians of view 00's samples."""
-        from slice_extract.segment import _binned_median, _bins
+        from flashbrdf.slice_extract.segment import _binned_median, _bins
         s = self.samples
         usable = ~s.censored & np.all(np.isfinite(s.rho), axis=1)
         mine = labels.ravel()[s.pixels]
@@ -182,7 +182,7 @@ class _FlatRenderer:
 
     def error(self, slices, labels_of_view):
         """Mean over the predicted views of ΔE log mean; labels_of_view(view) -> (H, W)."""
-        from pipeline.report import image_errors
+        from flashbrdf.pipeline.report import image_errors
         tables = [_flat_table(rho) for rho in slices]
         errors = []
         for view in self.views[1:]:
@@ -213,9 +213,9 @@ def _renamed(labels, reference, object_mask):
 
 
 def _segment_view(view, weight=None):
-    import capture
-    import slice_extract.segment as segment
-    from slice_extract.extract import ExtractOptions, collect_samples
+    from flashbrdf import capture
+    import flashbrdf.slice_extract.segment as segment
+    from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
     default = segment.BRIGHTNESS_WEIGHT
     segment.BRIGHTNESS_WEIGHT = default if weight is None else weight
     try:
@@ -273,7 +273,7 @@ def _factor_rows(views, images):
 
 
 def _markdown(command, rows, factors, methods):
-    from slice_extract.segment import BRIGHTNESS_WEIGHT
+    from flashbrdf.slice_extract.segment import BRIGHTNESS_WEIGHT
     lines = ["# Planar cards: what the 9.6 target needs", "",
              f"Command: `{command}`. Mean over the 8 predicted views of ΔE log mean (flash = "
              "view 00).", "",

@@ -47,7 +47,7 @@ def _segment(samples, white=True, frame=True, cap=None, white_while_found=False)
     """auto labels (H, W) of view 00 with the white term and the frame rule on or off; cap:
     another WHITE_CAP; white_while_found: the white term also while the materials and their
     slices are found (_residuals' plain calls given the floor _log_rho would give)."""
-    import slice_extract.segment as segment
+    import flashbrdf.slice_extract.segment as segment
     saved = segment.WHITE_CAP, segment._clean_labels, segment._residuals
     clean, residuals = saved[1], saved[2]
     if not white:
@@ -73,7 +73,7 @@ def _segment(samples, white=True, frame=True, cap=None, white_while_found=False)
 def _residual_maps(samples, labels):
     """(H, W, K) the final assignment's residuals (white term on) against the slices of the
     materials `labels` holds; NaN where the pixel has no sample."""
-    import slice_extract.segment as segment
+    import flashbrdf.slice_extract.segment as segment
     usable = (samples.photo == 0) & ~samples.censored & np.all(np.isfinite(samples.rho), axis=1)
     rho, theta_h, pixels = samples.rho[usable], samples.theta_h[usable], samples.pixels[usable]
     mine = labels.ravel()[pixels] - 1
@@ -89,7 +89,7 @@ def _residual_maps(samples, labels):
 def _smoothed_labels(residual, sigma, object_mask):
     """argmin of residual maps smoothed over sigma px (normalised convolution), cleaned up."""
     import cv2
-    from slice_extract.segment import SegmentOptions, clean_label_image
+    from flashbrdf.slice_extract.segment import SegmentOptions, clean_label_image
     valid = np.isfinite(residual[..., 0]).astype(np.float32)
     weight = cv2.GaussianBlur(valid, (0, 0), sigma)
     smooth = np.stack([cv2.GaussianBlur(np.nan_to_num(residual[..., j]), (0, 0), sigma)
@@ -103,7 +103,7 @@ def _smoothed_labels(residual, sigma, object_mask):
 def _where(labels, reference, samples, photo_value):
     """Disagreement tables {quantity: [(low, high, share of pixels, share wrong)]}."""
     import cv2
-    from slice_extract.segment import _binned_median, _bins
+    from flashbrdf.slice_extract.segment import _binned_median, _bins
     mask = reference > 0
     _, table = purity(labels, reference, mask)
     majority = table.argmax(axis=1)
@@ -145,7 +145,7 @@ def main(argv=None):
                     help="the pipeline rows (infer, render --labels): now and σ = 1 px")
     args = ap.parse_args(argv)
     import cv2
-    from slice_extract.extract import extract_material_slices
+    from flashbrdf.slice_extract.extract import extract_material_slices
     args.work.mkdir(parents=True, exist_ok=True)
     views = _views(args.work)
     flat = _FlatRenderer(views)

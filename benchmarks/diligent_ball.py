@@ -38,9 +38,9 @@ def _load_scene(scene_dir):
 
 
 def _slice(scene_dir, scene, mask, normals, view, work, log):
-    from brdf.views import read_slice_csv, write_slice_csv
-    from pipeline.report import read_image
-    from brdf.errors import InputError
+    from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
+    from flashbrdf.pipeline.report import read_image
+    from flashbrdf.brdf.errors import InputError
     rc, err, seconds = run_cli(["extract", scene_dir, "--out", work / "slice.csv"])
     if rc == 0:
         try:
@@ -73,7 +73,7 @@ def _spread(slice_json):
 
 def _renders(scene_dir, scene, brdf_path, method, mask, normals, view, work, table):
     """{photo file: (H,W,3) render}, renderer name, seconds, max relative stage-vs-direct gap."""
-    from pipeline.report import read_image
+    from flashbrdf.pipeline.report import read_image
     out = work / f"render_{method}"
     rc, err, seconds = run_cli(["render", scene_dir, "--brdf", brdf_path, "--out", out])
     refs = [p for p in scene["photos"] if p["role"] == "reference"]
@@ -97,9 +97,9 @@ def main(argv=None):
     ap = argument_parser(__doc__.splitlines()[0], "diligent-ball", "flashbrdf_bench_diligent_ball")
     ap.add_argument("--flash", type=int, default=52)
     args = ap.parse_args(argv)
-    from brdf.merl import read_merl
-    from brdf.views import table_2d
-    from pipeline.report import image_errors, read_image, write_report
+    from flashbrdf.brdf.merl import read_merl
+    from flashbrdf.brdf.views import table_2d
+    from flashbrdf.pipeline.report import image_errors, read_image, write_report
     work = args.work
     work.mkdir(parents=True, exist_ok=True)
     log = lambda msg: print(msg, flush=True)  # noqa: E731
@@ -169,8 +169,8 @@ def main(argv=None):
 
 def write_gallery(path, photo, rows):
     """The farthest light's photo beside every method's render, with Delta E maps below."""
-    from pipeline.report import image_errors
-    from pipeline.report_figures import reference_figure
+    from flashbrdf.pipeline.report import image_errors
+    from flashbrdf.pipeline.report_figures import reference_figure
     maps = {r["method"]: image_errors(r["render"], r["reference"], r["mask"])[0] for r in rows}
     reference_figure(path, f"{photo} (farthest light)", rows[0]["reference"],
                      {r["method"]: r["render"] for r in rows}, maps,

@@ -54,7 +54,7 @@ def _timed(args, log):
 
 
 def _slice_error(slice_csv, truth):
-    from brdf.views import read_slice_csv
+    from flashbrdf.brdf.views import read_slice_csv
     rho, n = read_slice_csv(slice_csv)
     truth = np.asarray(truth)
     ok = np.isfinite(rho).all(1) & (truth > 1e-9).all(1)

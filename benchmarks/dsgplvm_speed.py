@@ -20,11 +20,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from brdf import colour, metrics  # noqa: E402
-from brdf.atomic import write_text  # noqa: E402
-from infer.baselines import PCA  # noqa: E402
-from infer.training_set import TrainingSet  # noqa: E402
-from infer.dsgplvm import DSGPLVM  # noqa: E402
+from flashbrdf.brdf import colour, metrics  # noqa: E402
+from flashbrdf.brdf.atomic import write_text  # noqa: E402
+from flashbrdf.infer.baselines import PCA  # noqa: E402
+from flashbrdf.infer.training_set import TrainingSet  # noqa: E402
+from flashbrdf.infer.dsgplvm import DSGPLVM  # noqa: E402
 
 SETTINGS = {
     "default": {},

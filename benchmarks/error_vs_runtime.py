@@ -25,7 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from experiments.runtime_plot import grid_points, make_figure, write_figure  # noqa: E402
+from flashbrdf.experiments.runtime_plot import grid_points, make_figure, write_figure  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
 

@@ -32,13 +32,13 @@ PISA = (Path(os.environ.get("FLASHBRDF_SHARED", ROOT.parent / "shared")) / "data
         / "pisa_latlong_256x128.hdr")
 sys.path.insert(0, str(ROOT))
 
-from brdf.atomic import write_text  # noqa: E402
-from brdf.merl import list_merl, read_merl  # noqa: E402
-from brdf.metrics import brdf_error  # noqa: E402
-from brdf.principled import tabulate_principled  # noqa: E402
-from brdf.principled_fit import fit_principled  # noqa: E402
-from brdf.views import table_2d  # noqa: E402
-from render.export import fit_quality  # noqa: E402
+from flashbrdf.brdf.atomic import write_text  # noqa: E402
+from flashbrdf.brdf.merl import list_merl, read_merl  # noqa: E402
+from flashbrdf.brdf.metrics import brdf_error  # noqa: E402
+from flashbrdf.brdf.principled import tabulate_principled  # noqa: E402
+from flashbrdf.brdf.principled_fit import fit_principled  # noqa: E402
+from flashbrdf.brdf.views import table_2d  # noqa: E402
+from flashbrdf.render.export import fit_quality  # noqa: E402
 
 RESULTS = ROOT / "benchmarks" / "results"
 KNOWN = {
@@ -83,8 +83,8 @@ def block_means(image, mask, block=4):
 def _mitsuba_spheres(args):
     """(mitsuba_bsdf module, pisa envmap path, sphere mask (size, size), [(name, path)]) for the
     Mitsuba parts: llvm_ad_rgb registered, one MERL table per --plugin-materials name."""
-    import render.mitsuba_bsdf as mbsdf
-    from render.scene_render import sphere_view
+    import flashbrdf.render.mitsuba_bsdf as mbsdf
+    from flashbrdf.render.scene_render import sphere_view
     if not mbsdf.llvm_available():
         raise SystemExit("llvm_ad_rgb unavailable: pip install -e '.[mitsuba]', apt-get install "
                          "libllvm19")
@@ -95,7 +95,7 @@ def _mitsuba_spheres(args):
 
 
 def part_plugin(args):
-    from render.scene_render import render_sphere
+    from flashbrdf.render.scene_render import render_sphere
     mbsdf, pisa, mask, materials = _mitsuba_spheres(args)
     rows = []
     for name, path in materials:
@@ -219,7 +219,7 @@ BANDS = ((0, 30), (30, 60), (60, 75), (75, 90))
 def part_bands(args):
     """Where the measured fits err: log-CIELAB Delta E of the 2D views per theta_d band (degrees),
     for every material in export_measured.json, from its stored parameters."""
-    from brdf.metrics import delta_e_log
+    from flashbrdf.brdf.metrics import delta_e_log
     measured = json.loads((RESULTS / "export_measured.json").read_text())
     folders = {"MERL (NBRDF proxy)": args.merl_dir, "RGL (NBRDF proxy)": args.rgl_dir}
     rows = []
@@ -245,8 +245,8 @@ def plugin_figure():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from brdf.atomic import atomic_path
-    from render.images import tonemap
+    from flashbrdf.brdf.atomic import atomic_path
+    from flashbrdf.render.images import tonemap
     saved = sorted(RESULTS.glob("export_plugin_*.npy"))
     if not saved:
         return None

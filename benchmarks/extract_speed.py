@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT / "tests"))  # the synthetic-scene renderer lives wi
 
 def _embree_time(scene_dir, rows_cols=None):
     """Seconds Embree (embreex first-hit query with barycentrics) takes for the photo's rays."""
-    import capture
+    from flashbrdf import capture
     scene = capture.load_scene(scene_dir)
     mi = capture.scene_intersector(scene)
     cam = scene.camera
@@ -50,8 +50,8 @@ def main():
     p.add_argument("--repeats", type=int, default=3)
     p.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "extract_speed.json"))
     args = p.parse_args()
-    import capture
-    from slice_extract import extract_slice
+    from flashbrdf import capture
+    from flashbrdf.slice_extract import extract_slice
     from synthetic import ggx_lambert, pinhole_camera, point_light, torus_mesh
     from synthetic import write_synthetic_scene
 

@@ -31,10 +31,10 @@ def table_errors(table_path, work, offset, photons, seed):
     """{"median", "p90"}: over bins with n >= N_MIN, the largest per-channel relative error of
     the extracted slice against the table's θd = 0 row; {"log_median", "log_p90"}: the same for
     |Δ ln(ρ + e)|, e = brdf.colour.FEATURE_OFFSET (what inference reads); "bins": how many."""
-    from brdf.colour import FEATURE_OFFSET
-    from brdf.merl import read_merl
-    from brdf.views import flash_slice
-    from slice_extract import extract_slice
+    from flashbrdf.brdf.colour import FEATURE_OFFSET
+    from flashbrdf.brdf.merl import read_merl
+    from flashbrdf.brdf.views import flash_slice
+    from flashbrdf.slice_extract import extract_slice
     from synthetic import pinhole_camera, point_light, sphere_mesh, table_brdf, write_synthetic_scene
     table = read_merl(table_path)
     truth, _ = flash_slice(table)

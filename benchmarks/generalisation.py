@@ -38,11 +38,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from brdf import merl, metrics  # noqa: E402
-from infer import TrainingSet, make_method, novelty_warning  # noqa: E402
-from infer.uncertainty import standardised_residuals  # noqa: E402
-from experiments.evaluate import PAPER_FIXED, run_evaluation  # noqa: E402
-from infer.model_selection import tune_baselines  # noqa: E402
+from flashbrdf.brdf import merl, metrics  # noqa: E402
+from flashbrdf.infer import TrainingSet, make_method, novelty_warning  # noqa: E402
+from flashbrdf.infer.uncertainty import standardised_residuals  # noqa: E402
+from flashbrdf.experiments.evaluate import PAPER_FIXED, run_evaluation  # noqa: E402
+from flashbrdf.infer.model_selection import tune_baselines  # noqa: E402
 
 BANDS_DEG = ((0, 30), (30, 60), (60, 75), (75, 90))
 METHODS = ("dsgplvm", "dsgplvm-paper", "dsgplvm-relative", "pca", "noll", "chandraker",

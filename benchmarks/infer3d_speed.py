@@ -21,9 +21,9 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from brdf import merl, views  # noqa: E402
-from brdf.atomic import write_text  # noqa: E402
-from infer import TrainingSet, load_method, make_method  # noqa: E402
+from flashbrdf.brdf import merl, views  # noqa: E402
+from flashbrdf.brdf.atomic import write_text  # noqa: E402
+from flashbrdf.infer import TrainingSet, load_method, make_method  # noqa: E402
 
 HELD_OUT = "red-specular-plastic"
 

@@ -30,7 +30,7 @@ N_CLUSTERS = 3
 
 def _geometry(scene):
     """Per-pixel (wi = wo, normal, I/r^2) for a view: all (N,3), from the scene's own camera."""
-    from pipeline.real_scenes import plane_point_from_pixel
+    from flashbrdf.pipeline.real_scenes import plane_point_from_pixel
     cam = scene["camera"]
     pose = np.array(cam["world_from_camera"])
     lens = pose[:3, 3]
@@ -48,7 +48,7 @@ def _geometry(scene):
 
 
 def _photo(view):
-    from pipeline.report import read_image
+    from flashbrdf.pipeline.report import read_image
     scene = json.loads((view / "scene.json").read_text())
     return scene, read_image(view / scene["photos"][0]["file"])
 
@@ -111,7 +111,7 @@ def _flat_table(rho):
 def _per_cluster_vs_pooled(views, flash_view, labels, pooled_rho, cluster_slices):
     """Delta E log per predicted view for one flat BRDF from the pooled slice against one flat BRDF
     per colour cluster (each from its own slice of the flash view): what spatial variation costs."""
-    from pipeline.report import image_errors
+    from flashbrdf.pipeline.report import image_errors
     pooled = _flat_table(pooled_rho)
     per_cluster = [_flat_table(c[0]) for c in cluster_slices]
     rows = []
@@ -136,11 +136,11 @@ def main(argv=None):
     ap = argument_parser(__doc__.splitlines()[0], "flash-planar-cards-blue", "flashbrdf_bench_planar_cards")
     ap.add_argument("--flash-view", type=int, default=0)
     args = ap.parse_args(argv)
-    from brdf.errors import InputError
-    from brdf.merl import read_merl
-    from brdf.views import read_slice_csv, write_slice_csv
-    from pipeline.real_scenes import planar_card_scenes
-    from pipeline.report import image_errors
+    from flashbrdf.brdf.errors import InputError
+    from flashbrdf.brdf.merl import read_merl
+    from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
+    from flashbrdf.pipeline.real_scenes import planar_card_scenes
+    from flashbrdf.pipeline.report import image_errors
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     work = args.work
     work.mkdir(parents=True, exist_ok=True)
@@ -201,7 +201,7 @@ def main(argv=None):
             vscene, photo = _photo(view)
             rc, err, seconds = run_cli(["render", view, "--brdf", path, "--out", out / view.name])
             if rc == 0:
-                from pipeline.report import read_image
+                from flashbrdf.pipeline.report import read_image
                 render = read_image(out / view.name / Path(vscene["photos"][1]["file"]).with_suffix(".exr"))
             else:
                 info["renderer"] = "direct (benchmark stand-in)"
@@ -295,7 +295,7 @@ def _plot(result, label_map, gallery, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from pipeline.report_figures import exposure_for, tone_map
+    from flashbrdf.pipeline.report_figures import exposure_for, tone_map
     fig, axes = plt.subplots(2, 3, figsize=(14, 8.5))
     axes[0, 0].imshow(label_map, cmap="tab10", vmin=0, vmax=9)
     axes[0, 0].set_title("colour clusters (c0, c1, c2)")

@@ -35,11 +35,11 @@ if not SHARED.exists():
 ENVMAPS = SHARED / "data" / "envmaps"
 RESULTS = REPO / "benchmarks" / "results"
 
-from brdf.merl import read_merl                       # noqa: E402
-from render.brdf_models import TabulatedBRDF          # noqa: E402
-from render.envmap import EnvMap                      # noqa: E402
-from render.integrator import render_envmap           # noqa: E402
-from render.scene_render import sphere_view           # noqa: E402
+from flashbrdf.brdf.merl import read_merl                       # noqa: E402
+from flashbrdf.render.brdf_models import TabulatedBRDF          # noqa: E402
+from flashbrdf.render.envmap import EnvMap                      # noqa: E402
+from flashbrdf.render.integrator import render_envmap           # noqa: E402
+from flashbrdf.render.scene_render import sphere_view           # noqa: E402
 
 
 def table_path(args, name):

@@ -26,8 +26,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from generalisation import BANDS_DEG, BASELINES, band_errors, fold_training  # noqa: E402
-from infer import TrainingSet, make_method  # noqa: E402
-from infer.row_blend import ROW_BLEND_DEG  # noqa: E402
+from flashbrdf.infer import TrainingSet, make_method  # noqa: E402
+from flashbrdf.infer.row_blend import ROW_BLEND_DEG  # noqa: E402
 
 
 def run_part(args):

@@ -48,8 +48,8 @@ WARM = """
 import json, os, sys, time, argparse
 os.environ["FLASHBRDF_THREADS"] = "1"
 from threadpoolctl import threadpool_limits
-from pipeline.cmd_run import run
-from pipeline.batch import cached_load_methods
+from flashbrdf.pipeline.cmd_run import run
+from flashbrdf.pipeline.batch import cached_load_methods
 out = sys.argv[1]
 seconds = []
 with threadpool_limits(1):

@@ -36,7 +36,7 @@ PHOTONS = 2000
 
 def _synthetic(work, merl_dir):
     """{name: (scene folder, true K)} of the synthetic objects (rendered once into work)."""
-    from brdf.merl import read_merl
+    from flashbrdf.brdf.merl import read_merl
     from synthetic import (by_region, combine, pinhole_camera, point_light, sphere_mesh,
                            table_brdf, torus_mesh, write_synthetic_scene)
     table = {}
@@ -86,7 +86,7 @@ def _printed(brdf):
 
 
 def _real(work):
-    from pipeline.real_scenes import planar_card_scenes
+    from flashbrdf.pipeline.real_scenes import planar_card_scenes
     out = {}
     for name, folder in (("pot2", "diligent-pot2"), ("ball", "diligent-ball")):
         scene = work / f"{name}_scene"
@@ -117,9 +117,9 @@ def _margins(criterion):
 
 
 def main(argv=None):
-    import capture
-    from slice_extract.extract import ExtractOptions, collect_samples
-    from slice_extract.segment import SegmentOptions, segment_samples
+    from flashbrdf import capture
+    from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
+    from flashbrdf.slice_extract.segment import SegmentOptions, segment_samples
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--merl-dir", default="/work/data/merl", type=Path)
     ap.add_argument("--work", default=Path("/tmp/flashbrdf_bench_margins"), type=Path)

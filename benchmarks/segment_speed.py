@@ -38,7 +38,7 @@ def main(argv=None):
     import sklearn.mixture  # noqa: F401
     import threadpoolctl  # noqa: F401
 
-    from slice_extract.segment import segment_samples
+    from flashbrdf.slice_extract.segment import segment_samples
     import_seconds = time.perf_counter() - started
     height, width = 3000, 4000
     rows, cols = np.mgrid[0:height, 0:width].astype(np.float32)

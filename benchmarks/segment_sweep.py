@@ -39,10 +39,10 @@ def camera_post(bits=None, demosaic=False, jpeg=None):
 
 def material_k(table_path, work, seed, photons=PHOTONS, bits=None, demosaic=False, jpeg=None):
     """(K chosen by auto, its criterion dict) for one MERL table on the sphere-and-torus scene."""
-    import capture
-    from brdf.merl import read_merl
-    from slice_extract.extract import ExtractOptions, collect_samples
-    from slice_extract.segment import segment_samples
+    from flashbrdf import capture
+    from flashbrdf.brdf.merl import read_merl
+    from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
+    from flashbrdf.slice_extract.segment import segment_samples
     from synthetic import (combine, pinhole_camera, point_light, sphere_mesh, table_brdf,
                            torus_mesh, write_synthetic_scene)
     mesh = combine(sphere_mesh(radius=0.07, centre=(0, 0, 1.1)), torus_mesh(centre=(0.0, 0.0, 0.98)))
@@ -85,11 +85,11 @@ def pair_result(paths, work, seed, photons=PHOTONS, post=None, region=half):
     better of the two one-to-one matchings of labels to halves (None for another K); and the
     tables' own θd = 0 slice gap (median over θh bins of the mean |Δ ln ρ| over channels, ρ +
     1e-3: below 0.1 the segmenter counts two slices as one material by design)."""
-    import capture
-    from brdf.merl import read_merl
-    from brdf.views import flash_slice
-    from slice_extract.extract import ExtractOptions, collect_samples
-    from slice_extract.segment import segment_samples
+    from flashbrdf import capture
+    from flashbrdf.brdf.merl import read_merl
+    from flashbrdf.brdf.views import flash_slice
+    from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
+    from flashbrdf.slice_extract.segment import segment_samples
     from synthetic import (by_region, pinhole_camera, point_light, region_image, sphere_mesh,
                            table_brdf, write_synthetic_scene)
     tables = [read_merl(p) for p in paths]

@@ -30,12 +30,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from brdf import metrics  # noqa: E402
-from brdf.bins import scatter_valid, valid_bins_3d  # noqa: E402
+from flashbrdf.brdf import metrics  # noqa: E402
+from flashbrdf.brdf.bins import scatter_valid, valid_bins_3d  # noqa: E402
 from generalisation import fold_training  # noqa: E402
-from infer import TrainingSet, load_method, make_method  # noqa: E402
-from infer.estimator import stream_combination  # noqa: E402
-from infer.row_blend import blend_log, blend_toward_row, blend_weights  # noqa: E402
+from flashbrdf.infer import TrainingSet, load_method, make_method  # noqa: E402
+from flashbrdf.infer.estimator import stream_combination  # noqa: E402
+from flashbrdf.infer.row_blend import blend_log, blend_toward_row, blend_weights  # noqa: E402
 
 LAMBDAS = (0.0, 0.25, 0.5, 0.75, 1.0)
 EXTENSIONS = ("flat", "microfacet")
@@ -104,8 +104,8 @@ def ball(model, merl_dir):
     """{"λ|extension": ΔE-log mean over the ball's 95 other lights} from 3D predictions."""
     from benchmarks._real_common import SHARED, direct_render, run_cli
     from benchmarks.diligent_ball import _load_scene
-    from brdf.views import read_slice_csv
-    from pipeline.report import image_errors, read_image
+    from flashbrdf.brdf.views import read_slice_csv
+    from flashbrdf.pipeline.report import image_errors, read_image
     out = {}
     with tempfile.TemporaryDirectory() as work:
         work = Path(work)

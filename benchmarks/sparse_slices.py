@@ -27,8 +27,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._real_common import RESULTS  # noqa: E402
-from brdf.colour import FEATURE_OFFSET  # noqa: E402
-from brdf.merl import theta_h_centres  # noqa: E402
+from flashbrdf.brdf.colour import FEATURE_OFFSET  # noqa: E402
+from flashbrdf.brdf.merl import theta_h_centres  # noqa: E402
 
 WILD = np.log(3.0)
 
@@ -61,9 +61,9 @@ def score(pred, true, lo_deg, hi_deg):
 
 
 def main(argv=None):
-    from infer import anchoring, make_method
-    from infer.model_file import read_model
-    from pipeline.cmd_run import DEFAULT_MODEL
+    from flashbrdf.infer import anchoring, make_method
+    from flashbrdf.infer.model_file import read_model
+    from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--folds", type=int, default=5)
     ap.add_argument("--windows", default="0-19,10-25,20-40")

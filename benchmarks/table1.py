@@ -14,7 +14,7 @@ import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from experiments.evaluate import run_evaluation  # noqa: E402
+from flashbrdf.experiments.evaluate import run_evaluation  # noqa: E402
 
 
 def main(argv=None):

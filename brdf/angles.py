@@ -9,8 +9,8 @@ flat bins). All angles are radians.
 
 import numpy as np
 
-from brdf.merl import N_PHI_D, N_THETA_D, N_THETA_H, theta_h_bin_coordinate
-from brdf.rusinkiewicz import (cos_in_out, half_diff_from_local, half_diff_from_world,  # noqa: F401
+from flashbrdf.brdf.merl import N_PHI_D, N_THETA_D, N_THETA_H, theta_h_bin_coordinate
+from flashbrdf.brdf.rusinkiewicz import (cos_in_out, half_diff_from_local, half_diff_from_world,  # noqa: F401
                                half_diff_thetas, local_from_half_diff, phi_h_from_local)
 
 

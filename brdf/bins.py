@@ -10,9 +10,9 @@ import functools
 
 import numpy as np
 
-from brdf.merl import (MERL_SHAPE, N_PHI_D, N_THETA_D, N_THETA_H, merl_valid_mask, phi_d_centres,
+from flashbrdf.brdf.merl import (MERL_SHAPE, N_PHI_D, N_THETA_D, N_THETA_H, merl_valid_mask, phi_d_centres,
                        theta_d_centres, theta_h_centres)
-from brdf.rusinkiewicz import cos_in_out
+from flashbrdf.brdf.rusinkiewicz import cos_in_out
 
 
 @functools.lru_cache(maxsize=1)

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from brdf.angles import half_diff_from_world, merl_bin_coordinates, merl_bin_index
-from brdf.merl import N_PHI_D
+from flashbrdf.brdf.angles import half_diff_from_world, merl_bin_coordinates, merl_bin_index
+from flashbrdf.brdf.merl import N_PHI_D
 
 
 def evaluate_table(table, theta_h, theta_d, phi_d, interpolate=False):

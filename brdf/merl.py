@@ -14,9 +14,9 @@ import os
 
 import numpy as np
 
-from brdf.atomic import atomic_path
-from brdf.errors import InputError
-from brdf.rusinkiewicz import cos_in_out
+from flashbrdf.brdf.atomic import atomic_path
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.rusinkiewicz import cos_in_out
 
 N_THETA_H, N_THETA_D, N_PHI_D = 90, 90, 180
 MERL_SHAPE = (N_THETA_H, N_THETA_D, N_PHI_D)

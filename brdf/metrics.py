@@ -9,7 +9,7 @@ Valid bins are those where the ground truth is finite; a NaN prediction there co
 
 import numpy as np
 
-from brdf.colour import linear_rgb_to_lab
+from flashbrdf.brdf.colour import linear_rgb_to_lab
 
 TRANSFORMS = ("lin", "root", "log")
 SPACES = ("rgb", "lab")

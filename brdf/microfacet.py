@@ -10,7 +10,7 @@ import functools
 
 import numpy as np
 
-from brdf.bins import cos_in_out_valid, mean_over_phi_d, valid_bins_3d
+from flashbrdf.brdf.bins import cos_in_out_valid, mean_over_phi_d, valid_bins_3d
 
 
 def denominator(cos_i, cos_o):

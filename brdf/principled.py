@@ -21,7 +21,7 @@ are floats in [0, 1].
 
 import numpy as np
 
-from brdf.merl import merl_valid_mask, phi_d_centres, theta_d_centres, theta_h_centres
+from flashbrdf.brdf.merl import merl_valid_mask, phi_d_centres, theta_d_centres, theta_h_centres
 
 PARAMETER_NAMES = ("base_color", "roughness", "metallic", "specular", "spec_tint", "sheen",
                    "sheen_tint", "clearcoat", "clearcoat_gloss")

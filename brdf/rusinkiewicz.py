@@ -24,7 +24,7 @@ brdf.angles.merl_flat_index_local (angles straight to MERL bins; rendering).
 
 import numpy as np
 
-from brdf.frame import Frame
+from flashbrdf.brdf.frame import Frame
 
 _TINY = 1e-12
 

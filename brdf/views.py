@@ -13,9 +13,9 @@ import os
 
 import numpy as np
 
-from brdf.atomic import write_text
-from brdf.errors import InputError
-from brdf.merl import N_THETA_H, merl_valid_mask, theta_h_centres, theta_h_from_bin_coordinate
+from flashbrdf.brdf.atomic import write_text
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.merl import N_THETA_H, merl_valid_mask, theta_h_centres, theta_h_from_bin_coordinate
 
 SLICE_HEADER = ["theta_h_deg", "r", "g", "b", "n"]
 # Largest slice value read (1/sr): 17 orders above the largest in MERL (~3e3 at theta_h = 0);

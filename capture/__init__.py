@@ -34,16 +34,16 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   srgb_to_linear(values) -> linear
 """
 
-from brdf.errors import InputError
-from capture.camera import (camera_rays, embree_rays, pixel_box, pixel_rays, project_points,
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.capture.camera import (camera_rays, embree_rays, pixel_box, pixel_rays, project_points,
                             view_directions)
-from capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex, load_mesh,
+from flashbrdf.capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex, load_mesh,
                               occluded, surface_at_pixels, surface_from_mesh)
-from capture.normal_map import load_normal_map, surface_from_normal_map
-from capture.load import (FlashImage, load_flash_images, load_photo_entry,
+from flashbrdf.capture.normal_map import load_normal_map, surface_from_normal_map
+from flashbrdf.capture.load import (FlashImage, load_flash_images, load_photo_entry,
                           load_reference_entry)
-from capture.photo import load_brackets, load_photo, read_float_image, srgb_to_linear
-from capture.scene import Camera, Geometry, Light, Photo, Scene, load_scene
+from flashbrdf.capture.photo import load_brackets, load_photo, read_float_image, srgb_to_linear
+from flashbrdf.capture.scene import Camera, Geometry, Light, Photo, Scene, load_scene
 
 
 def scene_intersector(scene):

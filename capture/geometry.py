@@ -19,9 +19,9 @@ import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
-from brdf.errors import InputError
-from capture.camera import embree_rays, pixel_box
-from capture.scene import Scene
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.capture.camera import embree_rays, pixel_box
+from flashbrdf.capture.scene import Scene
 
 _CHUNK = 1 << 21  # rays per Embree call: bounds temporary memory to ~100 MB
 _SHADOW_OFFSET = 1e-4  # x bounding-box diagonal
@@ -204,7 +204,7 @@ def _as_intersector(target):
     if isinstance(target, MeshIntersector):
         return target
     if isinstance(target, Scene):
-        from capture import scene_intersector  # capture/__init__ imports this module
+        from flashbrdf.capture import scene_intersector  # capture/__init__ imports this module
         return scene_intersector(target)
     return MeshIntersector(target)
 

@@ -11,9 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from brdf.errors import InputError
-from capture.photo import load_brackets, load_photo, load_photo_measured
-from capture.scene import Scene, load_scene
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.capture.photo import load_brackets, load_photo, load_photo_measured
+from flashbrdf.capture.scene import Scene, load_scene
 
 
 @dataclass(frozen=True, eq=False)

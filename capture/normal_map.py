@@ -8,11 +8,11 @@ from pathlib import Path
 
 import numpy as np
 
-from brdf.errors import DECODE_ERRORS, InputError
-from capture.camera import pixel_rays
-from capture.geometry import Surface
-from capture.photo import imread_unchanged, read_float_image
-from capture.scene import Scene
+from flashbrdf.brdf.errors import DECODE_ERRORS, InputError
+from flashbrdf.capture.camera import pixel_rays
+from flashbrdf.capture.geometry import Surface
+from flashbrdf.capture.photo import imread_unchanged, read_float_image
+from flashbrdf.capture.scene import Scene
 
 
 def load_normal_map(geometry, camera):

@@ -13,8 +13,8 @@ import cv2
 import numpy as np
 import rawpy
 
-from brdf.errors import InputError
-from capture.photo import SATURATION_FRACTION
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.capture.photo import SATURATION_FRACTION
 
 _DEMOSAIC_REACH = 2  # sensels: AHD interpolation reads a 5x5 neighbourhood
 

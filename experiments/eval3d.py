@@ -8,10 +8,10 @@ import os
 
 import numpy as np
 
-from brdf import colour, merl, metrics
-from infer.baselines import dual_weights
-from brdf.bins import valid_bins_3d
-from infer.estimator import clip_to_range
+from flashbrdf.brdf import colour, merl, metrics
+from flashbrdf.infer.baselines import dual_weights
+from flashbrdf.brdf.bins import valid_bins_3d
+from flashbrdf.infer.estimator import clip_to_range
 
 CHUNK = 131_072  # bins per chunk: 60 training rows × 131 k × 3 × 8 B ≈ 190 MB
 

@@ -19,17 +19,17 @@ import tracemalloc
 
 import numpy as np
 
-from brdf import merl
-from brdf.atomic import write_text
-from brdf.errors import InputError
-from brdf.bins import valid_mask_2d
-from infer import TrainingSet, make_method, method_from_model
-from infer.training_set import check_distinct
-from brdf.microfacet import inverse_denominator
-from infer.baselines.pca import cosine_weights
-from infer.model_selection import DS_FIXED, DS_GRID, PCA_GRID, errors_2d, lab_log, select
-from experiments.eval3d import RowsView, build_cache, evaluate_3d
-from experiments.table1_report import (PAPER_TABLE1, summarise_errors, write_markdown,
+from flashbrdf.brdf import merl
+from flashbrdf.brdf.atomic import write_text
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.bins import valid_mask_2d
+from flashbrdf.infer import TrainingSet, make_method, method_from_model
+from flashbrdf.infer.training_set import check_distinct
+from flashbrdf.brdf.microfacet import inverse_denominator
+from flashbrdf.infer.baselines.pca import cosine_weights
+from flashbrdf.infer.model_selection import DS_FIXED, DS_GRID, PCA_GRID, errors_2d, lab_log, select
+from flashbrdf.experiments.eval3d import RowsView, build_cache, evaluate_3d
+from flashbrdf.experiments.table1_report import (PAPER_TABLE1, summarise_errors, write_markdown,
                                        write_runtime_plot)
 
 PAPER = "dsgplvm-paper"                          # the paper's DS-GPLVM, scored from the same fits

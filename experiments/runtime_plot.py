@@ -18,8 +18,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from brdf.atomic import atomic_path  # noqa: E402
-from experiments.table1_report import METHODS  # noqa: E402
+from flashbrdf.brdf.atomic import atomic_path  # noqa: E402
+from flashbrdf.experiments.table1_report import METHODS  # noqa: E402
 
 FONT_PT = 7.0
 LINE = 1.35          # label pitch in font heights: leaves a gap between neighbouring labels

@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from brdf.atomic import write_text
+from flashbrdf.brdf.atomic import write_text
 
 METHODS = ("dsgplvm", "dsgplvm-paper", "pca", "noll", "chandraker", "ashikhmin", "oracle")
 TRANSFORMS = ("lin", "root", "log")
@@ -138,6 +138,6 @@ def write_markdown(path, result):
 def write_runtime_plot(path, points):
     """LAB-log 2D error against inference time; points [{label, method, seconds, error}], one per
     method and setting (experiments.runtime_plot: labels in a column that never overlaps)."""
-    from experiments.runtime_plot import grid_points, make_figure, write_figure  # it imports METHODS from here
+    from flashbrdf.experiments.runtime_plot import grid_points, make_figure, write_figure  # it imports METHODS from here
     write_figure(path, make_figure(grid_points(points), DATASET,
                                    note="flashbrdf evaluate (experiments/runtime_plot.py)."))

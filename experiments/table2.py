@@ -16,13 +16,13 @@ import matplotlib
 import numpy as np
 from tqdm import tqdm
 
-from brdf.atomic import atomic_path, write_text
-from brdf.errors import InputError
-from brdf.merl import list_merl, read_merl
-from render.compare import compare_images
-from render.envmap import EnvMap, default_envmaps
-from render.images import tonemap
-from render.scene_render import render_sphere, sphere_view
+from flashbrdf.brdf.atomic import atomic_path, write_text
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.merl import list_merl, read_merl
+from flashbrdf.render.compare import compare_images
+from flashbrdf.render.envmap import EnvMap, default_envmaps
+from flashbrdf.render.images import tonemap
+from flashbrdf.render.scene_render import render_sphere, sphere_view
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (after choosing the file-only backend)

@@ -24,14 +24,14 @@ import time
 
 import numpy as np
 
-from brdf import merl, metrics
-from brdf.atomic import write_text
-from infer import METHODS, TrainingSet, make_method
-from experiments.evaluate import PAPER, _warm_up, build_method
-from infer.model_file import load_methods
-from infer.model_selection import check_training_size
-from experiments.table1_report import summarise_errors
-from infer.training import train_model
+from flashbrdf.brdf import merl, metrics
+from flashbrdf.brdf.atomic import write_text
+from flashbrdf.infer import METHODS, TrainingSet, make_method
+from flashbrdf.experiments.evaluate import PAPER, _warm_up, build_method
+from flashbrdf.infer.model_file import load_methods
+from flashbrdf.infer.model_selection import check_training_size
+from flashbrdf.experiments.table1_report import summarise_errors
+from flashbrdf.infer.training import train_model
 
 THETA_D_BANDS_DEG = ((0, 30), (30, 60), (60, 75), (75, 90))
 METRICS = tuple(f"{s}_{t}" for s in metrics.SPACES for t in metrics.TRANSFORMS)

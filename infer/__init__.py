@@ -9,14 +9,14 @@ DS-GPLVM, Georgoulis et al. 2015), pca (Nielsen et al. 2015), noll (Nöll et al.
 
 import numpy as np
 
-from brdf import merl
-from infer.adapter import DSGPLVMMethod
-from infer.baselines import PCA, Ashikhmin, Chandraker, Noll, Oracle
-from infer.estimator import InferenceMethod
-from infer.training_set import TrainingSet
-from infer.model_file import load_method, read_model, save_model
-from infer.relative import RelativeDSGPLVMMethod
-from infer.slice_fit import OUT_OF_TRAINING_NOVELTY
+from flashbrdf.brdf import merl
+from flashbrdf.infer.adapter import DSGPLVMMethod
+from flashbrdf.infer.baselines import PCA, Ashikhmin, Chandraker, Noll, Oracle
+from flashbrdf.infer.estimator import InferenceMethod
+from flashbrdf.infer.training_set import TrainingSet
+from flashbrdf.infer.model_file import load_method, read_model, save_model
+from flashbrdf.infer.relative import RelativeDSGPLVMMethod
+from flashbrdf.infer.slice_fit import OUT_OF_TRAINING_NOVELTY
 
 
 def dsgplvm_method(representation="absolute", **params):

@@ -13,18 +13,18 @@ from contextlib import nullcontext
 import numpy as np
 from scipy.optimize import minimize
 
-from brdf import colour
-from infer.dsgplvm import DSGPLVM
-from infer.gp import loo_bin_variance
-from brdf.bins import scatter_valid, valid_flat_3d, valid_mask_2d
-from brdf.merl import N_THETA_D, N_THETA_H
-from infer.blas import one_blas_thread
-from infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
-from infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_combination
-from infer.row_blend import ROW_BLEND_DEG, RowBlendSpace, blend_toward_row
-from infer.slice_fit import SLICE_FIT_WEIGHT, convex_slice_weights, mixed_weights, slice_fit_share
-from infer.slices import check_slice
-from infer.uncertainty import mixture_spread, weights_disagreement
+from flashbrdf.brdf import colour
+from flashbrdf.infer.dsgplvm import DSGPLVM
+from flashbrdf.infer.gp import loo_bin_variance
+from flashbrdf.brdf.bins import scatter_valid, valid_flat_3d, valid_mask_2d
+from flashbrdf.brdf.merl import N_THETA_D, N_THETA_H
+from flashbrdf.infer.blas import one_blas_thread
+from flashbrdf.infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
+from flashbrdf.infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_combination
+from flashbrdf.infer.row_blend import ROW_BLEND_DEG, RowBlendSpace, blend_toward_row
+from flashbrdf.infer.slice_fit import SLICE_FIT_WEIGHT, convex_slice_weights, mixed_weights, slice_fit_share
+from flashbrdf.infer.slices import check_slice
+from flashbrdf.infer.uncertainty import mixture_spread, weights_disagreement
 
 
 class FeatureSpace(LinearSpace):

@@ -5,10 +5,10 @@ carried over every θd (and φd), like Nöll et al.'s correction functions. ρ i
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 
-from brdf.bins import valid_bins_3d
-from brdf.colour import FEATURE_OFFSET
-from brdf.merl import N_THETA_H
-from infer.estimator import LinearSpace
+from flashbrdf.brdf.bins import valid_bins_3d
+from flashbrdf.brdf.colour import FEATURE_OFFSET
+from flashbrdf.brdf.merl import N_THETA_H
+from flashbrdf.infer.estimator import LinearSpace
 
 
 ANCHOR_SMOOTHING_BINS = 2.0  # see anchor_to_slice; chosen in benchmarks, not on test data

@@ -9,8 +9,8 @@ import json
 
 import numpy as np
 
-from brdf.atomic import atomic_path
-from brdf.errors import InputError
+from flashbrdf.brdf.atomic import atomic_path
+from flashbrdf.brdf.errors import InputError
 
 from .viewdata import ViewData
 

@@ -13,10 +13,10 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from sklearn.base import BaseEstimator
 
-from brdf.bins import scatter_valid, valid_flat_3d
-from brdf.errors import InputError
-from infer.slices import check_slice
-from infer.training_set import default_threads
+from flashbrdf.brdf.bins import scatter_valid, valid_flat_3d
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.infer.slices import check_slice
+from flashbrdf.infer.training_set import default_threads
 
 
 class InferenceMethod(BaseEstimator):

@@ -13,13 +13,13 @@ import zipfile
 
 import numpy as np
 
-from brdf import merl
-from brdf.atomic import atomic_path
-from brdf.errors import DECODE_ERRORS, InputError
-from infer.adapter import table_features
-from infer.dsgplvm import DSGPLVM
-from infer.training_set import TrainingSet
-from infer.viewdata import restore_rows
+from flashbrdf.brdf import merl
+from flashbrdf.brdf.atomic import atomic_path
+from flashbrdf.brdf.errors import DECODE_ERRORS, InputError
+from flashbrdf.infer.adapter import table_features
+from flashbrdf.infer.dsgplvm import DSGPLVM
+from flashbrdf.infer.training_set import TrainingSet
+from flashbrdf.infer.viewdata import restore_rows
 
 FORMAT = "flashbrdf-infer-model-1"
 
@@ -160,7 +160,7 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
     """{name: fitted method} for several methods from one read of MODEL.npz (a model with a 3D
     view holds GBs of rows: read once, shared). overrides: {name: {hyperparameter: value}}.
     fit_seconds: a dict that receives each method's load-and-fit wall time, if given."""
-    from infer import make_method, method_from_model  # infer/__init__ imports this module
+    from flashbrdf.infer import make_method, method_from_model  # infer/__init__ imports this module
     training, params, blob = read_model(path, merl_dir)
     methods = {}
     for name in names:

@@ -12,11 +12,11 @@ import numpy as np
 from joblib import Parallel, delayed
 from sklearn.model_selection import ParameterGrid
 
-from brdf import metrics
-from brdf.errors import InputError
-from infer import make_method
-from infer.training_set import MIN_TRAINING_TABLES
-from infer.uncertainty import calibration_factor
+from flashbrdf.brdf import metrics
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.infer import make_method
+from flashbrdf.infer.training_set import MIN_TRAINING_TABLES
+from flashbrdf.infer.uncertainty import calibration_factor
 
 DS_GRID = {"q": [None], "beta": [50.0, 100.0], "feature_space": ["lab", "rgb"]}
 DS_FIXED = {"anchor": True}                      # "dsgplvm" is the anchored DS-GPLVM of infer/run

@@ -22,14 +22,14 @@ import warnings
 
 import numpy as np
 
-from brdf import merl
-from brdf.bins import scatter_valid, valid_bins_3d, valid_mask_2d
-from brdf.merl import N_THETA_D, N_THETA_H
-from infer.estimator import InferenceMethod, clip_to_range
-from infer.slices import check_slice, fill_slice
-from infer.dsgplvm import DSGPLVM
-from infer.gp import loo_bin_variance
-from infer.viewdata import restore_rows
+from flashbrdf.brdf import merl
+from flashbrdf.brdf.bins import scatter_valid, valid_bins_3d, valid_mask_2d
+from flashbrdf.brdf.merl import N_THETA_D, N_THETA_H
+from flashbrdf.infer.estimator import InferenceMethod, clip_to_range
+from flashbrdf.infer.slices import check_slice, fill_slice
+from flashbrdf.infer.dsgplvm import DSGPLVM
+from flashbrdf.infer.gp import loo_bin_variance
+from flashbrdf.infer.viewdata import restore_rows
 
 RATIO_EPSILON = 1e-2               # relative to the channel level: below 1% of it, ρ counts as black
 LEVEL_MAX_THETA_H_DEG = 75.0       # the level ignores the grazing end of the slice, which captures miss

@@ -26,11 +26,11 @@ generalisation.md states the measurements).
 
 import numpy as np
 
-from brdf import merl
-from brdf.colour import FEATURE_OFFSET
-from brdf.bins import valid_bins_3d
-from brdf.microfacet import geometry_ratio_2d, geometry_ratio_valid
-from infer.estimator import LinearSpace
+from flashbrdf.brdf import merl
+from flashbrdf.brdf.colour import FEATURE_OFFSET
+from flashbrdf.brdf.bins import valid_bins_3d
+from flashbrdf.brdf.microfacet import geometry_ratio_2d, geometry_ratio_valid
+from flashbrdf.infer.estimator import LinearSpace
 
 ROW_BLEND_DEG = 20.0     # τ in degrees of θd: w = 0.61 at 20°, 0.11 at 40°, < 0.01 past 60°
 

@@ -6,8 +6,8 @@ where the bin is empty (missing data, never 0).
 
 import numpy as np
 
-from brdf.errors import InputError
-from brdf.merl import N_THETA_H, theta_h_centres
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.merl import N_THETA_H, theta_h_centres
 
 
 def check_slice(flash_slice):

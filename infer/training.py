@@ -7,9 +7,9 @@ exactly the one `train` would have written.
 
 import time
 
-from infer.adapter import DSGPLVMMethod
-from infer.model_selection import tune_baselines
-from infer.model_file import save_model
+from flashbrdf.infer.adapter import DSGPLVMMethod
+from flashbrdf.infer.model_selection import tune_baselines
+from flashbrdf.infer.model_file import save_model
 
 
 def train_model(training, path, views=("1d", "2d"), seed=0, feature_space="auto", merl_dirs=()):

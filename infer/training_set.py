@@ -9,9 +9,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from brdf import merl, views
-from brdf.bins import valid_bins_3d, valid_flat_3d
-from brdf.errors import InputError
+from flashbrdf.brdf import merl, views
+from flashbrdf.brdf.bins import valid_bins_3d, valid_flat_3d
+from flashbrdf.brdf.errors import InputError
 
 
 def default_threads():

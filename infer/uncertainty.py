@@ -24,7 +24,7 @@ the intervals hold 90% of the bins with 90% confidence over the held-out sample,
 import numpy as np
 from scipy.stats import norm
 
-from brdf import colour
+from flashbrdf.brdf import colour
 
 BOOTSTRAP_RESAMPLES = 200
 BOOTSTRAP_QUANTILE = 0.9      # with 90% intervals: a 90%/90% tolerance bound

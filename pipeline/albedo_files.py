@@ -14,12 +14,12 @@ from pathlib import Path
 
 import numpy as np
 
-from brdf.atomic import atomic_path
-from brdf.errors import DECODE_ERRORS, InputError
-from capture import load_mesh
-from render.albedo_map import table_floor
-from render.images import image_channel_names, read_image, write_exr
-from slice_extract.albedo import estimate_albedo_map, face_means
+from flashbrdf.brdf.atomic import atomic_path
+from flashbrdf.brdf.errors import DECODE_ERRORS, InputError
+from flashbrdf.capture import load_mesh
+from flashbrdf.render.albedo_map import table_floor
+from flashbrdf.render.images import image_channel_names, read_image, write_exr
+from flashbrdf.slice_extract.albedo import estimate_albedo_map, face_means
 
 
 def albedo_sidecars(albedo_exr):

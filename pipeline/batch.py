@@ -42,11 +42,11 @@ import traceback
 import uuid
 from pathlib import Path
 
-from brdf.atomic import write_text
-from brdf.errors import InputError
-from pipeline import dask_engine
-from pipeline.safety import MARKER as RUN_MARKER
-from pipeline.safety import check_writable_folder
+from flashbrdf.brdf.atomic import write_text
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.pipeline import dask_engine
+from flashbrdf.pipeline.safety import MARKER as RUN_MARKER
+from flashbrdf.pipeline.safety import check_writable_folder
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
@@ -124,7 +124,7 @@ _MODELS_LOCK = threading.Lock()
 def cached_load_methods(names, model_path, anchor):
     """cmd_run's _load_methods, read once per worker process: cached on the model file's path,
     size and modification time (a retrained model is read again), the method names and anchor."""
-    from pipeline.cmd_run import _load_methods
+    from flashbrdf.pipeline.cmd_run import _load_methods
     stat = None if model_path is None else Path(model_path).stat()
     key = (None if model_path is None else str(Path(model_path).resolve()),
            None if stat is None else (stat.st_size, stat.st_mtime_ns), tuple(names), bool(anchor))
@@ -202,10 +202,10 @@ def check_run_options(options, as_text=False):
     default one when none is given and a method needs it; whole and of our format), --spp,
     --materials. -> the options with the model as an absolute path or None. Bad options raise
     InputError, or with `as_text` (a Dask task) are returned as its (where, problem) tuple."""
-    from pipeline.cmd_render import samples_per_pixel
-    from pipeline.cmd_run import _methods, _model_path
-    from infer.model_file import check_model_file
-    from pipeline.cmd_segment import materials_option
+    from flashbrdf.pipeline.cmd_render import samples_per_pixel
+    from flashbrdf.pipeline.cmd_run import _methods, _model_path
+    from flashbrdf.infer.model_file import check_model_file
+    from flashbrdf.pipeline.cmd_segment import materials_option
     settings = argparse.Namespace(**options)
     try:
         model = _model_path(settings, _methods(settings.methods))
@@ -227,7 +227,7 @@ def run_capture(scene_dir, out_dir, options):
     albedo_map, export). Raises on unexpected errors (Dask
     retries once); bad input in the capture is returned as a failed row.
     """
-    from pipeline.cmd_run import run
+    from flashbrdf.pipeline.cmd_run import run
     options = dict(options)
     requested = options.pop("requested", None)  # the options as asked, kept in the marker
     name = Path(scene_dir).name

@@ -2,9 +2,9 @@
 
 import os
 
-from brdf.merl import read_merl
-from brdf.views import check_flash_slice, flash_slice, write_slice_csv
-from pipeline.safety import check_outputs
+from flashbrdf.brdf.merl import read_merl
+from flashbrdf.brdf.views import check_flash_slice, flash_slice, write_slice_csv
+from flashbrdf.pipeline.safety import check_outputs
 
 
 def merl_slice(args):

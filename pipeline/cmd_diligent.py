@@ -4,7 +4,7 @@ import sys
 
 from tqdm import tqdm
 
-from pipeline.diligent import import_diligent as write_scene
+from flashbrdf.pipeline.diligent import import_diligent as write_scene
 
 
 def import_diligent(args):

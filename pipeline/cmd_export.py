@@ -8,9 +8,9 @@ valid bin, an unknown format, an output folder that is, holds or lies inside the
 import sys
 from pathlib import Path
 
-from brdf.merl import read_merl
-from pipeline.safety import check_outputs, staged_output_dir
-from render.export import FORMATS, MITSUBA_USAGE, export_table, parse_formats
+from flashbrdf.brdf.merl import read_merl
+from flashbrdf.pipeline.safety import check_outputs, staged_output_dir
+from flashbrdf.render.export import FORMATS, MITSUBA_USAGE, export_table, parse_formats
 
 
 def export_brdf(brdf_path, out_dir, formats=FORMATS, envmap=None, force=False, final_path=None):
@@ -22,7 +22,7 @@ def export_brdf(brdf_path, out_dir, formats=FORMATS, envmap=None, force=False, f
     check_outputs(inputs=[brdf_path, envmap], outputs=[out_dir], folders=[out_dir])
     table = read_merl(brdf_path)
     if envmap is not None:
-        from render.envmap import read_envmap_pixels
+        from flashbrdf.render.envmap import read_envmap_pixels
         read_envmap_pixels(envmap)  # bad input before any work: missing, unreadable or not 2:1
     with staged_output_dir(out_dir, force=force, command="export") as tmp:
         result = export_table(table, brdf_path, tmp, formats, envmap=envmap,

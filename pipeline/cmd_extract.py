@@ -9,15 +9,15 @@ from pathlib import Path
 
 import numpy as np
 
-import capture
-from brdf.atomic import write_text
-from brdf.errors import InputError
-from brdf.merl import N_THETA_H
-from brdf.views import write_slice_csv
-from pipeline.cmd_segment import read_labels
-from pipeline.safety import check_outputs, sidecar_json, staged_output_dir
-from slice_extract import ExtractOptions, extract_slice
-from slice_extract.extract import collect_samples, extract_material_slices
+from flashbrdf import capture
+from flashbrdf.brdf.atomic import write_text
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.merl import N_THETA_H
+from flashbrdf.brdf.views import write_slice_csv
+from flashbrdf.pipeline.cmd_segment import read_labels
+from flashbrdf.pipeline.safety import check_outputs, sidecar_json, staged_output_dir
+from flashbrdf.slice_extract import ExtractOptions, extract_slice
+from flashbrdf.slice_extract.extract import collect_samples, extract_material_slices
 
 
 def _options(args):

@@ -7,18 +7,18 @@ from pathlib import Path
 
 import numpy as np
 
-from brdf import merl, views
-from brdf.atomic import write_text
-from brdf.errors import InputError
-from experiments.evaluate import check_protocol_tables, experiment_predictor, run_evaluation
-from experiments.test_set import run_test_set
-from infer import TrainingSet, load_method, make_method, novelty_warning
-from infer.model_selection import check_training_size
-from infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
+from flashbrdf.brdf import merl, views
+from flashbrdf.brdf.atomic import write_text
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.experiments.evaluate import check_protocol_tables, experiment_predictor, run_evaluation
+from flashbrdf.experiments.test_set import run_test_set
+from flashbrdf.infer import TrainingSet, load_method, make_method, novelty_warning
+from flashbrdf.infer.model_selection import check_training_size
+from flashbrdf.infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
                           without_sparse_tail)
-from infer.training import train_model
-from pipeline.dask_engine import check_engine_options, dask_client
-from pipeline.safety import check_outputs, sidecar_json, staged_output_dir
+from flashbrdf.infer.training import train_model
+from flashbrdf.pipeline.dask_engine import check_engine_options, dask_client
+from flashbrdf.pipeline.safety import check_outputs, sidecar_json, staged_output_dir
 
 
 def _merl_inputs(merl_dirs):
@@ -149,7 +149,7 @@ def _render_envmaps(args):
     (render.envmap.default_envmaps, made in code: never a file outside the project that no flag
     names). Each file is read once here, before the long run, so a missing or malformed map is
     bad input at once (InputError)."""
-    from render.envmap import read_envmap_pixels
+    from flashbrdf.render.envmap import read_envmap_pixels
     given = getattr(args, "envmap", None)
     if given and not getattr(args, "render", False):
         raise InputError("--envmap", "names Table 2's maps: give it with --render")
@@ -208,7 +208,7 @@ def evaluate(args):
             result = run_evaluation(merl_dir, out, **options)
         if getattr(args, "render", False):
             # experiments.table2 (renderer, figures) adds 1.7-2.2 s to import (python -X importtime)
-            from experiments.table2 import table2
+            from flashbrdf.experiments.table2 import table2
             names, predict = experiment_predictor(merl_dir, result)
             table2(merl_dir, out, predict, names=names, envmaps=envmaps)
     return 0

@@ -16,18 +16,18 @@ import json
 import time
 from pathlib import Path
 
-import capture
-from brdf.atomic import write_text
-from brdf.errors import InputError
-from brdf.merl import read_merl
-from pipeline.albedo_files import albedo_sidecars, read_albedo
-from pipeline.cmd_segment import faces_path, flash_photo_camera
-from pipeline.safety import check_outputs, staged_output_dir
-from render.albedo_map import DiffuseAlbedoMap
-from render.brdf_models import TabulatedBRDF
-from render.compare import comparison_mask, write_comparison
-from render.images import read_image, read_mask, write_exr, write_preview
-from render.scene_render import MaterialMap, render_scene
+from flashbrdf import capture
+from flashbrdf.brdf.atomic import write_text
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.merl import read_merl
+from flashbrdf.pipeline.albedo_files import albedo_sidecars, read_albedo
+from flashbrdf.pipeline.cmd_segment import faces_path, flash_photo_camera
+from flashbrdf.pipeline.safety import check_outputs, staged_output_dir
+from flashbrdf.render.albedo_map import DiffuseAlbedoMap
+from flashbrdf.render.brdf_models import TabulatedBRDF
+from flashbrdf.render.compare import comparison_mask, write_comparison
+from flashbrdf.render.images import read_image, read_mask, write_exr, write_preview
+from flashbrdf.render.scene_render import MaterialMap, render_scene
 
 MAX_SPP = 1 << 20  # samples per pixel; 16,384 times the default
 
@@ -92,7 +92,7 @@ def render(args):
                                    "pixels each one covers")
     interpolate = bool(getattr(args, "interpolate", False))
     if labels_png:  # check the labels before reading any table
-        from pipeline.cmd_segment import material_map_inputs  # it imports this module: a cycle
+        from flashbrdf.pipeline.cmd_segment import material_map_inputs  # it imports this module: a cycle
         labels, faces, camera = material_map_inputs(scene, labels_png, len(paths))
     tables = [read_merl(p) for p in paths]
     models = [TabulatedBRDF(t, interpolate=interpolate) for t in tables]

@@ -25,27 +25,27 @@ from types import SimpleNamespace
 import numpy as np
 from tqdm import tqdm
 
-import capture
-from brdf import merl, views
-from brdf.atomic import write_text
-from brdf.errors import InputError
-from infer import METHODS, make_method, novelty_warning
-from infer.model_file import check_model_file, load_methods
-from infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
+from flashbrdf import capture
+from flashbrdf.brdf import merl, views
+from flashbrdf.brdf.atomic import write_text
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.infer import METHODS, make_method, novelty_warning
+from flashbrdf.infer.model_file import check_model_file, load_methods
+from flashbrdf.infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
                           without_sparse_tail)
-from pipeline.cmd_extract import write_extraction
-from pipeline.cmd_render import photo_exists, reference_outputs, samples_per_pixel
-from pipeline.cmd_segment import materials_option, segment_scene, write_labels
-from pipeline.report import write_report
-from pipeline.run_export import export_for_report, export_method, scene_envmap
-from pipeline.safety import check_outputs, staged_output_dir
-from render import (MaterialMap, TabulatedBRDF, level_ratio, render_scene, write_comparison,
+from flashbrdf.pipeline.cmd_extract import write_extraction
+from flashbrdf.pipeline.cmd_render import photo_exists, reference_outputs, samples_per_pixel
+from flashbrdf.pipeline.cmd_segment import materials_option, segment_scene, write_labels
+from flashbrdf.pipeline.report import write_report
+from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
+from flashbrdf.pipeline.safety import check_outputs, staged_output_dir
+from flashbrdf.render import (MaterialMap, TabulatedBRDF, level_ratio, render_scene, write_comparison,
                     write_exr, write_preview)
-from render.albedo_map import DiffuseAlbedoMap
-from render.envmap import read_envmap_pixels
-from render.scene_render import SceneGeometry
-from slice_extract import ExtractOptions
-from slice_extract.extract import bin_samples, collect_samples
+from flashbrdf.render.albedo_map import DiffuseAlbedoMap
+from flashbrdf.render.envmap import read_envmap_pixels
+from flashbrdf.render.scene_render import SceneGeometry
+from flashbrdf.slice_extract import ExtractOptions
+from flashbrdf.slice_extract.extract import bin_samples, collect_samples
 
 DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "sample_data" / "models" / "merl100_1d2d.npz"
 METHODS_NEEDING_NO_MODEL = ("chandraker",)
@@ -203,7 +203,7 @@ def _run_stages(args, scene, methods, model_path, spp, references, loaded, out,
                 load_methods=None):
     """The slow part of `run`, into the staged folder `out`: returns (stages, report dict)."""
     # run_materials calls back into this module (_infer, _render_and_compare): an import cycle
-    from pipeline.run_materials import (label_section, material_entries, run_albedo_map,
+    from flashbrdf.pipeline.run_materials import (label_section, material_entries, run_albedo_map,
                                         run_materials)
 
     materials = materials_option(getattr(args, "materials", None))

@@ -14,14 +14,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-import capture
-from brdf.atomic import atomic_path
-from brdf.errors import DECODE_ERRORS, InputError
-from capture import load_mesh
-from capture.photo import imread_unchanged
-from pipeline.safety import check_outputs
-from slice_extract.extract import ExtractOptions, collect_samples
-from slice_extract.segment import check_labels, face_labels, segment_samples
+from flashbrdf import capture
+from flashbrdf.brdf.atomic import atomic_path
+from flashbrdf.brdf.errors import DECODE_ERRORS, InputError
+from flashbrdf.capture import load_mesh
+from flashbrdf.capture.photo import imread_unchanged
+from flashbrdf.pipeline.safety import check_outputs
+from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
+from flashbrdf.slice_extract.segment import check_labels, face_labels, segment_samples
 
 
 def materials_option(text):
@@ -207,7 +207,7 @@ def segment(args):
         raise InputError("--out", f"the label image must be a .png, got {args.out}")
     albedo_out = getattr(args, "albedo", None)
     if albedo_out:
-        from pipeline.albedo_files import albedo_sidecars, check_albedo_out
+        from flashbrdf.pipeline.albedo_files import albedo_sidecars, check_albedo_out
         check_albedo_out(albedo_out)
     scene = capture.load_scene(args.scene_dir)
     check_outputs(inputs=[args.scene_dir, *scene.input_files()],
@@ -221,7 +221,7 @@ def segment(args):
     albedo_written = False
     try:
         if albedo_out:  # computed before anything is written: a failure leaves no file
-            from pipeline.albedo_files import albedo_for_scene, write_albedo
+            from flashbrdf.pipeline.albedo_files import albedo_for_scene, write_albedo
             albedo, albedo_faces = albedo_for_scene(samples, segmentation.labels, faces)
             write_albedo(albedo_out, albedo, albedo_faces)
             albedo_written = True

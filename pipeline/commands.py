@@ -18,4 +18,4 @@ COMMANDS = {"merl_slice": "cmd_brdf", "train": "cmd_infer", "infer": "cmd_infer"
 def __getattr__(name):
     if name not in COMMANDS:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"pipeline.{COMMANDS[name]}"), name)
+    return getattr(importlib.import_module(f"flashbrdf.pipeline.{COMMANDS[name]}"), name)

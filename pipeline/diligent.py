@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from brdf.errors import InputError
-from pipeline.safety import check_outputs, staged_output_dir
-from render.images import write_exr
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.pipeline.safety import check_outputs, staged_output_dir
+from flashbrdf.render.images import write_exr
 
 CAMERA_FROM_DILIGENT = np.diag([1.0, -1.0, -1.0])
 WORLD_FROM_CAMERA = np.diag([1.0, -1.0, -1.0, 1.0])  # world = DiLiGenT frame
@@ -117,7 +117,7 @@ def read_png_rgb(path):
     linear 8-bit (the 16-bit value / 257), which import_diligent reads as linear with a note.
     InputError for any other pixel type or channel count.
     """
-    from capture.photo import imread_unchanged  # InputError over OpenCV's size limit
+    from flashbrdf.capture.photo import imread_unchanged  # InputError over OpenCV's size limit
     image = imread_unchanged(path)
     if image is None:
         raise InputError(path, "cannot be read as an image")
@@ -133,7 +133,7 @@ def read_png_rgb(path):
 
 
 def _read_mask(path):
-    from capture.photo import imread_unchanged  # InputError over OpenCV's size limit
+    from flashbrdf.capture.photo import imread_unchanged  # InputError over OpenCV's size limit
     mask = imread_unchanged(path)
     if mask is None:
         raise InputError(path, "cannot be read as an image")

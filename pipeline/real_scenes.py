@@ -32,10 +32,10 @@ from pathlib import Path
 
 import numpy as np
 
-from brdf.errors import InputError
-from pipeline.diligent import dumps_scene
-from pipeline.safety import staged_output_dir
-from render.images import write_exr
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.pipeline.diligent import dumps_scene
+from flashbrdf.pipeline.safety import staged_output_dir
+from flashbrdf.render.images import write_exr
 
 CM = 0.01  # metres per centimetre
 # Camera axes in world: x right = +x, y down = -y (image up is +y), z forward = -z (down).
@@ -83,7 +83,7 @@ def plane_point_from_pixel(u, v, side_m, width, height):
 
 def read_srgb8_as_linear(path, gamma=2.2):
     """8-bit PNG -> (H, W, 3) float32 linear RGB by (x/255)^gamma; clipped (255) pixels -> NaN."""
-    from capture.photo import imread_unchanged  # InputError over OpenCV's size limit
+    from flashbrdf.capture.photo import imread_unchanged  # InputError over OpenCV's size limit
     image = imread_unchanged(path)
     if image is None:
         raise InputError(path, "cannot be read as an image")

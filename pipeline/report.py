@@ -25,15 +25,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from brdf import merl
-from brdf.atomic import write_text
-from brdf.errors import InputError
-from brdf.merl import theta_h_centres
-from brdf.metrics import summarise
-from brdf.views import slice_coverage, table_2d
-from render import images
-from render.compare import compare_images
-from pipeline import report_figures as figs
+from flashbrdf.brdf import merl
+from flashbrdf.brdf.atomic import write_text
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.merl import theta_h_centres
+from flashbrdf.brdf.metrics import summarise
+from flashbrdf.brdf.views import slice_coverage, table_2d
+from flashbrdf.render import images
+from flashbrdf.render.compare import compare_images
+from flashbrdf.pipeline import report_figures as figs
 
 HOW_TO_READ = """\
 **How to read the numbers.**

@@ -6,8 +6,8 @@ of log-CIELAB (see pipeline/report.py for what the numbers mean).
 
 import numpy as np
 
-from brdf.atomic import atomic_path
-from brdf.colour import srgb_encode
+from flashbrdf.brdf.atomic import atomic_path
+from flashbrdf.brdf.colour import srgb_encode
 
 CHANNELS = ("R", "G", "B")
 CHANNEL_COLOURS = ("tab:red", "tab:green", "tab:blue")

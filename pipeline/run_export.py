@@ -8,8 +8,8 @@ OUT_DIR/<method>-principled/   renders of the reference photos with the fitted P
 
 from pathlib import Path
 
-from brdf.principled import tabulate_principled
-from pipeline.cmd_export import export_brdf
+from flashbrdf.brdf.principled import tabulate_principled
+from flashbrdf.pipeline.cmd_export import export_brdf
 
 
 def export_method(methods):

@@ -13,18 +13,18 @@ import sys
 
 import numpy as np
 
-from brdf.merl import theta_h_centres
-from pipeline import report_figures as figs
-from pipeline.albedo_files import albedo_for_scene, write_albedo
-from pipeline.cmd_extract import (NARROW_LAST_THETA_H_DEG, material_coverage, write_extraction,
+from flashbrdf.brdf.merl import theta_h_centres
+from flashbrdf.pipeline import report_figures as figs
+from flashbrdf.pipeline.albedo_files import albedo_for_scene, write_albedo
+from flashbrdf.pipeline.cmd_extract import (NARROW_LAST_THETA_H_DEG, material_coverage, write_extraction,
                                   write_material_slices)
-from pipeline.cmd_segment import write_labels
-from pipeline.report import _table_2d, _variance_2d, write_report
-from pipeline.run_export import export_for_report, export_method
-from render import MaterialMap, TabulatedBRDF
-from render.albedo_map import DiffuseAlbedoMap
-from render.images import write_preview
-from slice_extract.extract import bin_samples, extract_material_slices
+from flashbrdf.pipeline.cmd_segment import write_labels
+from flashbrdf.pipeline.report import _table_2d, _variance_2d, write_report
+from flashbrdf.pipeline.run_export import export_for_report, export_method
+from flashbrdf.render import MaterialMap, TabulatedBRDF
+from flashbrdf.render.albedo_map import DiffuseAlbedoMap
+from flashbrdf.render.images import write_preview
+from flashbrdf.slice_extract.extract import bin_samples, extract_material_slices
 
 
 def label_section(labels, fig_dir, criterion):
@@ -51,7 +51,7 @@ def run_materials(ctx, samples, segmentation, faces):
     by run's input check), final_out (where `out` will be renamed to)); samples: FlashSamples;
     segmentation: slice_extract.segment.Segmentation; faces: (F,) int32 or None.
     """
-    from pipeline.cmd_run import _infer, _render_and_compare  # cmd_run imports this module
+    from flashbrdf.pipeline.cmd_run import _infer, _render_and_compare  # cmd_run imports this module
 
     stages, out, labels = ctx.stages, ctx.out, segmentation.labels
     slices = stages.run("extract materials", extract_material_slices, samples, labels, "labels")

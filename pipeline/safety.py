@@ -33,8 +33,8 @@ import tempfile
 import threading
 import time
 
-from brdf.atomic import current_umask, make_parents, name_extension, remove_empty, unwritable
-from brdf.errors import InputError
+from flashbrdf.brdf.atomic import current_umask, make_parents, name_extension, remove_empty, unwritable
+from flashbrdf.brdf.errors import InputError
 
 MARKER = ".flashbrdf-output"
 

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from brdf.atomic import write_text
+from flashbrdf.brdf.atomic import write_text
 
 SHARED_ENVMAPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "envmaps"
 ENVMAPS = {"ref_pisa": "pisa_latlong_256x128.hdr", "ref_uffizi": "uffizi_latlong_256x128.hdr"}
@@ -85,10 +85,10 @@ def make_sample_capture(table_path, out, size=256, spp=1024, seed=0, shape="vase
 
     shape: a key of SHAPES; envmaps: {reference photo stem: file in ../shared/data/envmaps}.
     """
-    import capture
-    from brdf.merl import read_merl
-    from render import EnvMap, TabulatedBRDF, render_envmap, render_scene, write_exr
-    from render.scene_render import SceneGeometry
+    from flashbrdf import capture
+    from flashbrdf.brdf.merl import read_merl
+    from flashbrdf.render import EnvMap, TabulatedBRDF, render_envmap, render_scene, write_exr
+    from flashbrdf.render.scene_render import SceneGeometry
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)

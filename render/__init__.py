@@ -24,13 +24,13 @@ Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
   write_exr(path, rgb), read_image(path), read_mask(path, shape=None), write_preview(path, rgb)
 """
 
-from render.albedo_map import DiffuseAlbedoMap
-from render.brdf_models import GGX, BRDFModel, Lambert, TabulatedBRDF
-from render.compare import compare_images, level_ratio, write_comparison, write_delta_e_png
-from render.envmap import EnvMap, read_envmap_pixels
-from render.images import read_image, read_mask, tonemap, write_exr, write_preview
-from render.integrator import render_directional_light, render_envmap, render_point_light
-from render.scene_render import (MaterialMap, SceneGeometry, render_scene, render_sphere,
+from flashbrdf.render.albedo_map import DiffuseAlbedoMap
+from flashbrdf.render.brdf_models import GGX, BRDFModel, Lambert, TabulatedBRDF
+from flashbrdf.render.compare import compare_images, level_ratio, write_comparison, write_delta_e_png
+from flashbrdf.render.envmap import EnvMap, read_envmap_pixels
+from flashbrdf.render.images import read_image, read_mask, tonemap, write_exr, write_preview
+from flashbrdf.render.integrator import render_directional_light, render_envmap, render_point_light
+from flashbrdf.render.scene_render import (MaterialMap, SceneGeometry, render_scene, render_sphere,
                                  sphere_view)
 
 __all__ = [

@@ -9,12 +9,12 @@ whatever the number of materials, and the BRDF's own importance sampling is kept
 
 import numpy as np
 
-from brdf.errors import InputError
-from render.brdf_models import Lambert
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.render.brdf_models import Lambert
 
 
 def _camera_key(camera):
-    from render.scene_render import _camera_key as key
+    from flashbrdf.render.scene_render import _camera_key as key
     return key(camera)
 
 
@@ -48,7 +48,7 @@ class DiffuseAlbedoMap:
 
     def point_delta(self, surface, camera):
         """(N, 3) delta = A/pi - f_k at the points of a capture.Surface seen from `camera`."""
-        from render.scene_render import MaterialMap
+        from flashbrdf.render.scene_render import MaterialMap
         if _camera_key(camera) == _camera_key(self.camera):
             albedo = self.albedo[surface.rows, surface.cols].astype(float)
         elif self.faces is not None and surface.face is not None:

@@ -11,10 +11,10 @@ wi points toward the light, wo toward the viewer; all vectors are unit (..., 3).
 
 import numpy as np
 
-from brdf.angles import half_diff_from_local, merl_flat_index_local
-from brdf.frame import Frame
-from brdf.lookup import evaluate_table
-from brdf.merl import N_THETA_H, theta_h_bin_coordinate, theta_h_from_bin_coordinate
+from flashbrdf.brdf.angles import half_diff_from_local, merl_flat_index_local
+from flashbrdf.brdf.frame import Frame
+from flashbrdf.brdf.lookup import evaluate_table
+from flashbrdf.brdf.merl import N_THETA_H, theta_h_bin_coordinate, theta_h_from_bin_coordinate
 
 INV_PI = 1.0 / np.pi
 

@@ -11,8 +11,8 @@ import os
 
 import numpy as np
 
-from brdf.atomic import atomic_path, write_text
-from brdf.metrics import delta_e_log
+from flashbrdf.brdf.atomic import atomic_path, write_text
+from flashbrdf.brdf.metrics import delta_e_log
 
 COMPARE_JSON = "compare.json"
 DELTA_E_PNG = "delta_e.png"

@@ -24,7 +24,7 @@ import os
 
 import numpy as np
 
-from brdf.errors import InputError
+from flashbrdf.brdf.errors import InputError
 
 # Rec. 709 / linear sRGB luminance weights.
 LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722])
@@ -86,7 +86,7 @@ def read_envmap_pixels(path):
     """Read a lat-long map -> (H, W, 3) float32 linear RGB. InputError if unreadable or not 2:1."""
     # capture (cv2, Embree, OpenImageIO) adds 0.2-0.8 s to `import render` (python -X importtime,
     # 2 loaded cores) for commands that never read a picture (export, infer); so it loads here
-    from capture import read_float_image
+    from flashbrdf.capture import read_float_image
     path = os.fspath(path)
     pixels = read_float_image(path)
     height, width = pixels.shape[:2]

@@ -17,15 +17,15 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from brdf.atomic import write_text
-from brdf.errors import InputError
-from brdf.metrics import brdf_error
-from brdf.principled import MITSUBA_LUMINANCE, PARAMETER_NAMES, eta_from_specular, \
+from flashbrdf.brdf.atomic import write_text
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.metrics import brdf_error
+from flashbrdf.brdf.principled import MITSUBA_LUMINANCE, PARAMETER_NAMES, eta_from_specular, \
     tabulate_principled
-from brdf.principled_fit import FIT_OFFSET, fit_principled
-from brdf.views import table_2d
-from render.compare import compare_images
-from render.scene_render import render_sphere, sphere_view
+from flashbrdf.brdf.principled_fit import FIT_OFFSET, fit_principled
+from flashbrdf.brdf.views import table_2d
+from flashbrdf.render.compare import compare_images
+from flashbrdf.render.scene_render import render_sphere, sphere_view
 
 FORMATS = ("mitsuba", "principled", "gltf")
 FILES = {"mitsuba": ("mitsuba_tabulated.xml", "mitsuba_principled.xml"),

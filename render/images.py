@@ -8,9 +8,9 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
-from brdf.atomic import atomic_path
-from brdf.colour import srgb_encode
-from brdf.errors import InputError
+from flashbrdf.brdf.atomic import atomic_path
+from flashbrdf.brdf.colour import srgb_encode
+from flashbrdf.brdf.errors import InputError
 
 
 def write_exr(path, rgb):
@@ -37,7 +37,7 @@ def read_image(path):
     capture's reader: channels by name, grey repeated to RGB, alpha dropped, an EXR data window
     placed in its display window (NaN outside). InputError when missing or unreadable.
     """
-    from capture import read_float_image  # on first use: see render.envmap.read_envmap_pixels
+    from flashbrdf.capture import read_float_image  # on first use: see render.envmap.read_envmap_pixels
     return read_float_image(path)
 
 

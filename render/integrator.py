@@ -20,8 +20,8 @@ import os
 import numpy as np
 from tqdm import tqdm
 
-from brdf.frame import Frame
-from render.envmap import EnvMap
+from flashbrdf.brdf.frame import Frame
+from flashbrdf.render.envmap import EnvMap
 
 # Pixel-samples per work item: keeps each thread's temporaries around 100-200 MB.
 SAMPLES_PER_CHUNK = 1 << 17

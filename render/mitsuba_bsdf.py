@@ -1,7 +1,7 @@
 """The Mitsuba 3 BSDF plugin `flashbrdf_tabulated`: a MERL `.binary` table, as our renderer reads it.
 
     import mitsuba as mi; mi.set_variant("llvm_ad_rgb")      # or "scalar_rgb"
-    import render.mitsuba_bsdf as m; m.register()
+    import flashbrdf.render.mitsuba_bsdf as m; m.register()
     bsdf = mi.load_dict({"type": "flashbrdf_tabulated", "filename": "brdf.binary"})
 
 - eval: the table at the nearest MERL bin (render.brdf_models.TabulatedBRDF's lookup, written with
@@ -27,9 +27,9 @@ import sys
 
 import numpy as np
 
-from brdf.merl import read_merl
-from render.brdf_models import TabulatedBRDF
-from render.scene_render import sphere_view
+from flashbrdf.brdf.merl import read_merl
+from flashbrdf.render.brdf_models import TabulatedBRDF
+from flashbrdf.render.scene_render import sphere_view
 
 # mitsuba and drjit (the optional [mitsuba] extra) load inside the functions that need them, so
 # this module imports (and says what is missing) without them.

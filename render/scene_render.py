@@ -7,11 +7,11 @@ every lighting seen from that camera. Shadow rays go through Embree only for non
 
 import numpy as np
 
-from brdf.errors import InputError
-from render.albedo_map import DiffuseAlbedoMap
-from render.brdf_models import TabulatedBRDF
-from render.envmap import EnvMap
-from render.integrator import render_directional_light, render_envmap, render_point_light
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.render.albedo_map import DiffuseAlbedoMap
+from flashbrdf.render.brdf_models import TabulatedBRDF
+from flashbrdf.render.envmap import EnvMap
+from flashbrdf.render.integrator import render_directional_light, render_envmap, render_point_light
 
 
 def _camera_key(camera):
@@ -24,7 +24,7 @@ class SceneGeometry:
     """A scene's geometry with cached per-camera primary hits (capture.Surface)."""
 
     def __init__(self, scene):
-        import capture  # lazy: capture costs 0.2-0.8 s on every import of render
+        from flashbrdf import capture  # lazy: capture costs 0.2-0.8 s on every import of render
         self.scene = scene
         self._surfaces = {}
         if scene.geometry.mesh is not None:
@@ -35,7 +35,7 @@ class SceneGeometry:
 
     def surface(self, camera):
         """capture.Surface of the pixels that see the object, cast once per camera."""
-        import capture
+        from flashbrdf import capture
         key = _camera_key(camera)
         if key not in self._surfaces:
             if self.intersector is not None:
@@ -48,7 +48,7 @@ class SceneGeometry:
         """The integrator's shadow-ray callback, or None (convex mesh or normal map)."""
         if self.convex or self.intersector is None:
             return None
-        import capture
+        from flashbrdf import capture
         mi = self.intersector
         return lambda points, dirs, max_dist: capture.occluded(mi, points, dirs, max_dist)
 
@@ -82,7 +82,7 @@ class MaterialMap:
 
 def _part(surface, keep):
     """The capture.Surface restricted to keep (N,) bool."""
-    from capture import Surface
+    from flashbrdf.capture import Surface
     pick = [None if v is None else v[keep] for v in (surface.rows, surface.cols, surface.points,
                                                      surface.normals, surface.view_dirs,
                                                      surface.face)]

@@ -20,11 +20,11 @@ Public API:
   silhouette_mask(object_mask, width_px) -> (H, W) bool
 """
 
-from slice_extract.binning import robust_bins
-from slice_extract.extract import (ExtractOptions, FlashSamples, SliceResult, bin_samples,
+from flashbrdf.slice_extract.binning import robust_bins
+from flashbrdf.slice_extract.extract import (ExtractOptions, FlashSamples, SliceResult, bin_samples,
                                    collect_samples, extract_material_slices, extract_slice,
                                    silhouette_mask)
-from slice_extract.samples import half_diff_thetas
+from flashbrdf.slice_extract.samples import half_diff_thetas
 
 __all__ = ["ExtractOptions", "FlashSamples", "SliceResult", "bin_samples", "collect_samples",
            "extract_material_slices", "extract_slice", "half_diff_thetas", "robust_bins",

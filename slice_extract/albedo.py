@@ -23,9 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from brdf.angles import merl_bin_index
-from brdf.merl import N_THETA_H
-from slice_extract.segment import _binned_median, _fill_bins
+from flashbrdf.brdf.angles import merl_bin_index
+from flashbrdf.brdf.merl import N_THETA_H
+from flashbrdf.slice_extract.segment import _binned_median, _fill_bins
 
 
 @dataclass(frozen=True)

@@ -20,7 +20,7 @@ estimates of the bins within two of it), from the samples' mean theta_h to the b
 
 import numpy as np
 
-from brdf.merl import N_THETA_H, theta_h_centres
+from flashbrdf.brdf.merl import N_THETA_H, theta_h_centres
 
 MAD_TO_SIGMA = 1.4826
 

@@ -22,14 +22,14 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-import capture
-from brdf.angles import merl_bin_index
-from brdf.errors import InputError
-from brdf.merl import N_THETA_H
-from brdf.views import MAX_SLICE_VALUE, slice_coverage
-from slice_extract.binning import robust_bins
-from slice_extract.samples import REASONS, light_setup, photo_samples
-from slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
+from flashbrdf import capture
+from flashbrdf.brdf.angles import merl_bin_index
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.merl import N_THETA_H
+from flashbrdf.brdf.views import MAX_SLICE_VALUE, slice_coverage
+from flashbrdf.slice_extract.binning import robust_bins
+from flashbrdf.slice_extract.samples import REASONS, light_setup, photo_samples
+from flashbrdf.slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
                                    material_interior)
 
 

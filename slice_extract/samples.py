@@ -19,9 +19,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from brdf.errors import InputError
-from brdf.rusinkiewicz import half_diff_thetas
-from capture import occluded
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.rusinkiewicz import half_diff_thetas
+from flashbrdf.capture import occluded
 
 REASONS = ("silhouette", "backfacing", "grazing", "theta_d", "shadowed")
 

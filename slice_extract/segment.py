@@ -60,9 +60,9 @@ from scipy.optimize import linear_sum_assignment
 from scipy.spatial import cKDTree
 from threadpoolctl import threadpool_limits
 
-from brdf.angles import merl_bin_index
-from brdf.errors import InputError
-from brdf.merl import N_THETA_H, theta_h_centres
+from flashbrdf.brdf.angles import merl_bin_index
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.merl import N_THETA_H, theta_h_centres
 
 LOG_FLOOR_REL = 1e-3  # rho below this fraction of the median brightness counts as black
 # weight of a sample's brightness offset from a slice (the mean over channels of ln rho - ln

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from brdf.colour import rho_to_features
+from flashbrdf.brdf.colour import rho_to_features
 
 
 def latent_views(n, seed=0, d1=30, d2=300):

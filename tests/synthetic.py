@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from brdf.angles import half_diff_from_world
-from brdf.lookup import evaluate_table
+from flashbrdf.brdf.angles import half_diff_from_world
+from flashbrdf.brdf.lookup import evaluate_table
 
 
 # ----- BRDFs -------------------------------------------------------------------------------
@@ -96,7 +96,7 @@ def region_image(mesh, cam, region):
 
 def true_slice(brdf_fn):
     """rho (90, 3) of an analytic BRDF at the MERL theta_h bin centres, theta_d = 0 exactly."""
-    from brdf.merl import theta_h_centres
+    from flashbrdf.brdf.merl import theta_h_centres
     th = theta_h_centres()
     w = np.stack([np.sin(th), np.zeros_like(th), np.cos(th)], -1)
     return brdf_fn(w, w.copy(), np.tile([0.0, 0.0, 1.0], (len(th), 1)))

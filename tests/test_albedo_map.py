@@ -13,10 +13,10 @@ import cv2
 import numpy as np
 import pytest
 
-from capture import load_scene
-from pipeline.cli import main
-from slice_extract.albedo import estimate_albedo_map
-from slice_extract.extract import ExtractOptions, collect_samples
+from flashbrdf.capture import load_scene
+from flashbrdf.pipeline.cli import main
+from flashbrdf.slice_extract.albedo import estimate_albedo_map
+from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
 from synthetic import (add_reference_photo, directional_light, ggx_lambert, pinhole_camera,
                        point_light, region_image, sphere_mesh, write_exr, write_synthetic_scene)
 

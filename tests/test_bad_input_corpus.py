@@ -23,9 +23,9 @@ import numpy as np
 import pytest
 import scipy.io
 
-from pipeline.cli import main
-from pipeline.cmd_run import DEFAULT_MODEL
-from pipeline.safety import MARKER
+from flashbrdf.pipeline.cli import main
+from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
+from flashbrdf.pipeline.safety import MARKER
 from synthetic import ggx_lambert, pinhole_camera, point_light, sphere_mesh, write_synthetic_scene
 from test_diligent_import import make_diligent
 
@@ -251,7 +251,7 @@ def npz_of_other_format(tmp):
 
 
 def npz_of_wrong_shapes(tmp):
-    from infer.model_file import FORMAT
+    from flashbrdf.infer.model_file import FORMAT
     path = tmp / "model.npz"
     np.savez(path, format=np.array(FORMAT), names=np.array(["a", "b"]),
              slices=np.zeros((2, 90)), tables_2d=np.zeros((2, 90, 90, 3)),
@@ -371,7 +371,7 @@ def png_bomb(side=40000):
 
 
 def small_exr(tmp, name="small.exr"):
-    from render.images import write_exr
+    from flashbrdf.render.images import write_exr
     path = tmp / name
     write_exr(path, np.ones((10, 12, 3), np.float32))
     return path
@@ -818,7 +818,7 @@ def labels_png(w, tmp, name="labels.png", k=2, value=None, dtype=np.uint16, para
     (`value(labels) -> array` edits them), written as a PNG (or TIFF, JPEG, JPEG 2000 with OpenCV's
     `params`) in tmp."""
     import cv2
-    from render.images import read_image
+    from flashbrdf.render.images import read_image
     on = read_image(w.scene / "flash0.exr").sum(axis=2) > 0
     labels = np.where(on, 1 + np.arange(on.shape[1])[None, :] * k // on.shape[1], 0)
     path = tmp / name
@@ -861,7 +861,7 @@ def npz_bytes(tmp):
 
 
 def rgb_exr(tmp, name="albedo.exr", shape=(40, 40, 3), value=0.5):
-    from render.images import write_exr
+    from flashbrdf.render.images import write_exr
     path = tmp / name
     write_exr(path, np.full(shape, value, np.float32))
     return path
@@ -1218,11 +1218,11 @@ def test_bad_input_exits_2_cleanly(world, tmp_path, capfd, command, name, argv, 
 def test_segment_keeps_no_albedo_map_when_its_labels_fail(world, tmp_path, capfd, monkeypatch):
     """segment --albedo writes the albedo map, then the labels: when the labels fail, the map
     already written is removed (all or nothing over both)."""
-    from brdf.errors import InputError
+    from flashbrdf.brdf.errors import InputError
 
     def fail(out, *args, **kwargs):
         raise InputError(out, "cannot write a PNG there")
-    monkeypatch.setattr("pipeline.cmd_segment.write_labels", fail)
+    monkeypatch.setattr("flashbrdf.pipeline.cmd_segment.write_labels", fail)
     assert main(["segment", str(world.scene), "--out", str(tmp_path / "l.png"), "--albedo",
                  str(tmp_path / "a.exr")]) == 2
     assert len(capfd.readouterr().err.strip().splitlines()) == 1

@@ -21,12 +21,12 @@ import pytest
 from distributed import Client, LocalCluster
 from distributed.diagnostics.plugin import WorkerPlugin
 
-import pipeline.cmd_run as cmd_run  # in a worker: the worker's copy, which `run` calls
-from brdf.errors import InputError
-from pipeline.batch import MARKER, _check_batch_folder, capture_bytes, failed_row, write_summary
-from pipeline.cli import main
-from pipeline.dask_engine import ALLOWED_FAILURES, threads_per_worker
-from pipeline.sample_capture import make_sample_capture
+import flashbrdf.pipeline.cmd_run as cmd_run  # in a worker: the worker's copy, which `run` calls
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.pipeline.batch import MARKER, _check_batch_folder, capture_bytes, failed_row, write_summary
+from flashbrdf.pipeline.cli import main
+from flashbrdf.pipeline.dask_engine import ALLOWED_FAILURES, threads_per_worker
+from flashbrdf.pipeline.sample_capture import make_sample_capture
 
 MATERIALS = {"a": "red-specular-plastic", "b": "gold-paint"}
 RUN_OPTIONS = ["--methods", "dsgplvm,chandraker", "--spp", "4"]
@@ -194,7 +194,7 @@ def test_one_capture_to_run_runs_in_process(two_workers, sequential, captures, t
         attempts.append(args)
         raise RuntimeError("disk on fire")
 
-    monkeypatch.setattr("pipeline.batch.run_capture", crash)
+    monkeypatch.setattr("flashbrdf.pipeline.batch.run_capture", crash)
     assert main(["batch", str(captures), "--out", str(out), *RUN_OPTIONS]) == 1
     assert len(attempts) == 2
     assert _summary(out)["a"]["reason"] == "RuntimeError: disk on fire"
@@ -350,7 +350,7 @@ def test_no_capture_or_bad_options_exit_2(captures, tmp_path, capsys, monkeypatc
     # An --out that would put an output folder onto an input capture.
     assert main(["batch", str(captures), "--out", str(captures)]) == 2
     assert "overwrite" in capsys.readouterr().err
-    monkeypatch.setattr("pipeline.dask_engine.CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr("flashbrdf.pipeline.dask_engine.CONNECT_TIMEOUT", "1s")
     assert main(["batch", str(captures), "--out", str(out), "--scheduler",
                  "tcp://127.0.0.1:9"]) == 2
     assert "--scheduler" in capsys.readouterr().err

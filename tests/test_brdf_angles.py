@@ -3,12 +3,12 @@
 import numpy as np
 import pytest
 
-from brdf.angles import (half_diff_from_local, half_diff_from_world, local_from_half_diff,
+from flashbrdf.brdf.angles import (half_diff_from_local, half_diff_from_world, local_from_half_diff,
                          merl_bin_index, phi_h_from_local)
-from brdf.frame import Frame
-from brdf.lookup import evaluate_directions, evaluate_table
-from brdf.merl import merl_valid_mask, phi_d_centres, theta_d_centres, theta_h_centres
-from brdf.rusinkiewicz import cos_in_out
+from flashbrdf.brdf.frame import Frame
+from flashbrdf.brdf.lookup import evaluate_directions, evaluate_table
+from flashbrdf.brdf.merl import merl_valid_mask, phi_d_centres, theta_d_centres, theta_h_centres
+from flashbrdf.brdf.rusinkiewicz import cos_in_out
 
 
 def _hemisphere(rng, n, min_cos=0.0):

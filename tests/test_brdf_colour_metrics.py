@@ -4,11 +4,11 @@ import colour
 import numpy as np
 import pytest
 
-from brdf.colour import (D65_WHITE_XYZ, FEATURE_OFFSET, SRGB_TO_XYZ, features_to_rho,
+from flashbrdf.brdf.colour import (D65_WHITE_XYZ, FEATURE_OFFSET, SRGB_TO_XYZ, features_to_rho,
                          lab_to_linear_rgb, linear_rgb_to_lab, rho_to_features)
-from brdf.errors import InputError
-from brdf.metrics import brdf_error, brdf_errors, delta_e_log, summarise
-from brdf.views import read_slice_csv, write_slice_csv
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.metrics import brdf_error, brdf_errors, delta_e_log, summarise
+from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
 
 
 def test_lab_matches_colour_science():

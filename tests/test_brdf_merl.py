@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from brdf.errors import InputError
-from brdf.merl import MERL_FILE_SIZE, MERL_SCALE, merl_valid_mask, read_merl, write_merl
-from brdf.views import flash_slice, read_slice_csv, slice_coverage, table_2d, table_3d_from_2d
-from pipeline.cli import main
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.merl import MERL_FILE_SIZE, MERL_SCALE, merl_valid_mask, read_merl, write_merl
+from flashbrdf.brdf.views import flash_slice, read_slice_csv, slice_coverage, table_2d, table_3d_from_2d
+from flashbrdf.pipeline.cli import main
 
 
 @pytest.fixture(scope="module")
@@ -92,7 +92,7 @@ def test_missing_file_exits_2(tmp_path, capsys):
 def test_a_bug_inside_a_command_is_not_hidden(tmp_path, monkeypatch):
     # only bad input (InputError) and signals map to exit statuses; anything else is a bug and
     # propagates (the console script then exits 1 with its traceback)
-    from pipeline import commands
+    from flashbrdf.pipeline import commands
 
     def broken(args):
         raise NotImplementedError("a bug")
@@ -103,15 +103,15 @@ def test_a_bug_inside_a_command_is_not_hidden(tmp_path, monkeypatch):
 
 
 def test_every_command_has_its_function():
-    from pipeline import commands
-    from pipeline.cli import _parser
+    from flashbrdf.pipeline import commands
+    from flashbrdf.pipeline.cli import _parser
     names = {c.replace("-", "_") for c in _parser()._subparsers._group_actions[0].choices}
     assert names == set(commands.COMMANDS)
     assert all(callable(getattr(commands, n)) for n in names)
 
 
 def test_read_merl_bins_equals_read_merl_at_those_bins(blue_acrylic, tmp_path):
-    from brdf.merl import read_merl_bins
+    from flashbrdf.brdf.merl import read_merl_bins
     table = read_merl(blue_acrylic)
     rng = np.random.default_rng(0)
     flat = rng.choice(90 * 90 * 180, 5000, replace=False)       # valid and no-data bins alike

@@ -3,8 +3,8 @@
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from capture.scene import Camera
-from capture.camera import project_points
+from flashbrdf.capture.scene import Camera
+from flashbrdf.capture.camera import project_points
 
 
 def _camera():

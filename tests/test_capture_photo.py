@@ -10,8 +10,8 @@ import cv2
 import numpy as np
 import pytest
 
-import capture
-from brdf.errors import InputError
+from flashbrdf import capture
+from flashbrdf.brdf.errors import InputError
 from conftest import shared_path
 from synthetic import write_exr
 
@@ -142,7 +142,7 @@ def test_brackets_with_an_encoding_are_decoded_once(tmp_path, monkeypatch):
     """8-bit brackets with an `encoding` were decoded twice (once to choose the merge, again by
     load_photo): each file is now decoded once, and the merge is the one of the photos as
     load_photo reads them, bit for bit (clipped and dark pixels included)."""
-    import capture.photo as photo
+    import flashbrdf.capture.photo as photo
     rng = np.random.default_rng(3)
     radiance = np.exp(rng.uniform(np.log(0.001), np.log(8), (12, 10, 3)))
     radiance[0, :3] = 20.0  # clipped even at 1/8 s
@@ -199,7 +199,7 @@ def test_image_over_opencvs_size_limit_is_named_with_the_limit(tmp_path):
     # the limit as OpenCV read it from its variable (a PNG too wide is refused by libpng first,
     # as unreadable, so the width limit is seen only from other formats); other errors are not
     # limits
-    from capture.photo import opencv_size_limit
+    from flashbrdf.capture.photo import opencv_size_limit
     assert opencv_size_limit("pixels <= CV_IO_MAX_IMAGE_PIXELS",
                              {"OPENCV_IO_MAX_IMAGE_PIXELS": "4096"}) == \
         "4096 pixels (OPENCV_IO_MAX_IMAGE_PIXELS)"
@@ -292,8 +292,8 @@ def test_exr_data_window_is_placed_in_display_window(tmp_path):
 def test_pfm_with_a_size_below_one_is_bad_input(tmp_path, size):
     """A PFM header's width and height must be >= 1: -2 -3 broke numpy's reshape (a traceback),
     -1 4 read a 4x4 image from the wrong bytes, 0 5 gave an empty one."""
-    from brdf.errors import InputError
-    from capture.photo import read_float_image
+    from flashbrdf.brdf.errors import InputError
+    from flashbrdf.capture.photo import read_float_image
     path = tmp_path / "bad.pfm"
     path.write_bytes(b"PF\n" + size + b"\n-1.0\n" + np.zeros(60, "<f4").tobytes())
     with pytest.raises(InputError, match="bad.pfm"):

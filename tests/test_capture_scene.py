@@ -6,8 +6,8 @@ import cv2
 import numpy as np
 import pytest
 
-import capture
-from brdf.errors import InputError
+from flashbrdf import capture
+from flashbrdf.brdf.errors import InputError
 from synthetic import box_mesh, combine, pinhole_camera, sphere_mesh, torus_mesh
 
 
@@ -203,7 +203,7 @@ def test_gltf_file_normals_are_used_and_placed_by_the_scene_graph(tmp_path):
 def test_non_numeric_normal_map_is_bad_input(tmp_path, capsys):
     """A normals.npy of strings is bad input (exit 2, one line naming the file), not a
     traceback (exit 1)."""
-    from pipeline.cli import main
+    from flashbrdf.pipeline.cli import main
     from synthetic import write_exr
     np.save(tmp_path / "normals.npy", np.full((4, 4, 3), "a"))
     cv2.imwrite(str(tmp_path / "mask.png"), np.full((4, 4), 255, np.uint8))
@@ -248,7 +248,7 @@ def test_gltf_node_with_a_singular_transform_is_bad_input(tmp_path):
     """A scene node that scales an axis to 0 has no inverse for its normals: InputError naming
     the file, not numpy's LinAlgError."""
     import trimesh
-    from brdf.errors import InputError
+    from flashbrdf.brdf.errors import InputError
     triangle = trimesh.Trimesh([[-1.0, -1.0, 0.0], [0.0, 2.0, 0.0], [2.0, -1.0, 0.0]], [[0, 1, 2]],
                                vertex_normals=[[0.0, 0.0, 1.0]] * 3, process=False)
     scene = trimesh.Scene()

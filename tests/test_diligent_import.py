@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from pipeline.cli import main
+from flashbrdf.pipeline.cli import main
 
 # The shared folder sits beside the repo checkout; FLASHBRDF_SHARED overrides it (worktrees).
 SHARED = Path(os.environ.get("FLASHBRDF_SHARED", Path(__file__).resolve().parents[2] / "shared"))
@@ -323,7 +323,7 @@ def test_rim_normals_facing_away_are_not_compared(tmp_path):
     The true BRDF is a constant table rho = ALBEDO (photo units). With the rim compared, a
     render is 0 on ~12% of the pixels (delta E-log 4.9 mean); without it the only error is
     16-bit quantisation (< 4e-4 relative, delta E-log < 0.01), so < 0.05 holds."""
-    from brdf.merl import write_merl
+    from flashbrdf.brdf.merl import write_merl
     normals, mask, _ = make_diligent(tmp_path / "obj")
     rim = mask & ~(cv2.erode(mask.astype(np.uint8), np.ones((3, 3), np.uint8)) > 0)
     flat = normals.copy()

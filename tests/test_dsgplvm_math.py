@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from infer import adm
-from infer.backmap import (backmap_kernel, krr_weights, loo_error, masked_squared_distances)
-from infer.gp import robust_cholesky
-from infer.prior import distances_from_gram, joint_laplacian, prior_energy
+from flashbrdf.infer import adm
+from flashbrdf.infer.backmap import (backmap_kernel, krr_weights, loo_error, masked_squared_distances)
+from flashbrdf.infer.gp import robust_cholesky
+from flashbrdf.infer.prior import distances_from_gram, joint_laplacian, prior_energy
 
 
 def _problem(seed=0, n=9, q=3, dims=(12, 40)):

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from _dsgplvm_data import analytic_brdf, latent_views, to_features
-from brdf.colour import rho_to_features
-from infer.dsgplvm import DSGPLVM
+from flashbrdf.brdf.colour import rho_to_features
+from flashbrdf.infer.dsgplvm import DSGPLVM
 
 N_TRAIN = 24
 
@@ -69,7 +69,7 @@ def test_empty_bin_is_missing_data_not_zero(brdf_model, brdf_views):
 
 
 def test_imputation_recovers_bins_in_the_training_span():
-    from infer.backmap import impute_missing
+    from flashbrdf.infer.backmap import impute_missing
     rng = np.random.default_rng(4)
     train = rng.normal(size=(12, 3)) @ rng.normal(size=(3, 40))     # rank 3, like a few materials
     truth = rng.normal(size=12) @ train / 4                           # a row in their span

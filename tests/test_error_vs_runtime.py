@@ -4,7 +4,7 @@ never overlaps, on crowded synthetic points."""
 import numpy as np
 from matplotlib.text import Text
 
-import experiments.runtime_plot as evr
+import flashbrdf.experiments.runtime_plot as evr
 
 
 def test_spread_keeps_order_pitch_and_range():

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from sklearn.base import clone
 
-from infer import METHODS, make_method, method_from_model
+from flashbrdf.infer import METHODS, make_method, method_from_model
 from tests.test_infer_uncertainty import materials  # noqa: F401  (the fixture: 9 AP materials)
 
 # every method by name, the DS-GPLVM in both representations, each with a short ADM (the contract

@@ -17,8 +17,8 @@ import numpy as np
 import pytest
 from distributed import Client, LocalCluster
 
-from experiments import evaluate
-from experiments.evaluate import json_leaves
+from flashbrdf.experiments import evaluate
+from flashbrdf.experiments.evaluate import json_leaves
 from test_infer_cli import QUICK
 
 

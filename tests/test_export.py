@@ -6,13 +6,13 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from brdf.merl import write_merl
-from brdf.metrics import brdf_error
-from brdf.principled import principled_brdf_angles, principled_brdf_local, tabulate_principled
-from brdf.principled_fit import fit_principled
-from brdf.views import table_2d
-from pipeline.cli import main
-from render.export import FORMATS, gltf_material
+from flashbrdf.brdf.merl import write_merl
+from flashbrdf.brdf.metrics import brdf_error
+from flashbrdf.brdf.principled import principled_brdf_angles, principled_brdf_local, tabulate_principled
+from flashbrdf.brdf.principled_fit import fit_principled
+from flashbrdf.brdf.views import table_2d
+from flashbrdf.pipeline.cli import main
+from flashbrdf.render.export import FORMATS, gltf_material
 
 # The four known materials: rough and glossy dielectrics, a rough metal, a clearcoated paint.
 KNOWN = {

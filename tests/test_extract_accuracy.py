@@ -14,7 +14,7 @@ flash capture with the default min_cos.
 import numpy as np
 import pytest
 
-from slice_extract import ExtractOptions, extract_slice
+from flashbrdf.slice_extract import ExtractOptions, extract_slice
 from synthetic import (box_mesh, combine, ggx_lambert, pinhole_camera, point_light, render,
                        sphere_mesh, table_brdf, torus_mesh, true_slice, write_synthetic_scene)
 
@@ -83,8 +83,8 @@ def test_poisson_noise_1000_photons_within_3pct(tmp_path):
 
 @pytest.mark.parametrize("offset", [0.0, 0.03])
 def test_merl_proxy_table(tmp_path, merl_proxy, offset):
-    from brdf.merl import read_merl
-    from brdf.views import flash_slice
+    from flashbrdf.brdf.merl import read_merl
+    from flashbrdf.brdf.views import flash_slice
     table = read_merl(merl_proxy("gold-metallic-paint"))
     truth, _ = flash_slice(table)
     folder = write_synthetic_scene(tmp_path, sphere_mesh(), table_brdf(table), pinhole_camera(),
@@ -144,7 +144,7 @@ def test_saturated_highlight_leaves_bins_empty_not_biased(tmp_path):
     result = extract_slice(folder)
     assert result.rejected["clipped"] > 500
     # a bin whose pixels clip even at the farthest sphere point (r <= 1 m, I = 1) is empty
-    from brdf.merl import theta_h_centres
+    from flashbrdf.brdf.merl import theta_h_centres
     pixel_far = TRUE.max(axis=1) * np.cos(theta_h_centres())
     surely_clipped = pixel_far > white
     assert surely_clipped.sum() >= 10
@@ -158,7 +158,7 @@ def test_saturated_highlight_leaves_bins_empty_not_biased(tmp_path):
 def test_a_noise_negative_bin_estimate_becomes_zero_and_is_counted(clean_sphere, monkeypatch):
     # Near-black bins can come out of the robust estimator slightly below 0 (noise around 0, e.g.
     # after ambient subtraction); extract_slice itself returns them as 0 and counts them.
-    import slice_extract.extract as extract_module
+    import flashbrdf.slice_extract.extract as extract_module
     real = extract_module.robust_bins
 
     def dipping(*args, **kwargs):

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from brdf.views import read_slice_csv
-from pipeline.cli import main
+from flashbrdf.brdf.views import read_slice_csv
+from flashbrdf.pipeline.cli import main
 from synthetic import (ggx_lambert, orthographic_camera, pinhole_camera, point_light,
                        sphere_mesh, write_exr, write_synthetic_scene)
 
@@ -101,7 +101,7 @@ def test_normal_map_orthographic_directional(tmp_path):
     """Normal-map geometry (no ray casting) with an orthographic camera and a directional light
     along the view, rendered here from the analytic sphere: the slice comes back within 1%."""
     import cv2
-    from slice_extract import extract_slice
+    from flashbrdf.slice_extract import extract_slice
     from synthetic import true_slice
     size, radius = 160, 70.0
     v, u = np.mgrid[0:size, 0:size] - (size - 1) / 2
@@ -130,7 +130,7 @@ def test_normal_map_orthographic_directional(tmp_path):
 
 
 def test_silhouette_mask_is_the_outline_ring_not_the_frame():
-    from slice_extract import silhouette_mask
+    from flashbrdf.slice_extract import silhouette_mask
     obj = np.zeros((9, 12), bool)
     obj[2:7, 2:7] = True  # a 5x5 object
     obj[:, 9:] = True  # an object cut by the image frame
@@ -142,8 +142,8 @@ def test_silhouette_mask_is_the_outline_ring_not_the_frame():
 
 def test_half_diff_thetas_match_brdf_angles():
     """slice_extract's lean theta_h/theta_d (no phi_d, float32-ready) equals brdf.angles'."""
-    from brdf.angles import half_diff_from_world
-    from slice_extract import half_diff_thetas
+    from flashbrdf.brdf.angles import half_diff_from_world
+    from flashbrdf.slice_extract import half_diff_thetas
     rng = np.random.default_rng(5)
     n = rng.normal(size=(2000, 3))
     n /= np.linalg.norm(n, axis=1, keepdims=True)

@@ -8,7 +8,7 @@ import shutil
 import numpy as np
 
 from conftest import shared_path
-from slice_extract import extract_slice
+from flashbrdf.slice_extract import extract_slice
 
 # DiLiGenT frame: x right, y up, z toward the camera; the contract's camera frame is OpenCV's
 TO_OPENCV = np.array([1.0, -1.0, -1.0])

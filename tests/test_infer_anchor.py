@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from brdf.colour import FEATURE_OFFSET as E
-from infer.anchoring import anchor_to_slice
+from flashbrdf.brdf.colour import FEATURE_OFFSET as E
+from flashbrdf.infer.anchoring import anchor_to_slice
 
 
 def _smooth_table():
@@ -50,7 +50,7 @@ def test_smoothing_keeps_a_one_bin_artefact_from_striping_every_theta_d():
 
 def test_past_the_observed_range_the_correction_is_held_or_faded(monkeypatch):
     # a prediction 2x too low in ln(1 + rho/e) terms where the slice is seen (bins 0-39)
-    from infer import anchoring
+    from flashbrdf.infer import anchoring
     first = np.full((90, 3), 0.1)
     observed = np.full((90, 3), np.nan)
     observed[:40] = 2 * (0.1 + E) - E

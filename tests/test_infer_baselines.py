@@ -4,11 +4,11 @@ is known (built on MERL bin centres from brdf.merl), plus missing-data and extre
 import numpy as np
 import pytest
 
-from infer import PCA, Ashikhmin, Chandraker, Noll, Oracle, TrainingSet
-from brdf.microfacet import denominator
-from infer.baselines.ashikhmin import schlick
-from brdf.bins import cos_in_out_valid, mean_over_phi_d, scatter_valid, valid_bins_3d
-from brdf import merl
+from flashbrdf.infer import PCA, Ashikhmin, Chandraker, Noll, Oracle, TrainingSet
+from flashbrdf.brdf.microfacet import denominator
+from flashbrdf.infer.baselines.ashikhmin import schlick
+from flashbrdf.brdf.bins import cos_in_out_valid, mean_over_phi_d, scatter_valid, valid_bins_3d
+from flashbrdf.brdf import merl
 
 
 def ap_material(roughness, r0, colour, diffuse=0.0):
@@ -140,7 +140,7 @@ def test_extreme_slices_give_finite_predictions(mixed_set, make):
 
 def test_dsgplvm_adapter_duplicate_training_brdfs(mixed_set):
     # two identical training materials make the Gram matrices singular: training must still succeed
-    from infer import DSGPLVMMethod
+    from flashbrdf.infer import DSGPLVMMethod
     dup = mixed_set.subset([0, 1, 2, 3, 4, 4])
     method = DSGPLVMMethod(max_cycles=3).fit(dup)
     table, var = method.predict(mixed_set.slices[5], "2d")
@@ -153,8 +153,8 @@ def test_dsgplvm_adapter_duplicate_training_brdfs(mixed_set):
 def test_streamed_3d_metrics_equal_brdf_metrics(mixed_set):
     # evaluate_3d shares the truth's transforms across methods and sums chunk by chunk: it must
     # give brdf.metrics.brdf_errors on the full tables (float64 round-off only)
-    from brdf import metrics
-    from experiments.eval3d import evaluate_3d
+    from flashbrdf.brdf import metrics
+    from flashbrdf.experiments.eval3d import evaluate_3d
     train, test = np.arange(5), np.array([5])
     training = mixed_set.subset(train)
     methods = {"chandraker": Chandraker().fit(None), "pca": PCA(None, 1e-2).fit(training)}
@@ -170,8 +170,8 @@ def test_streamed_3d_metrics_equal_brdf_metrics(mixed_set):
 
 
 def test_streamed_3d_combination_is_thread_count_independent(mixed_set):
-    from infer.adapter import FeatureSpace
-    from infer.estimator import stream_combination
+    from flashbrdf.infer.adapter import FeatureSpace
+    from flashbrdf.infer.estimator import stream_combination
     w = np.array([0.5, -0.2, 0.0, 0.4, 0.3] + [0.0] * (len(mixed_set) - 5))
     one = stream_combination(mixed_set, w, FeatureSpace(), workers=1)
     two = stream_combination(mixed_set, w, FeatureSpace(), workers=2)
@@ -186,8 +186,8 @@ def test_streamed_3d_combination_is_thread_count_independent(mixed_set):
 
 
 def test_streamed_combination_clips_to_the_training_range_when_asked(mixed_set):
-    from infer.adapter import FeatureSpace
-    from infer.estimator import LinearSpace, stream_combination
+    from flashbrdf.infer.adapter import FeatureSpace
+    from flashbrdf.infer.estimator import LinearSpace, stream_combination
     # 3·T0 − 2·T1 extrapolates beyond both tables; a GP mean with large ± weights does the same.
     w = np.zeros(len(mixed_set))
     w[[0, 1]] = 3.0, -2.0

@@ -7,8 +7,8 @@ import time
 import numpy as np
 import pytest
 
-from brdf import merl, views
-from pipeline.cli import main
+from flashbrdf.brdf import merl, views
+from flashbrdf.pipeline.cli import main
 
 TRAIN = ["gold-metallic-paint", "blue-acrylic", "white-fabric", "red-plastic", "nickel"]
 TEST = "green-plastic"
@@ -96,7 +96,7 @@ def test_evaluate_quick(merl_proxy, tmp_path):
 
 
 def test_dsgplvm_extreme_and_gappy_slices(trained):
-    from infer import load_method
+    from flashbrdf.infer import load_method
     folder, model, slice_csv = trained
     method = load_method(model, "dsgplvm")
     valid = method.predict(np.full((90, 3), 0.1), "2d")[0]
@@ -116,8 +116,8 @@ def test_dsgplvm_extreme_and_gappy_slices(trained):
 
 
 def test_anchored_3d_carries_the_2d_correction_over_theta_d_and_phi_d(trained):
-    from brdf.colour import FEATURE_OFFSET as e
-    from infer import load_method
+    from flashbrdf.brdf.colour import FEATURE_OFFSET as e
+    from flashbrdf.infer import load_method
     folder, model, slice_csv = trained
     rho, _ = views.read_slice_csv(slice_csv)
     # the anchoring alone (no observed-row blend, which is tested with the blend below, and no
@@ -193,7 +193,7 @@ def test_evaluate_render_takes_its_envmaps_from_a_flag(tmp_path, capsys, monkeyp
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{missing}: file not found" in err[0]
     assert not (tmp_path / "ev").exists()
-    from pipeline.cmd_infer import _render_envmaps
+    from flashbrdf.pipeline.cmd_infer import _render_envmaps
     mine = tmp_path / "mine_latlong.exr"
     write_exr(mine, np.ones((4, 8, 3)))
     args = argparse.Namespace(render=True, envmap=[str(mine)])
@@ -205,7 +205,7 @@ def test_evaluate_render_without_envmap_reads_no_file(monkeypatch):
     in code (render.envmap.default_envmaps), so nothing is read from ../shared (it was before)."""
     import argparse
 
-    from pipeline.cmd_infer import _render_envmaps
+    from flashbrdf.pipeline.cmd_infer import _render_envmaps
     monkeypatch.setenv("FLASHBRDF_SHARED", "/nonexistent")  # the old fallback's override
     assert _render_envmaps(argparse.Namespace(render=True, envmap=None)) is None
 
@@ -217,7 +217,7 @@ def test_sparse_tail_bins_are_missing_for_inference(trained, tmp_path, capsys):
     (bit for bit: the same input), lists them in BRDF.json and says so in one stderr line; with
     30 samples each the same bins are read, and the prediction past them drops (checked: > 20%
     in ln ρ on the θd = 0 row past the slice, because anchoring carries their correction on)."""
-    from infer.slices import sparse_tail
+    from flashbrdf.infer.slices import sparse_tail
     assert np.flatnonzero(sparse_tail(np.r_[0, 5, 30, 40, 25, 7, 3, np.zeros(83)])).tolist() == [5, 6]
     assert not sparse_tail(np.r_[5, 7, 19, np.zeros(87)]).any()  # nothing better observed: kept
     assert not sparse_tail(None).any()
@@ -227,7 +227,7 @@ def test_sparse_tail_bins_are_missing_for_inference(trained, tmp_path, capsys):
     assert np.flatnonzero(sparse_tail(small)).tolist() == [8, 9]
     # A bin whose value is missing holds no sample, whatever its count says: bin 4 (n = 40, empty)
     # does not make bin 3 (7 samples) interior; both sparse bins around it go.
-    from infer.slices import without_sparse_tail
+    from flashbrdf.infer.slices import without_sparse_tail
     values = np.ones((90, 3))
     values[4], values[6:] = np.nan, np.nan
     _, ignored = without_sparse_tail(values, np.r_[0, 30, 40, 7, 40, 3, np.zeros(84)])

@@ -5,11 +5,11 @@ known (tests/test_infer_baselines.py builds them on MERL bin centres)."""
 import numpy as np
 import pytest
 
-from infer import DSGPLVMMethod, RelativeDSGPLVMMethod, method_from_model, novelty_warning
-from infer.adapter import slice_features
-from infer.uncertainty import calibration_factor, mixture_spread, weights_disagreement
-from infer.relative import channel_levels, from_ratio, ratio_field
-from infer.slices import fill_slice
+from flashbrdf.infer import DSGPLVMMethod, RelativeDSGPLVMMethod, method_from_model, novelty_warning
+from flashbrdf.infer.adapter import slice_features
+from flashbrdf.infer.uncertainty import calibration_factor, mixture_spread, weights_disagreement
+from flashbrdf.infer.relative import channel_levels, from_ratio, ratio_field
+from flashbrdf.infer.slices import fill_slice
 from tests.test_infer_baselines import coloured_ap_set
 
 

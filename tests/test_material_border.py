@@ -3,8 +3,8 @@ border_width_px; slice_extract.extract._interior_samples): known label images, e
 
 import numpy as np
 
-from slice_extract.extract import _interior_samples
-from slice_extract.segment import border_width_px, material_interior
+from flashbrdf.slice_extract.extract import _interior_samples
+from flashbrdf.slice_extract.segment import border_width_px, material_interior
 
 
 def test_interior_leaves_out_a_band_of_the_given_width_on_each_side_of_a_border():
@@ -47,8 +47,8 @@ def test_a_bin_the_interior_leaves_empty_keeps_its_border_samples():
 
 
 def test_a_material_seen_only_inside_the_lobe_is_flagged_narrow_and_warned():
-    from pipeline.cmd_extract import material_coverage
-    from slice_extract.extract import SliceResult
+    from flashbrdf.pipeline.cmd_extract import material_coverage
+    from flashbrdf.slice_extract.extract import SliceResult
 
     def seen(bins, lo, hi):
         report = {"coverage": {"bins_filled": bins, "pixels_used": 1000,

@@ -7,12 +7,12 @@ usable LLVM (Debian 12: `apt-get install libllvm19`, see render/mitsuba_bsdf.py)
 import numpy as np
 import pytest
 
-from brdf.merl import read_merl, write_merl
-from brdf.principled import tabulate_principled
-from render.brdf_models import TabulatedBRDF, sample_cosine
+from flashbrdf.brdf.merl import read_merl, write_merl
+from flashbrdf.brdf.principled import tabulate_principled
+from flashbrdf.render.brdf_models import TabulatedBRDF, sample_cosine
 
 mi = pytest.importorskip("mitsuba", reason="mitsuba is not installed (pip install -e \".[mitsuba]\")")
-import render.mitsuba_bsdf as mbsdf  # noqa: E402  (after the skip)
+import flashbrdf.render.mitsuba_bsdf as mbsdf  # noqa: E402  (after the skip)
 
 # A glossy plastic: a diffuse body and a GGX highlight exercise both halves of the sampler.
 PLASTIC = {"base_color": [0.5, 0.2, 0.1], "roughness": 0.3, "specular": 0.5}
@@ -89,7 +89,7 @@ def test_llvm_sampling_estimates_the_albedo_without_bias(plastic, llvm):
 
 
 def test_llvm_sphere_matches_our_renderer(plastic, llvm):
-    from render.scene_render import render_sphere, sphere_view
+    from flashbrdf.render.scene_render import render_sphere, sphere_view
     from tests.conftest import shared_path
     pisa = shared_path("data", "envmaps", "pisa_latlong_256x128.hdr")
     size, spp = 32, 64
@@ -114,7 +114,7 @@ def test_llvm_sphere_matches_our_renderer(plastic, llvm):
 ], ids=["rough_dielectric", "rough_metal", "clearcoat_paint", "everything"])
 def test_numpy_principled_is_mitsubas(params, llvm):
     """brdf.principled against Mitsuba 3's own `principled` plugin, f cos theta_o."""
-    from brdf.principled import principled_brdf_local
+    from flashbrdf.brdf.principled import principled_brdf_local
     dr = llvm
     bsdf = mi.load_dict({"type": "principled", **{k: ({"type": "rgb", "value": v}
                                                       if k == "base_color" else v)
@@ -137,8 +137,8 @@ def test_drjit_bin_lookup_agrees_with_the_numpy_one():
     brdf.angles.merl_flat_index_local on 2000 random local pairs with θd > 1° (φd is undefined
     at θd = 0). scalar_rgb computes in float32, so a pair sitting on a bin edge may land one bin
     over: at most 0.5% of pairs may differ, each by one bin in θh, θd or φd."""
-    from brdf.angles import merl_flat_index_local
-    from brdf.rusinkiewicz import half_diff_from_local
+    from flashbrdf.brdf.angles import merl_flat_index_local
+    from flashbrdf.brdf.rusinkiewicz import half_diff_from_local
     mbsdf.register("scalar_rgb")
     merl_index = mbsdf._plugin_class().merl_index
     rng = np.random.default_rng(3)

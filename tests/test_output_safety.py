@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdf.errors import InputError
-from pipeline.safety import MARKER, check_outputs, staged_output_dir
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.pipeline.safety import MARKER, check_outputs, staged_output_dir
 from test_bad_input_corpus import snapshot, world  # noqa: F401  (the corpus's tiny capture)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -96,7 +96,7 @@ def test_an_out_dir_that_is_a_mount_point_is_bad_input(tmp_path, monkeypatch):
 
 
 def _run_command(world, out):
-    return [sys.executable, "-m", "pipeline", "run", str(world.scene), "--out", str(out),
+    return [sys.executable, "-m", "flashbrdf", "run", str(world.scene), "--out", str(out),
             "--methods", "chandraker", "--spp", "2"]
 
 
@@ -139,8 +139,8 @@ def test_interrupted_run_leaves_nothing(world, tmp_path):  # noqa: F811
 def test_signal_inside_a_command_exits_130_or_143_with_nothing_written(tmp_path, monkeypatch,
                                                                        capsys, sig, status):
     """In-process: the signal arrives while a command writes its staged folder."""
-    from pipeline import commands
-    from pipeline.cli import main
+    from flashbrdf.pipeline import commands
+    from flashbrdf.pipeline.cli import main
 
     def interrupted_compare(args):
         with staged_output_dir(args.out) as tmp:
@@ -163,8 +163,8 @@ def test_atomic_path_keeps_the_extension_of_a_dotted_name(tmp_path, name, suffix
     photo "..exr" renders to OUT_DIR/..exr, whose extension os.path.splitext does not see (it
     skips leading dots), and OpenImageIO, which picks the format from the name, found none (a
     traceback from render and run)."""
-    from brdf.atomic import atomic_path
-    from render.images import read_image, write_exr
+    from flashbrdf.brdf.atomic import atomic_path
+    from flashbrdf.render.images import read_image, write_exr
     with atomic_path(tmp_path / name) as tmp:
         assert tmp.endswith(".part" + suffix)
     if suffix == ".exr":
@@ -176,7 +176,7 @@ def test_name_length_counts_the_temporary_suffix_on_the_last_name_only(tmp_path)
     """A folder on the way to an output is made as named, so it may use the filesystem's whole
     NAME_MAX (255 here); only the output itself is built beside its final name as
     ".NAME.XXXXXXXX.part" + extension, which needs 16 bytes and the extension more."""
-    from pipeline.safety import check_outputs
+    from flashbrdf.pipeline.safety import check_outputs
     limit = os.pathconf(tmp_path, "PC_NAME_MAX")
     check_outputs([], [tmp_path / ("d" * limit) / "slice.csv"])          # a long folder: fine
     check_outputs([], [tmp_path / ("s" * (limit - 16 - 8) + ".csv")])    # the longest file

@@ -15,11 +15,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from brdf.errors import InputError
-from brdf.merl import MERL_FILE_SIZE, MERL_SHAPE, read_merl
-from brdf.views import read_slice_csv, write_slice_csv
-from capture import load_scene
-from pipeline.cmd_run import DEFAULT_MODEL
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.brdf.merl import MERL_FILE_SIZE, MERL_SHAPE, read_merl
+from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
+from flashbrdf.capture import load_scene
+from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
 
 SETTINGS = settings(deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 
@@ -149,7 +149,7 @@ def test_any_merl_header_or_size(tmp_path, merl_body, header, extra):
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(cut=st.floats(0.0, 0.999), flip=st.one_of(st.none(), st.floats(0.0, 0.999)))
 def test_any_cut_or_flipped_model(tmp_path, cut, flip):
-    from infer.model_file import check_model_file, read_model
+    from flashbrdf.infer.model_file import check_model_file, read_model
     data = bytearray(Path(DEFAULT_MODEL).read_bytes())
     if flip is not None:
         data[int(flip * len(data))] ^= 0x5A

@@ -9,9 +9,9 @@ import json
 import numpy as np
 import pytest
 
-from pipeline.cli import main
-from pipeline.cmd_run import DEFAULT_MODEL
-from pipeline.sample_capture import make_sample_capture
+from flashbrdf.pipeline.cli import main
+from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
+from flashbrdf.pipeline.sample_capture import make_sample_capture
 
 HELD_OUT = "red-specular-plastic"
 
@@ -60,8 +60,8 @@ def test_predicted_render_matches_the_reference(run_report, sphere_scene):
     bound of 2.5 fails a model that mishandles those missing bins (it was at 180 before the
     back-projection imputed them, with the log-RGB model).
     """
-    from brdf.metrics import delta_e_log
-    from render import read_image
+    from flashbrdf.brdf.metrics import delta_e_log
+    from flashbrdf.render import read_image
     out, report = run_report
     rows = {r["method"]: r for r in report["references"]}
     assert rows["dsgplvm"]["delta_e_log_mean"] < 2.5
@@ -137,7 +137,7 @@ def test_run_reports_a_reference_exposure_error_as_its_level(sphere_scene, tmp_p
     same (same slice, method and seed), and a median scales with its values, so the ratio is
     exact up to float32 rounding of the photo (1e-6)."""
     import shutil
-    from render import read_image, write_exr
+    from flashbrdf.render import read_image, write_exr
     scaled = tmp_path / "scaled"
     shutil.copytree(sphere_scene, scaled)
     write_exr(scaled / "ref_pisa.exr", 1.1 * read_image(sphere_scene / "ref_pisa.exr"))

@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from brdf.angles import half_diff_from_local, merl_bin_index, merl_flat_index_local
-from brdf.frame import Frame
-from brdf.lookup import evaluate_table
-from brdf.merl import merl_valid_mask
-from render.brdf_models import GGX, Lambert, TabulatedBRDF
+from flashbrdf.brdf.angles import half_diff_from_local, merl_bin_index, merl_flat_index_local
+from flashbrdf.brdf.frame import Frame
+from flashbrdf.brdf.lookup import evaluate_table
+from flashbrdf.brdf.merl import merl_valid_mask
+from flashbrdf.render.brdf_models import GGX, Lambert, TabulatedBRDF
 
 
 def _random_pairs(n, seed):

@@ -5,9 +5,9 @@ import json
 import numpy as np
 import pytest
 
-from pipeline.cli import main
-from render.compare import compare_images
-from render.images import read_image, write_exr, write_png
+from flashbrdf.pipeline.cli import main
+from flashbrdf.render.compare import compare_images
+from flashbrdf.render.images import read_image, write_exr, write_png
 
 
 def _lstar(y):
@@ -110,7 +110,7 @@ def test_level_ratio_is_the_ratio_of_sums_over_the_compared_pixels():
     per-pixel ratio spreads (lognormal, sigma 0.3) around 1.1 / 1.0 / 0.9: a median of per-pixel
     ratios differs from it by several percent, and reading the 3/4 of the image
     outside the mask (photo 100x brighter there) or a NaN pixel would change it by far more."""
-    from render.compare import level_ratio
+    from flashbrdf.render.compare import level_ratio
     rng = np.random.default_rng(3)
     pred = rng.uniform(0.1, 2.0, (20, 30, 3))
     ref = pred * np.array([1.1, 1.0, 0.9]) * rng.lognormal(0.0, 0.3, pred.shape)

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from brdf.errors import InputError
-from render.envmap import EnvMap, envmap_direction, read_envmap_pixels
+from flashbrdf.brdf.errors import InputError
+from flashbrdf.render.envmap import EnvMap, envmap_direction, read_envmap_pixels
 
 
 def _contract_pixel(d, height, width):
@@ -134,7 +134,7 @@ def test_pfm_envmap_and_compare_images_are_top_row_first(tmp_path):
     """PFM stores rows bottom to top. A .pfm envmap's top row is +y (contract: "The top edge is
     +y"), and `compare` reads .pfm images the way photos are read; OpenImageIO alone gave the rows
     bottom first, so the sky lit the object from below."""
-    from pipeline.cli import main
+    from flashbrdf.pipeline.cli import main
     sky = np.zeros((8, 16, 3), np.float32)
     sky[0] = [2.0, 3.0, 4.0]                       # top row: light from straight above (+y)
 
@@ -169,7 +169,7 @@ def test_default_envmaps_are_made_in_code_with_a_sun_the_sampler_finds():
     about 60% of the irradiance of a horizontal surface (designed 500 x 0.0086 sr x sin 35 =
     2.5 against the sky's ~1.7: 0.55-0.65 with the pixelated disc), so the importance sampler
     must put most samples there: P(sun pixels) > 0.5."""
-    from render.envmap import DEFAULT_ENVMAPS, default_envmaps, envmap_directions
+    from flashbrdf.render.envmap import DEFAULT_ENVMAPS, default_envmaps, envmap_directions
     maps = default_envmaps()
     assert tuple(maps) == DEFAULT_ENVMAPS
     for pixels in maps.values():

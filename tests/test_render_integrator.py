@@ -4,13 +4,13 @@ mirror orientation, directional lights and shadows, determinism, HDR maps withou
 import numpy as np
 import pytest
 
-from brdf.angles import half_diff_from_local
-from brdf.lookup import evaluate_table
-from brdf.merl import read_merl
-from render.brdf_models import GGX, Lambert, TabulatedBRDF
-from render.envmap import EnvMap, envmap_direction
-from render.integrator import render_directional_light, render_envmap
-from render.scene_render import render_sphere, sphere_view
+from flashbrdf.brdf.angles import half_diff_from_local
+from flashbrdf.brdf.lookup import evaluate_table
+from flashbrdf.brdf.merl import read_merl
+from flashbrdf.render.brdf_models import GGX, Lambert, TabulatedBRDF
+from flashbrdf.render.envmap import EnvMap, envmap_direction
+from flashbrdf.render.integrator import render_directional_light, render_envmap
+from flashbrdf.render.scene_render import render_sphere, sphere_view
 
 
 def test_white_furnace_exact_with_compensation():

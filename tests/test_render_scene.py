@@ -6,12 +6,12 @@ import json
 import numpy as np
 import pytest
 
-from brdf.angles import half_diff_from_world
-from brdf.lookup import evaluate_table
-from brdf.merl import read_merl, write_merl
-from brdf.views import table_2d, table_3d_from_2d
-from pipeline.cli import main
-from render.images import read_image, write_exr, write_png
+from flashbrdf.brdf.angles import half_diff_from_world
+from flashbrdf.brdf.lookup import evaluate_table
+from flashbrdf.brdf.merl import read_merl, write_merl
+from flashbrdf.brdf.views import table_2d, table_3d_from_2d
+from flashbrdf.pipeline.cli import main
+from flashbrdf.render.images import read_image, write_exr, write_png
 from synthetic import (directional_light, orthographic_camera, pinhole_camera, point_light,
                        render, sphere_mesh, table_brdf, torus_mesh, write_png16,
                        write_synthetic_scene)
@@ -153,8 +153,8 @@ def test_analytic_brdf_reproduces_flash_photos_through_render_scene(tmp_path):
     # The slice-extraction tests' synthetic flash photos (Lambert + GGX, co-located and offset
     # flashes, photo scale 2) through render.render_scene with the same analytic BRDF: equal
     # to float32 rounding, since both implement the contract's pixel model.
-    import capture
-    from render import GGX, render_scene
+    from flashbrdf import capture
+    from flashbrdf.render import GGX, render_scene
     from synthetic import ggx_lambert
     kd, ks, alpha = (0.5, 0.3, 0.2), (0.8, 0.7, 0.6), 0.2
     folder = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=4),
@@ -174,8 +174,8 @@ def test_shadow_rays_cause_no_acne_on_a_convex_mesh(tmp_path):
     # Forcing Embree shadow rays on a sphere (convex: nothing can shadow) must leave the envmap
     # render unchanged up to the facets: directions just above the smooth shading horizon but
     # below a flat triangle are blocked (measured <= 0.4 % on 4 % of the pixels).
-    import capture
-    from render import GGX, EnvMap, render_envmap
+    from flashbrdf import capture
+    from flashbrdf.render import GGX, EnvMap, render_envmap
     from synthetic import ggx_lambert
     folder = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=5), ggx_lambert(),
                                    pinhole_camera(32, 32, 300.0), [point_light()])

@@ -4,9 +4,9 @@ import json
 
 import numpy as np
 
-from brdf.merl import read_merl
-from experiments.table2 import table2
-from render.images import write_exr
+from flashbrdf.brdf.merl import read_merl
+from flashbrdf.experiments.table2 import table2
+from flashbrdf.render.images import write_exr
 
 
 def test_table2_scores_truth_zero_and_errors_positive(tmp_path, merl_proxy):

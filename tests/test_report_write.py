@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from brdf.merl import theta_h_centres
-from pipeline.report import coverage, image_errors, write_report
+from flashbrdf.brdf.merl import theta_h_centres
+from flashbrdf.pipeline.report import coverage, image_errors, write_report
 
 
 def _slice_and_tables():
@@ -118,7 +118,7 @@ def test_image_errors_without_mask_uses_finite_nonzero_pixels():
 
 def test_report_tolerates_missing_metrics_and_3d_inputs(tmp_path):
     """What `run` hands over: a reference without a photo (metrics None), 3D tables, 3D variance."""
-    from brdf.views import table_3d_from_2d
+    from flashbrdf.brdf.views import table_3d_from_2d
     observed, predictions = _slice_and_tables()
     table_3d = table_3d_from_2d(predictions["pca"])
     variance_3d = np.where(np.isfinite(table_3d), 0.5, np.nan)
@@ -142,7 +142,7 @@ def test_level_note_only_when_every_method_shares_the_offset():
     """The level check speaks when every method's level is beyond 3% the same way in every
     channel (the DiLiGenT ball: 1.04-1.07 for all; pot2 0.89-0.96), and not when the methods
     disagree (the sample capture: 0.92-2.35 across methods) or stay within 3%."""
-    from pipeline.report import level_note
+    from flashbrdf.pipeline.report import level_note
 
     def summary(*levels):
         return {f"m{k}": {"level_ratio_rgb": list(v)} for k, v in enumerate(levels)}

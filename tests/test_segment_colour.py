@@ -4,9 +4,9 @@ assignment applies the same rule as the k-slice refinement."""
 
 import numpy as np
 
-from brdf.merl import N_THETA_H
-from slice_extract.segment import _assign_all, _bins, _log_rho, _residuals, _slices
-from slice_extract.segment import material_features
+from flashbrdf.brdf.merl import N_THETA_H
+from flashbrdf.slice_extract.segment import _assign_all, _bins, _log_rho, _residuals, _slices
+from flashbrdf.slice_extract.segment import material_features
 
 
 def test_a_brighter_pixel_of_a_colour_keeps_its_material():

@@ -19,7 +19,7 @@ glossy material, 2% noise per channel.
 import numpy as np
 import pytest
 
-from slice_extract.segment import (SegmentOptions, cluster_samples, interreflection_gaps,
+from flashbrdf.slice_extract.segment import (SegmentOptions, cluster_samples, interreflection_gaps,
                                    nonconvex_mask)
 
 GOLD = np.array([1.0, 0.78, 0.34])
@@ -121,8 +121,8 @@ def test_extraction_traces_the_normals_it_is_asked_for(tmp_path):
     # 5-subdivision icosphere: within 2e-3 of the true one (largest measured 8.5e-4 over all
     # 2944 sample pixels: the facets' chords), far below what the concavity test's central
     # differences read (a sphere's normal turns by 1 / (radius in pixels) ~ 0.06 a pixel here).
-    import capture
-    from slice_extract.extract import ExtractOptions, collect_samples
+    from flashbrdf import capture
+    from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
     from synthetic import ggx_lambert, pinhole_camera, point_light, sphere_mesh, \
         write_synthetic_scene
     centre, radius = np.array([0, 0, 1.1]), 0.07
@@ -171,7 +171,7 @@ def test_noisy_normals_do_not_make_a_plane_or_a_sphere_concave(degrees):
     assert nonconvex_mask(noisy)[inside].mean() < 0.005
     # the noise estimate: within 5% of the per-component std (facing the camera nx and ny take
     # all of it; 0.4% off at most measured)
-    from slice_extract.segment import normal_noise
+    from flashbrdf.slice_extract.segment import normal_noise
     second = (noisy[1:-1, 2:] + noisy[1:-1, :-2] - 2 * noisy[1:-1, 1:-1])[..., :2].ravel()
     assert normal_noise(second) == pytest.approx(np.radians(degrees), rel=0.05)
     _, _, _, _, _, sphere = _samples("blue", depth=0.0)

@@ -4,8 +4,8 @@ move a pixel to another material, and a patch cut by the photo's frame is not cl
 import numpy as np
 import pytest
 
-from brdf.merl import N_THETA_H
-from slice_extract.segment import _residuals, align_bin_labels, clean_label_image
+from flashbrdf.brdf.merl import N_THETA_H
+from flashbrdf.slice_extract.segment import _residuals, align_bin_labels, clean_label_image
 
 TEAL = np.array([0.01, 0.06, 0.058])      # a coloured material's slice value (1/sr)
 SILVER = np.array([0.045, 0.083, 0.094])  # a pale lavender one
@@ -130,7 +130,7 @@ def test_lossy_label_files_are_told_by_their_bytes(tmp_path):
     # A label image must be lossless: JPEG, JPEG 2000 (either wrapping) and lossy WebP, also in
     # its extended form where an alpha chunk precedes the image, are refused; PNG and lossless
     # WebP are not. The bytes decide, not the name (every file here is named .png).
-    from pipeline.cmd_segment import _lossy_format
+    from flashbrdf.pipeline.cmd_segment import _lossy_format
 
     def riff(*chunks):
         body = b"WEBP" + b"".join(c + len(d).to_bytes(4, "little") + d + b"\0" * (len(d) & 1)
@@ -195,7 +195,7 @@ def test_a_label_of_2_31_is_refused_without_counting_up_to_it(tmp_path):
         resource.setrlimit(resource.RLIMIT_AS, (4 << 30, resource.RLIM_INFINITY))
     root = Path(__file__).resolve().parents[1]
     done = subprocess.run(
-        [sys.executable, "-m", "pipeline", "extract", str(scene), "--labels",
+        [sys.executable, "-m", "flashbrdf", "extract", str(scene), "--labels",
          str(tmp_path / "l.tif"), "--out", str(tmp_path / "out")], cwd=root,
         capture_output=True, text=True, preexec_fn=limit, timeout=300)
     assert done.returncode == 2, done.stderr

@@ -14,9 +14,9 @@ import cv2
 import numpy as np
 import pytest
 
-from brdf.merl import read_merl
-from brdf.views import flash_slice, read_slice_csv
-from pipeline.cli import main
+from flashbrdf.brdf.merl import read_merl
+from flashbrdf.brdf.views import flash_slice, read_slice_csv
+from flashbrdf.pipeline.cli import main
 from synthetic import (add_reference_photo, by_region, directional_light, pinhole_camera,
                        point_light, region_image, sphere_mesh, table_brdf, write_synthetic_scene)
 
@@ -225,8 +225,8 @@ def test_face_labels_carry_the_materials_to_another_camera(two_materials, segmen
     2026-12-01: 99.7%; 95% leaves room for those, while labels read through the wrong camera's
     pixel grid would be right on about half the pixels.
     """
-    import capture
-    from render import MaterialMap
+    from flashbrdf import capture
+    from flashbrdf.render import MaterialMap
     out, labels, perm = segmented
     angle = np.radians(40)
     rotation = np.array([[np.cos(angle), 0, np.sin(angle)], [0, 1, 0],

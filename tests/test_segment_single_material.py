@@ -12,10 +12,10 @@ already (2.2-2.9 pooled sigmas against 3), but it stays the one to watch.
 import numpy as np
 import pytest
 
-import capture
-from brdf.merl import read_merl
-from slice_extract.extract import ExtractOptions, collect_samples
-from slice_extract.segment import (RESOLVED_GAP, SegmentOptions, neighbour_samples,
+from flashbrdf import capture
+from flashbrdf.brdf.merl import read_merl
+from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
+from flashbrdf.slice_extract.segment import (RESOLVED_GAP, SegmentOptions, neighbour_samples,
                                    resolution_floor, segment_samples)
 from synthetic import (combine, phone_jpeg, pinhole_camera, point_light, sphere_mesh, table_brdf,
                        torus_mesh, write_synthetic_scene)

@@ -6,11 +6,11 @@ the out-of-training threshold is predicted by the fit alone."""
 import numpy as np
 import pytest
 
-from brdf import colour
-from infer import DSGPLVMMethod
-from infer.adapter import table_features
-import infer.adapter
-from infer.slice_fit import (OUT_OF_TRAINING_NOVELTY, convex_slice_weights, mixed_weights,
+from flashbrdf.brdf import colour
+from flashbrdf.infer import DSGPLVMMethod
+from flashbrdf.infer.adapter import table_features
+import flashbrdf.infer.adapter
+from flashbrdf.infer.slice_fit import (OUT_OF_TRAINING_NOVELTY, convex_slice_weights, mixed_weights,
                              slice_fit_share)
 from tests.test_infer_baselines import ap_material, training_set
 
@@ -103,7 +103,7 @@ def test_an_out_of_training_slice_is_predicted_by_the_slice_fit_alone(materials,
     got_out, var_out = method.predict(outside, "2d")
     np.testing.assert_allclose(got_out, want_out, rtol=1e-12)   # same weights, same arithmetic
     got_in = method.predict(inside, "2d")[0]
-    monkeypatch.setattr(infer.adapter, "slice_fit_share", lambda novelty, share: share)
+    monkeypatch.setattr(flashbrdf.infer.adapter, "slice_fit_share", lambda novelty, share: share)
     np.testing.assert_array_equal(method.predict(inside, "2d")[0], got_in)  # inside: no change
     mixed_out, var_mixed = method.predict(outside, "2d")
     ok = np.isfinite(got_out).all(-1)

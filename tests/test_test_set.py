@@ -7,9 +7,9 @@ import shutil
 import numpy as np
 import pytest
 
-from brdf import merl, metrics, views
-from experiments.test_set import THETA_D_BANDS_DEG, band_errors, band_label
-from pipeline.cli import main
+from flashbrdf.brdf import merl, metrics, views
+from flashbrdf.experiments.test_set import THETA_D_BANDS_DEG, band_errors, band_label
+from flashbrdf.pipeline.cli import main
 
 FOLDER_A = ["gold-metallic-paint", "blue-acrylic", "white-fabric"]
 FOLDER_B = ["red-plastic", "nickel"]

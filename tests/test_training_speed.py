@@ -5,9 +5,9 @@ materials (tests/test_infer_baselines.py builds them on MERL bin centres)."""
 import numpy as np
 import pytest
 
-from brdf import merl
-from infer.model_selection import tune_baselines
-from infer.training_set import TrainingSet
+from flashbrdf.brdf import merl
+from flashbrdf.infer.model_selection import tune_baselines
+from flashbrdf.infer.training_set import TrainingSet
 from tests.test_infer_baselines import coloured_ap_set
 
 
@@ -52,8 +52,8 @@ def test_threaded_table_reading_equals_sequential(materials, tmp_path, monkeypat
 def test_fit_loo_grid_cache_changes_nothing():
     # the grid's eigendecompositions depend on d2 alone: cached across calls (the ADM cycles),
     # the second call with another latent gives what an uncached call gives, to the last bit
-    from infer.backmap import fit_loo
-    from infer.gp import squared_distances
+    from flashbrdf.infer.backmap import fit_loo
+    from flashbrdf.infer.gp import squared_distances
     rng = np.random.default_rng(2)
     d2 = squared_distances(rng.normal(size=(15, 6)))
     cache = {}
@@ -68,7 +68,7 @@ def test_adm_schedule_reaches_mu_max_then_settles():
     # the stated schedule: μ × 1.25 a cycle from 1 reaches μ_max = 1e3 after 31 cycles
     # (1.25^30 = 808, 1.25^31 = 1009), then 9 more cycles at μ_max: 40 cycles in all
     from _dsgplvm_data import latent_views
-    from infer.dsgplvm import DSGPLVM
+    from flashbrdf.infer.dsgplvm import DSGPLVM
     _, v1, v2 = latent_views(16, seed=4)
     model = DSGPLVM(q=2).fit({"1d": v1, "2d": v2})
     mus = [c["mu"] for c in model.cycle_info_[1:]]
@@ -80,7 +80,7 @@ def test_adm_schedule_reaches_mu_max_then_settles():
 def test_lab_log_error_against_a_reference_equals_brdf_error():
     # the truth's half of the metric computed once (ashikhmin's fit): the same error to the
     # last bit, NaN and negative predictions included
-    from brdf import metrics
+    from flashbrdf.brdf import metrics
     rng = np.random.default_rng(5)
     true = rng.lognormal(-2, 2, size=(4, 90, 90, 3))
     true[:, 80:, 85:] = np.nan

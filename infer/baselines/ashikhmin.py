@@ -19,11 +19,11 @@ LAB-log error of the 2D predictions of the training materials from their own sli
 import numpy as np
 from scipy.optimize import minimize_scalar
 
-from brdf import merl, metrics
-from brdf.bins import scatter_valid, valid_bins_3d
-from brdf.microfacet import geometry_ratio_2d, geometry_ratio_valid
-from infer.estimator import InferenceMethod
-from infer.slices import fill_slice
+from flashbrdf.brdf import merl, metrics
+from flashbrdf.brdf.bins import scatter_valid, valid_bins_3d
+from flashbrdf.brdf.microfacet import geometry_ratio_2d, geometry_ratio_valid
+from flashbrdf.infer.estimator import InferenceMethod
+from flashbrdf.infer.slices import fill_slice
 
 
 def schlick(cos_theta_d, r0):

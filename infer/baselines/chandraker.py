@@ -8,10 +8,10 @@ It reproduces the observed slice exactly at θd bin 0.
 
 import numpy as np
 
-from brdf.bins import scatter_valid, valid_bins_3d, valid_mask_2d
-from brdf.merl import N_THETA_D
-from infer.estimator import InferenceMethod
-from infer.slices import fill_slice
+from flashbrdf.brdf.bins import scatter_valid, valid_bins_3d, valid_mask_2d
+from flashbrdf.brdf.merl import N_THETA_D
+from flashbrdf.infer.estimator import InferenceMethod
+from flashbrdf.infer.slices import fill_slice
 
 
 class Chandraker(InferenceMethod):

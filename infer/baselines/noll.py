@@ -17,10 +17,10 @@ robust (soft-L1) loss stands in for their outlier handling.
 import numpy as np
 from scipy.optimize import least_squares, nnls
 
-from brdf.bins import valid_bins_3d
-from brdf.merl import N_THETA_H
-from infer.blas import one_blas_thread
-from infer.estimator import InferenceMethod, LinearSpace
+from flashbrdf.brdf.bins import valid_bins_3d
+from flashbrdf.brdf.merl import N_THETA_H
+from flashbrdf.infer.blas import one_blas_thread
+from flashbrdf.infer.estimator import InferenceMethod, LinearSpace
 
 EPS = 1e-3     # 1/sr, log metric offset
 DELTA = 1e-9   # 1/sr, keeps the correction ratio finite for black fits

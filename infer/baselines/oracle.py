@@ -9,9 +9,9 @@ In dual form (training-material weights) it needs only raw inner products of map
 
 import numpy as np
 
-from infer.baselines.pca import PCA, LogRelative3D, to_mapped
-from brdf.bins import valid_mask_2d
-from infer.blas import on_one_blas_thread
+from flashbrdf.infer.baselines.pca import PCA, LogRelative3D, to_mapped
+from flashbrdf.brdf.bins import valid_mask_2d
+from flashbrdf.infer.blas import on_one_blas_thread
 
 
 def dual_weights(raw_gram, cross, ridge):

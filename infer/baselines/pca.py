@@ -19,10 +19,10 @@ import functools
 
 import numpy as np
 
-from brdf.bins import cos_in_out_valid, mean_over_phi_d, valid_bins_3d, valid_mask_2d
-from brdf.merl import N_THETA_D, N_THETA_H
-from infer.blas import on_one_blas_thread
-from infer.estimator import InferenceMethod, LinearSpace
+from flashbrdf.brdf.bins import cos_in_out_valid, mean_over_phi_d, valid_bins_3d, valid_mask_2d
+from flashbrdf.brdf.merl import N_THETA_D, N_THETA_H
+from flashbrdf.infer.blas import on_one_blas_thread
+from flashbrdf.infer.estimator import InferenceMethod, LinearSpace
 
 EPS = 1e-3
 
