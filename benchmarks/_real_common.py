@@ -135,6 +135,6 @@ def theta_h_deg():
 
 
 def write_json(path, data):
-    from flashbrdf.brdf.atomic import write_text
+    from flashbrdf.files.atomic import write_text
     from flashbrdf.pipeline.report import _clean
     write_text(path, json.dumps(_clean(data), indent=1) + "\n")

@@ -37,7 +37,7 @@ def row_extension_variance(training):
     """(90, 90) mean over training tables and channels of (ln(ρ + e) − ln(ρ_row g + e))²: how far
     each training table is from its own θd = 0 row extended by the microfacet ratio g."""
     from flashbrdf.brdf.colour import FEATURE_OFFSET
-    from flashbrdf.brdf.microfacet import geometry_ratio_2d
+    from flashbrdf.brdf.shadowing import geometry_ratio_2d
     e = FEATURE_OFFSET
     ratio = np.nan_to_num(geometry_ratio_2d(), nan=1.0)[None, ..., None]
     tables = np.asarray(training.tables_2d, float)
@@ -53,7 +53,7 @@ def precision_weighted_table(unblended_3d, method, rho, v_row):
     on the observed θh bins (1 at θd = 0), as infer.row_blend does with its Gaussian w(θd)."""
     from flashbrdf.brdf import merl
     from flashbrdf.brdf.bins import valid_bins_3d
-    from flashbrdf.brdf.microfacet import geometry_ratio_valid
+    from flashbrdf.brdf.shadowing import geometry_ratio_valid
     from flashbrdf.infer.row_blend import blend_log, blend_weights
     variance = np.nanmean(method.predict(rho, "2d")[1], axis=-1)
     row, gaussian = blend_weights(rho)

@@ -40,7 +40,7 @@ def _load_scene(scene_dir):
 def _slice(scene_dir, scene, mask, normals, view, work, log):
     from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
     from flashbrdf.pipeline.report import read_image
-    from flashbrdf.brdf.errors import InputError
+    from flashbrdf.files.errors import InputError
     rc, err, seconds = run_cli(["extract", scene_dir, "--out", work / "slice.csv"])
     if rc == 0:
         try:

@@ -21,7 +21,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from flashbrdf.brdf import colour, metrics  # noqa: E402
-from flashbrdf.brdf.atomic import write_text  # noqa: E402
+from flashbrdf.files.atomic import write_text  # noqa: E402
 from flashbrdf.infer.baselines import PCA  # noqa: E402
 from flashbrdf.infer.training_set import TrainingSet  # noqa: E402
 from flashbrdf.infer.dsgplvm import DSGPLVM  # noqa: E402

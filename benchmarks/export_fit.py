@@ -32,11 +32,11 @@ PISA = (Path(os.environ.get("FLASHBRDF_SHARED", ROOT.parent / "shared")) / "data
         / "pisa_latlong_256x128.hdr")
 sys.path.insert(0, str(ROOT))
 
-from flashbrdf.brdf.atomic import write_text  # noqa: E402
+from flashbrdf.files.atomic import write_text  # noqa: E402
 from flashbrdf.brdf.merl import list_merl, read_merl  # noqa: E402
 from flashbrdf.brdf.metrics import brdf_error  # noqa: E402
-from flashbrdf.brdf.principled import tabulate_principled  # noqa: E402
-from flashbrdf.brdf.principled_fit import fit_principled  # noqa: E402
+from flashbrdf.brdf.models.principled import tabulate_principled  # noqa: E402
+from flashbrdf.brdf.models.principled_fit import fit_principled  # noqa: E402
 from flashbrdf.brdf.views import table_2d  # noqa: E402
 from flashbrdf.render.export import fit_quality  # noqa: E402
 
@@ -245,7 +245,7 @@ def plugin_figure():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from flashbrdf.brdf.atomic import atomic_path
+    from flashbrdf.files.atomic import atomic_path
     from flashbrdf.render.images import tonemap
     saved = sorted(RESULTS.glob("export_plugin_*.npy"))
     if not saved:

@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from flashbrdf.brdf import merl, views  # noqa: E402
-from flashbrdf.brdf.atomic import write_text  # noqa: E402
+from flashbrdf.files.atomic import write_text  # noqa: E402
 from flashbrdf.infer import TrainingSet, load_method, make_method  # noqa: E402
 
 HELD_OUT = "red-specular-plastic"

@@ -136,7 +136,7 @@ def main(argv=None):
     ap = argument_parser(__doc__.splitlines()[0], "flash-planar-cards-blue", "flashbrdf_bench_planar_cards")
     ap.add_argument("--flash-view", type=int, default=0)
     args = ap.parse_args(argv)
-    from flashbrdf.brdf.errors import InputError
+    from flashbrdf.files.errors import InputError
     from flashbrdf.brdf.merl import read_merl
     from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
     from flashbrdf.pipeline.real_scenes import planar_card_scenes

@@ -36,7 +36,7 @@ ENVMAPS = SHARED / "data" / "envmaps"
 RESULTS = REPO / "benchmarks" / "results"
 
 from flashbrdf.brdf.merl import read_merl                       # noqa: E402
-from flashbrdf.render.brdf_models import TabulatedBRDF          # noqa: E402
+from flashbrdf.brdf.models import TabulatedBRDF          # noqa: E402
 from flashbrdf.render.envmap import EnvMap                      # noqa: E402
 from flashbrdf.render.integrator import render_envmap           # noqa: E402
 from flashbrdf.render.scene_render import sphere_view           # noqa: E402

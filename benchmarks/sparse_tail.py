@@ -23,7 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from benchmarks._real_common import RESULTS, run_cli  # noqa: E402
 from flashbrdf.brdf import merl, views  # noqa: E402
-from flashbrdf.brdf.atomic import write_text  # noqa: E402
+from flashbrdf.files.atomic import write_text  # noqa: E402
 from flashbrdf.infer.model_file import load_methods  # noqa: E402
 from flashbrdf.infer.slices import without_sparse_tail  # noqa: E402
 from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL  # noqa: E402

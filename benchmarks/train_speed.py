@@ -27,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from flashbrdf.brdf.atomic import write_text  # noqa: E402
+from flashbrdf.files.atomic import write_text  # noqa: E402
 
 
 def _children_cpu():

@@ -8,5 +8,6 @@
 - views: the 1D flash slice, 2D and 3D views; slice.csv
 - colour: linear sRGB <-> CIELAB, the log-CIELAB feature map
 - metrics: the paper's Table 1 / Table 2 errors
-- errors, atomic: bad-input errors (exit 2) and atomic file output
+- models: BRDF models with evaluate / sample / pdf (Lambert, GGX, tabulated, Mitsuba's principled)
+- shadowing: the Ashikhmin-Premoze shadowing term over MERL's bins (baselines, row blend)
 """

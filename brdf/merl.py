@@ -14,8 +14,8 @@ import os
 
 import numpy as np
 
-from flashbrdf.brdf.atomic import atomic_path
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import atomic_path
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.rusinkiewicz import cos_in_out
 
 N_THETA_H, N_THETA_D, N_PHI_D = 90, 90, 180

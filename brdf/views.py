@@ -13,8 +13,8 @@ import os
 
 import numpy as np
 
-from flashbrdf.brdf.atomic import write_text
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import N_THETA_H, merl_valid_mask, theta_h_centres, theta_h_from_bin_coordinate
 
 SLICE_HEADER = ["theta_h_deg", "r", "g", "b", "n"]

@@ -34,7 +34,7 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   srgb_to_linear(values) -> linear
 """
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.capture.camera import (camera_rays, embree_rays, pixel_box, pixel_rays, project_points,
                             view_directions)
 from flashbrdf.capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex, load_mesh,

@@ -19,7 +19,7 @@ import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.capture.camera import embree_rays, pixel_box
 from flashbrdf.capture.scene import Scene
 

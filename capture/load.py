@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.capture.photo import load_brackets, load_photo, load_photo_measured
 from flashbrdf.capture.scene import Scene, load_scene
 

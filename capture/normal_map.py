@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.brdf.errors import DECODE_ERRORS, InputError
+from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.capture.camera import pixel_rays
 from flashbrdf.capture.geometry import Surface
 from flashbrdf.capture.photo import imread_unchanged, read_float_image

@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 import OpenImageIO as oiio
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 
 SATURATION_FRACTION = 0.98
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -263,8 +263,8 @@ def _load_photo(path, encoding, saturation, shape):
     ext = path.suffix.lower()
     stored_float = False
     if ext in RAW_EXTENSIONS:
-        from flashbrdf.capture.raw import load_raw  # capture.raw imports this module
-        rgb, usable, clipped = load_raw(path)
+        from flashbrdf.capture.raw import load_raw  # rawpy is imported for RAW files only
+        rgb, usable, clipped = load_raw(path, SATURATION_FRACTION)
     elif ext in CV_EXTENSIONS:
         img = imread_unchanged(path)
         if img is None:

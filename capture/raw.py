@@ -3,7 +3,7 @@ black and white levels honoured, output in linear sRGB primaries.
 
 Only this module imports rawpy, and only when a RAW file is loaded.
 
-Usable mask: a sensel at or above SATURATION_FRACTION of (white - black), or at or below its black
+Usable mask: a sensel at or above `saturation_fraction` of (white - black), or at or below its black
 level, taints every output pixel whose demosaic neighbourhood (5x5) contains it; output values
 clipped by LibRaw at 0 or 65535 are unusable too. The mask follows the same orientation flip
 LibRaw applies to the image.
@@ -13,8 +13,7 @@ import cv2
 import numpy as np
 import rawpy
 
-from flashbrdf.brdf.errors import InputError
-from flashbrdf.capture.photo import SATURATION_FRACTION
+from flashbrdf.files.errors import InputError
 
 _DEMOSAIC_REACH = 2  # sensels: AHD interpolation reads a 5x5 neighbourhood
 
@@ -35,8 +34,9 @@ def _apply_flip(mask, flip):
     return mask
 
 
-def load_raw(path):
-    """Decode a RAW file. Returns rgb (H, W, 3) float32 linear sRGB primaries, scaled so that the
+def load_raw(path, saturation_fraction):
+    """Decode a RAW file; a sensel at or above `saturation_fraction` of its range counts as clipped
+    (capture.photo.SATURATION_FRACTION). Returns rgb (H, W, 3) float32 linear sRGB primaries, scaled so that the
     white level maps to 1 before white balance, usable (H, W) bool, clipped (H, W) bool."""
     try:
         raw = rawpy.imread(str(path))
@@ -48,7 +48,7 @@ def load_raw(path):
             colours = raw.raw_colors_visible
             black = np.asarray(raw.black_level_per_channel, dtype=np.float64)[colours]
             white = float(raw.white_level)
-            high = sensels >= black + SATURATION_FRACTION * (white - black)
+            high = sensels >= black + saturation_fraction * (white - black)
             low = sensels <= black
             flip = raw.sizes.flip
             img = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=True,

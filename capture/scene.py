@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 
 CAMERA_MODELS = ("pinhole", "orthographic")
 ROLES = ("flash", "ambient", "reference")

@@ -20,17 +20,16 @@ import tracemalloc
 import numpy as np
 
 from flashbrdf.brdf import merl
-from flashbrdf.brdf.atomic import write_text
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.bins import valid_mask_2d
 from flashbrdf.infer import TrainingSet, make_method, method_from_model
 from flashbrdf.infer.training_set import check_distinct
-from flashbrdf.brdf.microfacet import inverse_denominator
+from flashbrdf.brdf.shadowing import inverse_denominator
 from flashbrdf.infer.baselines.pca import cosine_weights
 from flashbrdf.infer.model_selection import DS_FIXED, DS_GRID, PCA_GRID, errors_2d, lab_log, select
 from flashbrdf.experiments.eval3d import RowsView, build_cache, evaluate_3d
-from flashbrdf.experiments.table1_report import (PAPER_TABLE1, summarise_errors, write_markdown,
-                                       write_runtime_plot)
+from flashbrdf.experiments.table1_report import PAPER_TABLE1, summarise_errors, write_markdown
 
 PAPER = "dsgplvm-paper"                          # the paper's DS-GPLVM, scored from the same fits
 PAPER_FIXED = {"feature_space": "lab", "anchor": False}
@@ -486,6 +485,7 @@ def _write(out_dir, result, records, costs, points, ablations, planned):
     write_text(os.path.join(out_dir, "table1.json"), json.dumps(result, indent=1, default=str) + "\n")
     write_markdown(os.path.join(out_dir, "table1.md"), result)
     if points:
+        from flashbrdf.experiments.runtime_plot import write_runtime_plot  # matplotlib: here only
         write_runtime_plot(os.path.join(out_dir, "error_vs_runtime.png"), points)
 
 

@@ -1,7 +1,7 @@
 """Error against run time, legibly: one point per method and setting, each label in a column beside
 its panel, in the order of the points' errors, pushed apart to at least one line height and tied
 to its point by a leader line. Deterministic, and no two labels can overlap (adjustText is not a
-dependency). Used by `flashbrdf evaluate` (experiments.table1_report.write_runtime_plot) and
+dependency). Used by `flashbrdf evaluate` (experiments.runtime_plot.write_runtime_plot) and
 benchmarks/error_vs_runtime.py (with an out-of-distribution panel).
 
 A point is {"label", "method", "x" (2D inference ms per slice), "y" (2D LAB-log error),
@@ -18,8 +18,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from flashbrdf.brdf.atomic import atomic_path  # noqa: E402
-from flashbrdf.experiments.table1_report import METHODS  # noqa: E402
+from flashbrdf.files.atomic import atomic_path  # noqa: E402
+from flashbrdf.experiments.table1_report import DATASET, METHODS  # noqa: E402
 
 FONT_PT = 7.0
 LINE = 1.35          # label pitch in font heights: leaves a gap between neighbouring labels
@@ -159,3 +159,10 @@ def write_figure(path, fig, dpi=130):
     with atomic_path(path) as tmp:
         fig.savefig(tmp, dpi=dpi)
     plt.close(fig)
+
+
+def write_runtime_plot(path, points):
+    """LAB-log 2D error against inference time; points [{label, method, seconds, error}], one per
+    method and setting (labels in a column that never overlaps)."""
+    write_figure(path, make_figure(grid_points(points), DATASET,
+                                   note="flashbrdf evaluate (experiments/runtime_plot.py)."))

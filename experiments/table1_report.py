@@ -4,7 +4,7 @@ import json
 
 import numpy as np
 
-from flashbrdf.brdf.atomic import write_text
+from flashbrdf.files.atomic import write_text
 
 METHODS = ("dsgplvm", "dsgplvm-paper", "pca", "noll", "chandraker", "ashikhmin", "oracle")
 TRANSFORMS = ("lin", "root", "log")
@@ -133,11 +133,3 @@ def write_markdown(path, result):
         lines.append(f"- experiment {h['experiment']}: " + json.dumps(h["chosen"], default=str))
     lines += ["", "## Notes", ""] + [f"- {n}" for n in result.get("notes", [])]
     write_text(path, "\n".join(lines) + "\n")
-
-
-def write_runtime_plot(path, points):
-    """LAB-log 2D error against inference time; points [{label, method, seconds, error}], one per
-    method and setting (experiments.runtime_plot: labels in a column that never overlaps)."""
-    from flashbrdf.experiments.runtime_plot import grid_points, make_figure, write_figure  # it imports METHODS from here
-    write_figure(path, make_figure(grid_points(points), DATASET,
-                                   note="flashbrdf evaluate (experiments/runtime_plot.py)."))

@@ -16,8 +16,8 @@ import matplotlib
 import numpy as np
 from tqdm import tqdm
 
-from flashbrdf.brdf.atomic import atomic_path, write_text
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import atomic_path, write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import list_merl, read_merl
 from flashbrdf.render.compare import compare_images
 from flashbrdf.render.envmap import EnvMap, default_envmaps

@@ -25,7 +25,7 @@ import time
 import numpy as np
 
 from flashbrdf.brdf import merl, metrics
-from flashbrdf.brdf.atomic import write_text
+from flashbrdf.files.atomic import write_text
 from flashbrdf.infer import METHODS, TrainingSet, make_method
 from flashbrdf.experiments.evaluate import PAPER, _warm_up, build_method
 from flashbrdf.infer.model_file import load_methods

@@ -9,8 +9,8 @@ import json
 
 import numpy as np
 
-from flashbrdf.brdf.atomic import atomic_path
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import atomic_path
+from flashbrdf.files.errors import InputError
 
 from .viewdata import ViewData
 

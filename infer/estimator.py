@@ -14,7 +14,7 @@ import numpy as np
 from sklearn.base import BaseEstimator
 
 from flashbrdf.brdf.bins import scatter_valid, valid_flat_3d
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.infer.slices import check_slice
 from flashbrdf.infer.training_set import default_threads
 

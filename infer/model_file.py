@@ -14,8 +14,8 @@ import zipfile
 import numpy as np
 
 from flashbrdf.brdf import merl
-from flashbrdf.brdf.atomic import atomic_path
-from flashbrdf.brdf.errors import DECODE_ERRORS, InputError
+from flashbrdf.files.atomic import atomic_path
+from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.infer.adapter import table_features
 from flashbrdf.infer.dsgplvm import DSGPLVM
 from flashbrdf.infer.training_set import TrainingSet

@@ -13,7 +13,7 @@ from joblib import Parallel, delayed
 from sklearn.model_selection import ParameterGrid
 
 from flashbrdf.brdf import metrics
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.infer import make_method
 from flashbrdf.infer.training_set import MIN_TRAINING_TABLES
 from flashbrdf.infer.uncertainty import calibration_factor

@@ -13,7 +13,7 @@ bins, so the slice's fine θh structure never reaches the low-θd rows. The blen
 with e = brdf.colour.FEATURE_OFFSET (the log features' offset) and τ = ROW_BLEND_DEG, on the θh
 bins the slice observes; w = 0 on the others, so missing bins stay the model's guess and a one-bin
 or all-grazing slice changes nothing elsewhere. g(θh, θd, φd) is the microfacet shadowing/
-normalisation ratio (brdf.microfacet.geometry_ratio_valid): the row is extended as a microfacet BRDF
+normalisation ratio (brdf.shadowing.geometry_ratio_valid): the row is extended as a microfacet BRDF
 with an unchanged distribution would be, not flat. Its φd-mean is 1 at θd = 0, within 7% up to
 θd = 20° and 16% at 30°, where w has fallen to 0.32, so the blend changes little on MERL (NBRDF
 proxy) 80/20 splits (LAB-log 5.071 flat, 5.070 with g) or RGL (NBRDF proxy) folds (9.70, 9.71); a
@@ -29,7 +29,7 @@ import numpy as np
 from flashbrdf.brdf import merl
 from flashbrdf.brdf.colour import FEATURE_OFFSET
 from flashbrdf.brdf.bins import valid_bins_3d
-from flashbrdf.brdf.microfacet import geometry_ratio_2d, geometry_ratio_valid
+from flashbrdf.brdf.shadowing import geometry_ratio_2d, geometry_ratio_valid
 from flashbrdf.infer.estimator import LinearSpace
 
 ROW_BLEND_DEG = 20.0     # τ in degrees of θd: w = 0.61 at 20°, 0.11 at 40°, < 0.01 past 60°

@@ -6,7 +6,7 @@ where the bin is empty (missing data, never 0).
 
 import numpy as np
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import N_THETA_H, theta_h_centres
 
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from flashbrdf.brdf import merl, views
 from flashbrdf.brdf.bins import valid_bins_3d, valid_flat_3d
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 
 
 def default_threads():

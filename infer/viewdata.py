@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 
 COLUMN_BLOCK = 262_144  # columns per block: 60 rows × 256 k × 8 B = 126 MB peak per block
 

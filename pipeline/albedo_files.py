@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.brdf.atomic import atomic_path
-from flashbrdf.brdf.errors import DECODE_ERRORS, InputError
+from flashbrdf.files.atomic import atomic_path
+from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.capture import load_mesh
 from flashbrdf.render.albedo_map import table_floor
 from flashbrdf.render.images import image_channel_names, read_image, write_exr

@@ -42,11 +42,11 @@ import traceback
 import uuid
 from pathlib import Path
 
-from flashbrdf.brdf.atomic import write_text
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.pipeline import dask_engine
-from flashbrdf.pipeline.safety import MARKER as RUN_MARKER
-from flashbrdf.pipeline.safety import check_writable_folder
+from flashbrdf.files.outputs import MARKER as RUN_MARKER
+from flashbrdf.files.outputs import check_writable_folder
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"

@@ -7,10 +7,10 @@ Exit status (contract): 0 success, 2 bad input (one line on stderr naming the fi
 import argparse
 import sys
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.pipeline import commands
 from flashbrdf.pipeline.dask_engine import add_engine_options
-from flashbrdf.pipeline.safety import Terminated, handle_signals, hold_native_stderr
+from flashbrdf.files.signals import Terminated, handle_signals, hold_native_stderr
 
 FORCE_HELP = "replace OUT_DIR if an earlier flashbrdf command made it (never any other folder)"
 

@@ -4,7 +4,7 @@ import os
 
 from flashbrdf.brdf.merl import read_merl
 from flashbrdf.brdf.views import check_flash_slice, flash_slice, write_slice_csv
-from flashbrdf.pipeline.safety import check_outputs
+from flashbrdf.files.outputs import check_outputs
 
 
 def merl_slice(args):

@@ -1,6 +1,6 @@
 """`flashbrdf export BRDF.binary --out DIR [--formats mitsuba,principled,gltf]`.
 
-The folder is built in a temporary sibling and renamed into place (pipeline.safety's
+The folder is built in a temporary sibling and renamed into place (files.outputs's
 staged_output_dir), so a failure leaves no partial output. Bad input (an unreadable table, one with no
 valid bin, an unknown format, an output folder that is, holds or lies inside the input) exits 2.
 """
@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from flashbrdf.brdf.merl import read_merl
-from flashbrdf.pipeline.safety import check_outputs, staged_output_dir
+from flashbrdf.files.outputs import check_outputs, staged_output_dir
 from flashbrdf.render.export import FORMATS, MITSUBA_USAGE, export_table, parse_formats
 
 

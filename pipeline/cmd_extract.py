@@ -10,12 +10,12 @@ from pathlib import Path
 import numpy as np
 
 from flashbrdf import capture
-from flashbrdf.brdf.atomic import write_text
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import N_THETA_H
 from flashbrdf.brdf.views import write_slice_csv
 from flashbrdf.pipeline.cmd_segment import read_labels
-from flashbrdf.pipeline.safety import check_outputs, sidecar_json, staged_output_dir
+from flashbrdf.files.outputs import check_outputs, sidecar_json, staged_output_dir
 from flashbrdf.slice_extract import ExtractOptions, extract_slice
 from flashbrdf.slice_extract.extract import collect_samples, extract_material_slices
 

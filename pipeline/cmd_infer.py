@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from flashbrdf.brdf import merl, views
-from flashbrdf.brdf.atomic import write_text
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.experiments.evaluate import check_protocol_tables, experiment_predictor, run_evaluation
 from flashbrdf.experiments.test_set import run_test_set
 from flashbrdf.infer import TrainingSet, load_method, make_method, novelty_warning
@@ -18,7 +18,7 @@ from flashbrdf.infer.slices import (sample_counts, sparse_tail_note, sparse_tail
                           without_sparse_tail)
 from flashbrdf.infer.training import train_model
 from flashbrdf.pipeline.dask_engine import check_engine_options, dask_client
-from flashbrdf.pipeline.safety import check_outputs, sidecar_json, staged_output_dir
+from flashbrdf.files.outputs import check_outputs, sidecar_json, staged_output_dir
 
 
 def _merl_inputs(merl_dirs):

@@ -17,17 +17,18 @@ import time
 from pathlib import Path
 
 from flashbrdf import capture
-from flashbrdf.brdf.atomic import write_text
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import read_merl
 from flashbrdf.pipeline.albedo_files import albedo_sidecars, read_albedo
 from flashbrdf.pipeline.cmd_segment import faces_path, flash_photo_camera
-from flashbrdf.pipeline.safety import check_outputs, staged_output_dir
+from flashbrdf.files.outputs import check_outputs, staged_output_dir
 from flashbrdf.render.albedo_map import DiffuseAlbedoMap
-from flashbrdf.render.brdf_models import TabulatedBRDF
+from flashbrdf.brdf.models import TabulatedBRDF
 from flashbrdf.render.compare import comparison_mask, write_comparison
 from flashbrdf.render.images import read_image, read_mask, write_exr, write_preview
-from flashbrdf.render.scene_render import MaterialMap, render_scene
+from flashbrdf.render.material_map import MaterialMap
+from flashbrdf.render.scene_render import render_scene
 
 MAX_SPP = 1 << 20  # samples per pixel; 16,384 times the default
 

@@ -27,8 +27,8 @@ from tqdm import tqdm
 
 from flashbrdf import capture
 from flashbrdf.brdf import merl, views
-from flashbrdf.brdf.atomic import write_text
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.infer import METHODS, make_method, novelty_warning
 from flashbrdf.infer.model_file import check_model_file, load_methods
 from flashbrdf.infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
@@ -38,8 +38,9 @@ from flashbrdf.pipeline.cmd_render import photo_exists, reference_outputs, sampl
 from flashbrdf.pipeline.cmd_segment import materials_option, segment_scene, write_labels
 from flashbrdf.pipeline.report import write_report
 from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
-from flashbrdf.pipeline.safety import check_outputs, staged_output_dir
-from flashbrdf.render import (MaterialMap, TabulatedBRDF, level_ratio, render_scene, write_comparison,
+from flashbrdf.files.outputs import check_outputs, staged_output_dir
+from flashbrdf.brdf.models import TabulatedBRDF
+from flashbrdf.render import (MaterialMap, level_ratio, render_scene, write_comparison,
                     write_exr, write_preview)
 from flashbrdf.render.albedo_map import DiffuseAlbedoMap
 from flashbrdf.render.envmap import read_envmap_pixels

@@ -15,11 +15,11 @@ import cv2
 import numpy as np
 
 from flashbrdf import capture
-from flashbrdf.brdf.atomic import atomic_path
-from flashbrdf.brdf.errors import DECODE_ERRORS, InputError
+from flashbrdf.files.atomic import atomic_path
+from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.capture import load_mesh
 from flashbrdf.capture.photo import imread_unchanged
-from flashbrdf.pipeline.safety import check_outputs
+from flashbrdf.files.outputs import check_outputs
 from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
 from flashbrdf.slice_extract.segment import check_labels, face_labels, segment_samples
 

@@ -14,7 +14,7 @@ import os
 import socket
 import warnings
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                     "FLASHBRDF_THREADS")

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.brdf.errors import InputError
-from flashbrdf.pipeline.safety import check_outputs, staged_output_dir
+from flashbrdf.files.errors import InputError
+from flashbrdf.files.outputs import check_outputs, staged_output_dir
 from flashbrdf.render.images import write_exr
 
 CAMERA_FROM_DILIGENT = np.diag([1.0, -1.0, -1.0])
@@ -213,7 +213,7 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
 
     flash_index: 1-based index of the photo used as the flash (directional light near the view).
     progress: optional callable wrapping an iterable (e.g. tqdm) for the photo loop.
-    force: replace an existing out_dir that flashbrdf made (pipeline.safety.staged_output_dir).
+    force: replace an existing out_dir that flashbrdf made (files.outputs.staged_output_dir).
     notify: optional callable taking one line (the reduced-precision note for 8-bit photos).
     """
     import cv2

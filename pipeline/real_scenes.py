@@ -32,9 +32,9 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.pipeline.diligent import dumps_scene
-from flashbrdf.pipeline.safety import staged_output_dir
+from flashbrdf.files.outputs import staged_output_dir
 from flashbrdf.render.images import write_exr
 
 CM = 0.01  # metres per centimetre

@@ -26,8 +26,8 @@ import cv2
 import numpy as np
 
 from flashbrdf.brdf import merl
-from flashbrdf.brdf.atomic import write_text
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import theta_h_centres
 from flashbrdf.brdf.metrics import summarise
 from flashbrdf.brdf.views import slice_coverage, table_2d

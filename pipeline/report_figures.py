@@ -6,7 +6,7 @@ of log-CIELAB (see pipeline/report.py for what the numbers mean).
 
 import numpy as np
 
-from flashbrdf.brdf.atomic import atomic_path
+from flashbrdf.files.atomic import atomic_path
 from flashbrdf.brdf.colour import srgb_encode
 
 CHANNELS = ("R", "G", "B")

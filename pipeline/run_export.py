@@ -8,7 +8,7 @@ OUT_DIR/<method>-principled/   renders of the reference photos with the fitted P
 
 from pathlib import Path
 
-from flashbrdf.brdf.principled import tabulate_principled
+from flashbrdf.brdf.models.principled import tabulate_principled
 from flashbrdf.pipeline.cmd_export import export_brdf
 
 

@@ -21,7 +21,8 @@ from flashbrdf.pipeline.cmd_extract import (NARROW_LAST_THETA_H_DEG, material_co
 from flashbrdf.pipeline.cmd_segment import write_labels
 from flashbrdf.pipeline.report import _table_2d, _variance_2d, write_report
 from flashbrdf.pipeline.run_export import export_for_report, export_method
-from flashbrdf.render import MaterialMap, TabulatedBRDF
+from flashbrdf.brdf.models import TabulatedBRDF
+from flashbrdf.render import MaterialMap
 from flashbrdf.render.albedo_map import DiffuseAlbedoMap
 from flashbrdf.render.images import write_preview
 from flashbrdf.slice_extract.extract import bin_samples, extract_material_slices

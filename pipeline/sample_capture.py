@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.brdf.atomic import write_text
+from flashbrdf.files.atomic import write_text
 
 SHARED_ENVMAPS = Path(__file__).resolve().parents[2] / "shared" / "data" / "envmaps"
 ENVMAPS = {"ref_pisa": "pisa_latlong_256x128.hdr", "ref_uffizi": "uffizi_latlong_256x128.hdr"}
@@ -87,7 +87,8 @@ def make_sample_capture(table_path, out, size=256, spp=1024, seed=0, shape="vase
     """
     from flashbrdf import capture
     from flashbrdf.brdf.merl import read_merl
-    from flashbrdf.render import EnvMap, TabulatedBRDF, render_envmap, render_scene, write_exr
+    from flashbrdf.brdf.models import TabulatedBRDF
+    from flashbrdf.render import EnvMap, render_envmap, render_scene, write_exr
     from flashbrdf.render.scene_render import SceneGeometry
 
     out = Path(out)

@@ -8,8 +8,7 @@ Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
   EnvMap(pixels, world_from_envmap=None, scale=1.0, compensate=True); EnvMap.from_file(path, ...)
       .radiance(dirs) -> (..., 3); .sample(u (..., 2)) -> dirs, pdf; .pdf(dirs) -> (...)
   read_envmap_pixels(path) -> (H, 2H, 3) float32
-  Lambert(albedo), GGX(alpha, specular, diffuse), TabulatedBRDF(table, interpolate=False)
-      .evaluate(wi, wo, normal) -> (..., 3) 1/sr; .evaluate_local / .sample_local / .pdf_local
+  BRDFs: any flashbrdf.brdf.models model (TabulatedBRDF, Lambert, GGX: evaluate/sample/pdf)
   render_point_light(points, normals, view, brdf, light_position, intensity_rgb, occluded=None)
   render_directional_light(points, normals, view, brdf, direction, irradiance_rgb, occluded=None)
   render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=None, ...) -> (P, 3)
@@ -25,16 +24,16 @@ Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
 """
 
 from flashbrdf.render.albedo_map import DiffuseAlbedoMap
-from flashbrdf.render.brdf_models import GGX, BRDFModel, Lambert, TabulatedBRDF
 from flashbrdf.render.compare import compare_images, level_ratio, write_comparison, write_delta_e_png
 from flashbrdf.render.envmap import EnvMap, read_envmap_pixels
 from flashbrdf.render.images import read_image, read_mask, tonemap, write_exr, write_preview
 from flashbrdf.render.integrator import render_directional_light, render_envmap, render_point_light
-from flashbrdf.render.scene_render import (MaterialMap, SceneGeometry, render_scene, render_sphere,
+from flashbrdf.render.material_map import MaterialMap
+from flashbrdf.render.scene_render import (SceneGeometry, render_scene, render_sphere,
                                  sphere_view)
 
 __all__ = [
-    "BRDFModel", "DiffuseAlbedoMap", "EnvMap", "GGX", "Lambert", "SceneGeometry", "TabulatedBRDF",
+    "DiffuseAlbedoMap", "EnvMap", "SceneGeometry",
     "compare_images", "level_ratio", "read_envmap_pixels", "read_image", "read_mask",
     "render_directional_light", "render_envmap",
     "MaterialMap", "render_point_light", "render_scene", "render_sphere", "sphere_view", "tonemap",

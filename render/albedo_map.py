@@ -9,13 +9,9 @@ whatever the number of materials, and the BRDF's own importance sampling is kept
 
 import numpy as np
 
-from flashbrdf.brdf.errors import InputError
-from flashbrdf.render.brdf_models import Lambert
-
-
-def _camera_key(camera):
-    from flashbrdf.render.scene_render import _camera_key as key
-    return key(camera)
+from flashbrdf.files.errors import InputError
+from flashbrdf.brdf.models import Lambert
+from flashbrdf.render.material_map import MaterialMap, camera_key
 
 
 def table_floor(table):
@@ -33,7 +29,7 @@ def table_floor(table):
 
 
 class DiffuseAlbedoMap:
-    """A BRDF `base` (a render.brdf_models model or a MaterialMap) with a diffuse albedo map.
+    """A BRDF `base` (a brdf.models model or a MaterialMap) with a diffuse albedo map.
 
     albedo (H, W, 3) in `camera`'s pixel grid (the flash photo's); floors (K, 3) 1/sr, f_k of
     material k; faces (F, 3) or None: an albedo per mesh face, for views from other cameras.
@@ -48,8 +44,7 @@ class DiffuseAlbedoMap:
 
     def point_delta(self, surface, camera):
         """(N, 3) delta = A/pi - f_k at the points of a capture.Surface seen from `camera`."""
-        from flashbrdf.render.scene_render import MaterialMap
-        if _camera_key(camera) == _camera_key(self.camera):
+        if camera_key(camera) == camera_key(self.camera):
             albedo = self.albedo[surface.rows, surface.cols].astype(float)
         elif self.faces is not None and surface.face is not None:
             albedo = self.faces[surface.face]

@@ -11,7 +11,7 @@ import os
 
 import numpy as np
 
-from flashbrdf.brdf.atomic import atomic_path, write_text
+from flashbrdf.files.atomic import atomic_path, write_text
 from flashbrdf.brdf.metrics import delta_e_log
 
 COMPARE_JSON = "compare.json"

@@ -24,7 +24,7 @@ import os
 
 import numpy as np
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 
 # Rec. 709 / linear sRGB luminance weights.
 LUMINANCE_RGB = np.array([0.2126, 0.7152, 0.0722])

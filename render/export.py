@@ -17,12 +17,12 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from flashbrdf.brdf.atomic import write_text
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.metrics import brdf_error
-from flashbrdf.brdf.principled import MITSUBA_LUMINANCE, PARAMETER_NAMES, eta_from_specular, \
+from flashbrdf.brdf.models.principled import MITSUBA_LUMINANCE, PARAMETER_NAMES, eta_from_specular, \
     tabulate_principled
-from flashbrdf.brdf.principled_fit import FIT_OFFSET, fit_principled
+from flashbrdf.brdf.models.principled_fit import FIT_OFFSET, fit_principled
 from flashbrdf.brdf.views import table_2d
 from flashbrdf.render.compare import compare_images
 from flashbrdf.render.scene_render import render_sphere, sphere_view

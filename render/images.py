@@ -1,6 +1,6 @@
 """Image files: HDR EXR in/out (OpenImageIO, float32) and tone-mapped PNG previews.
 
-Every writer is atomic (brdf.atomic.atomic_path): no partial file is ever left behind.
+Every writer is atomic (files.atomic.atomic_path): no partial file is ever left behind.
 """
 
 import os
@@ -8,9 +8,9 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
-from flashbrdf.brdf.atomic import atomic_path
+from flashbrdf.files.atomic import atomic_path
 from flashbrdf.brdf.colour import srgb_encode
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 
 
 def write_exr(path, rgb):

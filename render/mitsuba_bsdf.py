@@ -4,7 +4,7 @@
     import flashbrdf.render.mitsuba_bsdf as m; m.register()
     bsdf = mi.load_dict({"type": "flashbrdf_tabulated", "filename": "brdf.binary"})
 
-- eval: the table at the nearest MERL bin (render.brdf_models.TabulatedBRDF's lookup, written with
+- eval: the table at the nearest MERL bin (brdf.models.TabulatedBRDF's lookup, written with
   drjit so that llvm_ad_rgb evaluates whole wavefronts), times cos theta_o; 0 below the horizon.
 - sample / pdf: TabulatedBRDF's own strategy, with split_diffuse. A cosine-weighted direction
   with probability `cosine_fraction` (the diffuse floor's share of the albedo), else the viewer
@@ -28,7 +28,7 @@ import sys
 import numpy as np
 
 from flashbrdf.brdf.merl import read_merl
-from flashbrdf.render.brdf_models import TabulatedBRDF
+from flashbrdf.brdf.models import TabulatedBRDF
 from flashbrdf.render.scene_render import sphere_view
 
 # mitsuba and drjit (the optional [mitsuba] extra) load inside the functions that need them, so
@@ -101,7 +101,7 @@ def _plugin_class():
         return mi.UInt32(dr.clip(dr.sqrt(theta_h * (2.0 / dr.pi)) * 90.0, 0.0, 89.0))
 
     def merl_index(wi, wo):
-        """The flat MERL bin of a local-frame pair: render.brdf_models.merl_flat_index_local."""
+        """The flat MERL bin of a local-frame pair: brdf.models.merl_flat_index_local."""
         h = dr.normalize(wi + wo)
         sin_h = dr.sqrt(dr.maximum(h.x * h.x + h.y * h.y, 0.0))
         theta_h = dr.atan2(sin_h, h.z)

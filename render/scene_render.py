@@ -7,17 +7,12 @@ every lighting seen from that camera. Shadow rays go through Embree only for non
 
 import numpy as np
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.render.albedo_map import DiffuseAlbedoMap
-from flashbrdf.render.brdf_models import TabulatedBRDF
+from flashbrdf.render.material_map import MaterialMap, camera_key
+from flashbrdf.brdf.models import TabulatedBRDF
 from flashbrdf.render.envmap import EnvMap
 from flashbrdf.render.integrator import render_directional_light, render_envmap, render_point_light
-
-
-def _camera_key(camera):
-    return (camera.model, camera.width, camera.height, camera.fx, camera.fy, camera.cx,
-            camera.cy, camera.pixel_size, np.asarray(camera.world_from_camera).tobytes(),
-            None if camera.distortion is None else np.asarray(camera.distortion).tobytes())
 
 
 class SceneGeometry:
@@ -36,7 +31,7 @@ class SceneGeometry:
     def surface(self, camera):
         """capture.Surface of the pixels that see the object, cast once per camera."""
         from flashbrdf import capture
-        key = _camera_key(camera)
+        key = camera_key(camera)
         if key not in self._surfaces:
             if self.intersector is not None:
                 self._surfaces[key] = capture.surface_from_mesh(self.intersector, camera)
@@ -53,33 +48,6 @@ class SceneGeometry:
         return lambda points, dirs, max_dist: capture.occluded(mi, points, dirs, max_dist)
 
 
-class MaterialMap:
-    """Several BRDFs on one object: material k (1..K) is brdfs[k - 1].
-
-    labels (H, W) int in `camera`'s pixel grid (the flash photo's; 0 = not the object);
-    faces (F,) int or None: a label per mesh face, for views from other cameras.
-    """
-
-    def __init__(self, brdfs, labels, camera, faces=None):
-        self.brdfs, self.labels, self.camera, self.faces = list(brdfs), labels, camera, faces
-
-    def point_labels(self, surface, camera, where="--labels"):
-        """(N,) int 1..K of a capture.Surface seen from `camera`: through the label image for
-        the labels' own camera, else through the face labels."""
-        if _camera_key(camera) == _camera_key(self.camera):
-            labels = self.labels[surface.rows, surface.cols].astype(np.int64)
-            unlabelled = labels == 0
-            if unlabelled.any():   # a seen pixel the label image leaves at 0
-                labels[unlabelled] = (self.faces[surface.face[unlabelled]]
-                                      if self.faces is not None and surface.face is not None
-                                      else 1)
-            return labels
-        if self.faces is None or surface.face is None:
-            raise InputError(where, "a reference photo from another camera needs face labels "
-                                    "(LABELS.faces.npy, written for mesh geometry)")
-        return np.asarray(self.faces)[surface.face].astype(np.int64)
-
-
 def _part(surface, keep):
     """The capture.Surface restricted to keep (N,) bool."""
     from flashbrdf.capture import Surface
@@ -93,7 +61,7 @@ def render_surface(surface, camera, light, brdf, spp=64, seed=0, occluded=None, 
                    progress=None, where="light"):
     """Pixel-model values (N, 3) of a capture.Surface under one capture.Light (unscaled).
 
-    brdf: a render.brdf_models model, or a MaterialMap (each material rendered with its own),
+    brdf: a brdf.models model, or a MaterialMap (each material rendered with its own),
     or a render.albedo_map.DiffuseAlbedoMap (either, with a per-point diffuse albedo)."""
     if isinstance(brdf, DiffuseAlbedoMap):
         return brdf.render(surface, camera, lambda model: render_surface(
@@ -132,7 +100,7 @@ def render_surface(surface, camera, light, brdf, spp=64, seed=0, occluded=None, 
 def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geometry=None):
     """Render every `reference` photo's lighting (or the given photos) from its camera.
 
-    scene: capture.Scene; brdf: a render.brdf_models model. Yields (photo, image, mask) per photo:
+    scene: capture.Scene; brdf: a brdf.models model. Yields (photo, image, mask) per photo:
     image (H, W, 3) float32 in the photo's own pixel units (the pixel model times the photo's
     `scale`), 0 where the pixel misses the geometry; mask (H, W) bool of the pixels that see it.
     geometry: a SceneGeometry of this scene to reuse (its primary hits are cached per camera).
@@ -191,7 +159,7 @@ def render_sphere(table, envmap_path, size=128, spp=64, seed=0, interpolate=Fals
     """A unit sphere with a tabulated BRDF under an environment map (Table 2's renders).
 
     table: (90, 90, 180, 3) or (90, 90, 3) in 1/sr (NaN/negative = no data) or a
-    render.brdf_models BRDF; envmap_path: lat-long map (or an EnvMap). Orthographic camera
+    brdf.models BRDF; envmap_path: lat-long map (or an EnvMap). Orthographic camera
     looking along -z (see sphere_view); no shadowing (a sphere is convex).
     Returns (size, size, 3) float32, 0 off the sphere.
     """

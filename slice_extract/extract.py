@@ -24,7 +24,7 @@ import numpy as np
 
 from flashbrdf import capture
 from flashbrdf.brdf.angles import merl_bin_index
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import N_THETA_H
 from flashbrdf.brdf.views import MAX_SLICE_VALUE, slice_coverage
 from flashbrdf.slice_extract.binning import robust_bins

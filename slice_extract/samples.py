@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.rusinkiewicz import half_diff_thetas
 from flashbrdf.capture import occluded
 

@@ -61,7 +61,7 @@ from scipy.spatial import cKDTree
 from threadpoolctl import threadpool_limits
 
 from flashbrdf.brdf.angles import merl_bin_index
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import N_THETA_H, theta_h_centres
 
 LOG_FLOOR_REL = 1e-3  # rho below this fraction of the median brightness counts as black

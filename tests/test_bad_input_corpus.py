@@ -25,7 +25,7 @@ import scipy.io
 
 from flashbrdf.pipeline.cli import main
 from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
-from flashbrdf.pipeline.safety import MARKER
+from flashbrdf.files.outputs import MARKER
 from synthetic import ggx_lambert, pinhole_camera, point_light, sphere_mesh, write_synthetic_scene
 from test_diligent_import import make_diligent
 
@@ -1218,7 +1218,7 @@ def test_bad_input_exits_2_cleanly(world, tmp_path, capfd, command, name, argv, 
 def test_segment_keeps_no_albedo_map_when_its_labels_fail(world, tmp_path, capfd, monkeypatch):
     """segment --albedo writes the albedo map, then the labels: when the labels fail, the map
     already written is removed (all or nothing over both)."""
-    from flashbrdf.brdf.errors import InputError
+    from flashbrdf.files.errors import InputError
 
     def fail(out, *args, **kwargs):
         raise InputError(out, "cannot write a PNG there")

@@ -22,7 +22,7 @@ from distributed import Client, LocalCluster
 from distributed.diagnostics.plugin import WorkerPlugin
 
 import flashbrdf.pipeline.cmd_run as cmd_run  # in a worker: the worker's copy, which `run` calls
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.pipeline.batch import MARKER, _check_batch_folder, capture_bytes, failed_row, write_summary
 from flashbrdf.pipeline.cli import main
 from flashbrdf.pipeline.dask_engine import ALLOWED_FAILURES, threads_per_worker

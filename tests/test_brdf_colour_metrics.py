@@ -6,7 +6,7 @@ import pytest
 
 from flashbrdf.brdf.colour import (D65_WHITE_XYZ, FEATURE_OFFSET, SRGB_TO_XYZ, features_to_rho,
                          lab_to_linear_rgb, linear_rgb_to_lab, rho_to_features)
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.metrics import brdf_error, brdf_errors, delta_e_log, summarise
 from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
 

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import MERL_FILE_SIZE, MERL_SCALE, merl_valid_mask, read_merl, write_merl
 from flashbrdf.brdf.views import flash_slice, read_slice_csv, slice_coverage, table_2d, table_3d_from_2d
 from flashbrdf.pipeline.cli import main

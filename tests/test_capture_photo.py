@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from flashbrdf import capture
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from conftest import shared_path
 from synthetic import write_exr
 
@@ -292,7 +292,7 @@ def test_exr_data_window_is_placed_in_display_window(tmp_path):
 def test_pfm_with_a_size_below_one_is_bad_input(tmp_path, size):
     """A PFM header's width and height must be >= 1: -2 -3 broke numpy's reshape (a traceback),
     -1 4 read a 4x4 image from the wrong bytes, 0 5 gave an empty one."""
-    from flashbrdf.brdf.errors import InputError
+    from flashbrdf.files.errors import InputError
     from flashbrdf.capture.photo import read_float_image
     path = tmp_path / "bad.pfm"
     path.write_bytes(b"PF\n" + size + b"\n-1.0\n" + np.zeros(60, "<f4").tobytes())

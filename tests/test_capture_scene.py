@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from flashbrdf import capture
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from synthetic import box_mesh, combine, pinhole_camera, sphere_mesh, torus_mesh
 
 
@@ -248,7 +248,7 @@ def test_gltf_node_with_a_singular_transform_is_bad_input(tmp_path):
     """A scene node that scales an axis to 0 has no inverse for its normals: InputError naming
     the file, not numpy's LinAlgError."""
     import trimesh
-    from flashbrdf.brdf.errors import InputError
+    from flashbrdf.files.errors import InputError
     triangle = trimesh.Trimesh([[-1.0, -1.0, 0.0], [0.0, 2.0, 0.0], [2.0, -1.0, 0.0]], [[0, 1, 2]],
                                vertex_normals=[[0.0, 0.0, 1.0]] * 3, process=False)
     scene = trimesh.Scene()

@@ -8,8 +8,8 @@ import pytest
 
 from flashbrdf.brdf.merl import write_merl
 from flashbrdf.brdf.metrics import brdf_error
-from flashbrdf.brdf.principled import principled_brdf_angles, principled_brdf_local, tabulate_principled
-from flashbrdf.brdf.principled_fit import fit_principled
+from flashbrdf.brdf.models.principled import principled_brdf_angles, principled_brdf_local, tabulate_principled
+from flashbrdf.brdf.models.principled_fit import fit_principled
 from flashbrdf.brdf.views import table_2d
 from flashbrdf.pipeline.cli import main
 from flashbrdf.render.export import FORMATS, gltf_material

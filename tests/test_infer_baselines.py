@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from flashbrdf.infer import PCA, Ashikhmin, Chandraker, Noll, Oracle, TrainingSet
-from flashbrdf.brdf.microfacet import denominator
+from flashbrdf.brdf.shadowing import denominator
 from flashbrdf.infer.baselines.ashikhmin import schlick
 from flashbrdf.brdf.bins import cos_in_out_valid, mean_over_phi_d, scatter_valid, valid_bins_3d
 from flashbrdf.brdf import merl

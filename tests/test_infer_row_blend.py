@@ -5,7 +5,7 @@ import pytest
 
 from flashbrdf.brdf.colour import FEATURE_OFFSET as E
 from flashbrdf.brdf.bins import cos_in_out_valid, scatter_valid, valid_bins_3d
-from flashbrdf.brdf.microfacet import denominator
+from flashbrdf.brdf.shadowing import denominator
 from flashbrdf.brdf.views import table_2d, table_3d_from_2d
 from flashbrdf.infer.row_blend import RowBlendSpace, blend_toward_row, row_weights
 

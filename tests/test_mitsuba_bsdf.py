@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from flashbrdf.brdf.merl import read_merl, write_merl
-from flashbrdf.brdf.principled import tabulate_principled
-from flashbrdf.render.brdf_models import TabulatedBRDF, sample_cosine
+from flashbrdf.brdf.models.principled import tabulate_principled
+from flashbrdf.brdf.models import TabulatedBRDF, sample_cosine
 
 mi = pytest.importorskip("mitsuba", reason="mitsuba is not installed (pip install -e \".[mitsuba]\")")
 import flashbrdf.render.mitsuba_bsdf as mbsdf  # noqa: E402  (after the skip)
@@ -113,8 +113,8 @@ def test_llvm_sphere_matches_our_renderer(plastic, llvm):
      "spec_tint": 0.6, "sheen": 0.7, "sheen_tint": 0.5},
 ], ids=["rough_dielectric", "rough_metal", "clearcoat_paint", "everything"])
 def test_numpy_principled_is_mitsubas(params, llvm):
-    """brdf.principled against Mitsuba 3's own `principled` plugin, f cos theta_o."""
-    from flashbrdf.brdf.principled import principled_brdf_local
+    """brdf.models.principled against Mitsuba 3's own `principled` plugin, f cos theta_o."""
+    from flashbrdf.brdf.models.principled import principled_brdf_local
     dr = llvm
     bsdf = mi.load_dict({"type": "principled", **{k: ({"type": "rgb", "value": v}
                                                       if k == "base_color" else v)

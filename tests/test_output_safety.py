@@ -1,4 +1,4 @@
-"""pipeline.safety: outputs never touch inputs, folder outputs appear whole or not at all, --force
+"""files.outputs: outputs never touch inputs, folder outputs appear whole or not at all, --force
 replaces only folders flashbrdf made, Ctrl-C / SIGTERM leave nothing, concurrent runs keep apart.
 """
 
@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flashbrdf.brdf.errors import InputError
-from flashbrdf.pipeline.safety import MARKER, check_outputs, staged_output_dir
+from flashbrdf.files.errors import InputError
+from flashbrdf.files.outputs import MARKER, check_outputs, staged_output_dir
 from test_bad_input_corpus import snapshot, world  # noqa: F401  (the corpus's tiny capture)
 
 REPO = Path(__file__).resolve().parents[1]
@@ -163,7 +163,7 @@ def test_atomic_path_keeps_the_extension_of_a_dotted_name(tmp_path, name, suffix
     photo "..exr" renders to OUT_DIR/..exr, whose extension os.path.splitext does not see (it
     skips leading dots), and OpenImageIO, which picks the format from the name, found none (a
     traceback from render and run)."""
-    from flashbrdf.brdf.atomic import atomic_path
+    from flashbrdf.files.atomic import atomic_path
     from flashbrdf.render.images import read_image, write_exr
     with atomic_path(tmp_path / name) as tmp:
         assert tmp.endswith(".part" + suffix)
@@ -176,7 +176,7 @@ def test_name_length_counts_the_temporary_suffix_on_the_last_name_only(tmp_path)
     """A folder on the way to an output is made as named, so it may use the filesystem's whole
     NAME_MAX (255 here); only the output itself is built beside its final name as
     ".NAME.XXXXXXXX.part" + extension, which needs 16 bytes and the extension more."""
-    from flashbrdf.pipeline.safety import check_outputs
+    from flashbrdf.files.outputs import check_outputs
     limit = os.pathconf(tmp_path, "PC_NAME_MAX")
     check_outputs([], [tmp_path / ("d" * limit) / "slice.csv"])          # a long folder: fine
     check_outputs([], [tmp_path / ("s" * (limit - 16 - 8) + ".csv")])    # the longest file

@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import MERL_FILE_SIZE, MERL_SHAPE, read_merl
 from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
 from flashbrdf.capture import load_scene

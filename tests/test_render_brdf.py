@@ -7,7 +7,7 @@ from flashbrdf.brdf.angles import half_diff_from_local, merl_bin_index, merl_fla
 from flashbrdf.brdf.frame import Frame
 from flashbrdf.brdf.lookup import evaluate_table
 from flashbrdf.brdf.merl import merl_valid_mask
-from flashbrdf.render.brdf_models import GGX, Lambert, TabulatedBRDF
+from flashbrdf.brdf.models import GGX, Lambert, TabulatedBRDF
 
 
 def _random_pairs(n, seed):

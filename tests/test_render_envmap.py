@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.render.envmap import EnvMap, envmap_direction, read_envmap_pixels
 
 

@@ -7,7 +7,7 @@ import pytest
 from flashbrdf.brdf.angles import half_diff_from_local
 from flashbrdf.brdf.lookup import evaluate_table
 from flashbrdf.brdf.merl import read_merl
-from flashbrdf.render.brdf_models import GGX, Lambert, TabulatedBRDF
+from flashbrdf.brdf.models import GGX, Lambert, TabulatedBRDF
 from flashbrdf.render.envmap import EnvMap, envmap_direction
 from flashbrdf.render.integrator import render_directional_light, render_envmap
 from flashbrdf.render.scene_render import render_sphere, sphere_view

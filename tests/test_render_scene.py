@@ -154,7 +154,8 @@ def test_analytic_brdf_reproduces_flash_photos_through_render_scene(tmp_path):
     # flashes, photo scale 2) through render.render_scene with the same analytic BRDF: equal
     # to float32 rounding, since both implement the contract's pixel model.
     from flashbrdf import capture
-    from flashbrdf.render import GGX, render_scene
+    from flashbrdf.brdf.models import GGX
+    from flashbrdf.render import render_scene
     from synthetic import ggx_lambert
     kd, ks, alpha = (0.5, 0.3, 0.2), (0.8, 0.7, 0.6), 0.2
     folder = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=4),
@@ -175,7 +176,8 @@ def test_shadow_rays_cause_no_acne_on_a_convex_mesh(tmp_path):
     # render unchanged up to the facets: directions just above the smooth shading horizon but
     # below a flat triangle are blocked (measured <= 0.4 % on 4 % of the pixels).
     from flashbrdf import capture
-    from flashbrdf.render import GGX, EnvMap, render_envmap
+    from flashbrdf.brdf.models import GGX
+    from flashbrdf.render import EnvMap, render_envmap
     from synthetic import ggx_lambert
     folder = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=5), ggx_lambert(),
                                    pinhole_camera(32, 32, 300.0), [point_light()])

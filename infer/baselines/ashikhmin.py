@@ -21,7 +21,7 @@ from scipy.optimize import minimize_scalar
 
 from flashbrdf.brdf import merl, metrics
 from flashbrdf.brdf.bins import scatter_valid, valid_bins_3d
-from flashbrdf.brdf.microfacet import geometry_ratio_2d, geometry_ratio_valid
+from flashbrdf.brdf.shadowing import geometry_ratio_2d, geometry_ratio_valid
 from flashbrdf.infer.estimator import InferenceMethod
 from flashbrdf.infer.slices import fill_slice
 

@@ -19,7 +19,7 @@ def unwritable(path, err):
     """InputError naming `path` for an OSError `err` of UNWRITABLE_ERRNOS, else None."""
     if getattr(err, "errno", None) not in UNWRITABLE_ERRNOS:
         return None
-    from flashbrdf.brdf.errors import InputError
+    from flashbrdf.files.errors import InputError
     return InputError(path, f"cannot be written there ({err.strerror or err})")
 
 

@@ -8,7 +8,6 @@ what changes when the light and the eye move apart (θd > 0): a flash slice sees
 
 import functools
 
-import numpy as np
 
 from flashbrdf.brdf.bins import cos_in_out_valid, mean_over_phi_d, valid_bins_3d
 

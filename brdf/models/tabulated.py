@@ -1,145 +1,13 @@
-"""BRDFs behind one interface: evaluation and importance sampling.
-
-Every model works in the local shading frame (normal = +z; isotropic, so no tangent is needed):
-    evaluate_local(wi, wo) -> (..., 3) in 1/sr, 0 where wi or wo is below the horizon
-    sample_local(wo, u)    -> wi (..., 3), pdf (...) solid-angle density (wi may come back below
-                              the horizon: the caller's f = 0 discards it, the pdf stays valid)
-    pdf_local(wi, wo)      -> (...) the solid-angle density of sample_local
-and, for convenience, in world space: evaluate(wi, wo, normal) -> (..., 3).
-wi points toward the light, wo toward the viewer; all vectors are unit (..., 3).
+"""A measured BRDF: a MERL-layout table, looked up at the nearest bin (or interpolated), with
+importance sampling of its theta_h marginal. The interface is brdf.models.base's.
 """
 
 import numpy as np
 
 from flashbrdf.brdf.angles import half_diff_from_local, merl_flat_index_local
-from flashbrdf.brdf.frame import Frame
 from flashbrdf.brdf.lookup import evaluate_table
 from flashbrdf.brdf.merl import N_THETA_H, theta_h_bin_coordinate, theta_h_from_bin_coordinate
-
-INV_PI = 1.0 / np.pi
-
-
-def sample_cosine(u):
-    """Cosine-weighted hemisphere directions (..., 3) for u (..., 2); pdf = cos / pi."""
-    r = np.sqrt(u[..., 0])
-    phi = 2.0 * np.pi * u[..., 1]
-    z = np.sqrt(np.maximum(0.0, 1.0 - u[..., 0]))
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=-1)
-
-
-def _reflect(wo, h):
-    return 2.0 * np.sum(wo * h, axis=-1, keepdims=True) * h - wo
-
-
-def _half_vector(wi, wo):
-    h = wi + wo
-    return h / np.maximum(np.linalg.norm(h, axis=-1, keepdims=True), 1e-300)
-
-
-def _luminance(rgb):
-    return float(np.dot(np.asarray(rgb, float), [0.2126, 0.7152, 0.0722]))
-
-
-class BRDFModel:
-    """Base class: the world-space wrapper around the local-frame interface."""
-
-    def evaluate(self, wi, wo, normal):
-        frame = Frame.from_normal(normal)
-        return self.evaluate_local(frame.to_local(wi), frame.to_local(wo))
-
-
-class Lambert(BRDFModel):
-    """rho = albedo / pi (albedo (3,) in [0, 1]); cosine-weighted sampling (exact)."""
-
-    def __init__(self, albedo):
-        self.albedo = np.broadcast_to(np.asarray(albedo, dtype=np.float64), (3,)).copy()
-
-    def evaluate_local(self, wi, wo):
-        above = (wi[..., 2] > 0) & (wo[..., 2] > 0)
-        return np.where(above[..., None], self.albedo * INV_PI, 0.0)
-
-    def sample_local(self, wo, u):
-        wi = sample_cosine(u)
-        return wi, wi[..., 2] * INV_PI
-
-    def pdf_local(self, wi, wo):
-        return np.maximum(wi[..., 2], 0.0) * INV_PI
-
-
-class HalfVectorMixture(BRDFModel):
-    """Sampling shared by GGX and tabulated BRDFs: a cosine-weighted direction with probability
-    `cosine_fraction`, else omega_o reflected about a half vector from the subclass's
-    `_sample_h(u)`; `pdf_local` is the subclass's mixture density."""
-
-    cosine_fraction = 0.25
-
-    def sample_local(self, wo, u):
-        c = self.cosine_fraction
-        use_cos = u[..., 0] < c
-        # Reuse the component-selecting uniform so stratification survives.
-        u_cos = np.stack([np.where(use_cos, u[..., 0] / max(c, 1e-300), 0.0), u[..., 1]], -1)
-        u_h = np.stack([np.where(use_cos, 0.0, (u[..., 0] - c) / max(1.0 - c, 1e-300)),
-                        u[..., 1]], -1)
-        wo_b = np.broadcast_to(wo, np.broadcast_shapes(wo.shape, u.shape[:-1] + (3,)))
-        wi = np.where(use_cos[..., None], sample_cosine(u_cos), _reflect(wo_b, self._sample_h(u_h)))
-        return wi, self.pdf_local(wi, wo_b)
-
-
-class GGX(HalfVectorMixture):
-    """Lambert diffuse + GGX microfacet specular (Walter et al. 2007):
-        rho = diffuse/pi + F D G / (4 cos_i cos_o),
-    D = GGX with roughness alpha, G = separable Smith, F = Schlick from `specular` (F0, (3,)), or
-    F = `specular` itself with fresnel=False (then it equals tests/synthetic.py's ggx_lambert).
-    Sampling: a mixture of cosine and D(h) cos(theta_h) half vectors (exact pdf), mixed by the
-    diffuse and specular luminances.
-    """
-
-    def __init__(self, alpha, specular=(1.0, 1.0, 1.0), diffuse=(0.0, 0.0, 0.0), fresnel=True):
-        self.alpha = float(alpha)
-        self.fresnel = bool(fresnel)
-        self.specular = np.broadcast_to(np.asarray(specular, dtype=np.float64), (3,)).copy()
-        self.diffuse = np.broadcast_to(np.asarray(diffuse, dtype=np.float64), (3,)).copy()
-        ld, ls = _luminance(self.diffuse), _luminance(self.specular)
-        self.cosine_fraction = ld / (ld + ls) if ld + ls > 0 else 1.0
-
-    def _d(self, cos_h):
-        a2 = self.alpha ** 2
-        c2 = cos_h ** 2
-        return np.where(cos_h > 0, a2 / (np.pi * (c2 * (a2 - 1.0) + 1.0) ** 2), 0.0)
-
-    def _g1(self, cos_t):
-        a2 = self.alpha ** 2
-        c2 = np.maximum(cos_t ** 2, 1e-300)
-        return 2.0 / (1.0 + np.sqrt(1.0 + a2 * (1.0 - c2) / c2))
-
-    def evaluate_local(self, wi, wo):
-        ci, co = wi[..., 2], wo[..., 2]
-        above = (ci > 0) & (co > 0)
-        h = _half_vector(wi, wo)
-        cos_d = np.clip(np.sum(wi * h, axis=-1), 0.0, 1.0)
-        fresnel = (self.specular + (1.0 - self.specular) * ((1.0 - cos_d) ** 5)[..., None]
-                   if self.fresnel else self.specular)
-        spec = self._d(h[..., 2]) * self._g1(ci) * self._g1(co) / np.maximum(4 * ci * co, 1e-300)
-        value = self.diffuse * INV_PI + fresnel * spec[..., None]
-        return np.where(above[..., None], value, 0.0)
-
-    def _sample_h(self, u):
-        # D(h) cos(theta_h) sampling: tan^2 theta_h = alpha^2 u / (1 - u).
-        u1 = np.minimum(u[..., 0], 1.0 - 1e-12)
-        cos2 = (1.0 - u1) / (1.0 + (self.alpha ** 2 - 1.0) * u1)
-        cos_t = np.sqrt(np.clip(cos2, 0.0, 1.0))
-        sin_t = np.sqrt(np.maximum(0.0, 1.0 - cos2))
-        phi = 2.0 * np.pi * u[..., 1]
-        return np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1)
-
-    def pdf_local(self, wi, wo):
-        h = _half_vector(wi, wo)
-        cos_h = h[..., 2]
-        wo_h = np.sum(wo * h, axis=-1)
-        spec_pdf = np.where((wo_h > 0) & (cos_h > 0),
-                            self._d(cos_h) * cos_h / np.maximum(4.0 * wo_h, 1e-300), 0.0)
-        cos_pdf = np.maximum(wi[..., 2], 0.0) * INV_PI
-        return self.cosine_fraction * cos_pdf + (1.0 - self.cosine_fraction) * spec_pdf
+from flashbrdf.brdf.models.base import INV_PI, LUMINANCE_RGB, HalfVectorMixture, half_vector
 
 
 def _theta_h_edges():
@@ -174,7 +42,7 @@ class TabulatedBRDF(HalfVectorMixture):
         self._flat = (None if self.interpolate else
                       np.ascontiguousarray(np.nan_to_num(table, nan=0.0).reshape(-1, 3)))
         self.cosine_fraction = float(cosine_fraction)
-        lum = table @ np.array([0.2126, 0.7152, 0.0722])
+        lum = table @ LUMINANCE_RGB
         axes = tuple(range(1, lum.ndim))
         with np.errstate(invalid="ignore"):
             valid = np.isfinite(lum)
@@ -239,7 +107,7 @@ class TabulatedBRDF(HalfVectorMixture):
         theta_h = np.arccos(np.clip(cos_h, -1.0, 1.0))
         return np.clip(np.floor(theta_h_bin_coordinate(theta_h)).astype(np.int64), 0, N_THETA_H - 1)
 
-    def _sample_h(self, u):
+    def sample_half_vector(self, u):
         u1 = np.clip(u[..., 0], 0.0, np.nextafter(1.0, 0))
         i = np.clip(np.searchsorted(self._h_cdf, u1, side="right") - 1, 0, 89)
         lo, hi = self._h_cdf[i], self._h_cdf[i + 1]
@@ -250,7 +118,7 @@ class TabulatedBRDF(HalfVectorMixture):
         return np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=-1)
 
     def pdf_local(self, wi, wo):
-        h = _half_vector(wi, wo)
+        h = half_vector(wi, wo)
         wo_h = np.sum(wo * h, axis=-1)
         density = self._h_density[self._h_bin(h[..., 2])]
         h_pdf = np.where((wo_h > 0) & (h[..., 2] > 0), density / np.maximum(4.0 * wo_h, 1e-300), 0.0)

@@ -15,7 +15,7 @@ and builds a folder output in a temporary sibling that is renamed into place onl
 
 Folders this tool makes carry the marker file MARKER. An existing folder is replaced only when it
 is empty, or when it carries the marker and `--force` was given; anything else is refused (exit 2),
-so a user's own folder is never deleted. File outputs are written with brdf.atomic.atomic_path.
+so a user's own folder is never deleted. File outputs are written with files.atomic.atomic_path.
 
 Paths are compared both as given (absolute, normalised) and as real paths (symlinks resolved), so
 `--out link-to-input` and `--out input-seen-through-a-symlinked-folder` are both caught; existing
@@ -27,23 +27,15 @@ import errno
 import json
 import os
 import shutil
-import signal
-import sys
 import tempfile
-import threading
 import time
 
-from flashbrdf.brdf.atomic import current_umask, make_parents, name_extension, remove_empty, unwritable
-from flashbrdf.brdf.errors import InputError
+from flashbrdf.files.atomic import (current_umask, make_parents, name_extension, remove_empty,
+                                    unwritable)
+from flashbrdf.files.errors import InputError
+from flashbrdf.files.signals import signals_deferred
 
 MARKER = ".flashbrdf-output"
-
-
-class Terminated(BaseException):
-    """SIGTERM, raised in the main thread so that every `with` block cleans up (exit 143).
-
-    A BaseException like KeyboardInterrupt: no `except Exception` swallows it.
-    """
 
 
 def _forms(path):
@@ -213,7 +205,7 @@ def staged_output_dir(path, force=False, command=None):
                        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}, f)
             f.write("\n")
         yield tmp
-        with _signals_deferred():  # no Ctrl-C between moving the old folder away and renaming
+        with signals_deferred():  # no Ctrl-C between moving the old folder away and renaming
             _check_replaceable(target, force)
             old = None
             try:
@@ -236,81 +228,3 @@ def staged_output_dir(path, force=False, command=None):
         shutil.rmtree(tmp, ignore_errors=True)
         remove_empty(created)
         raise
-
-
-@contextlib.contextmanager
-def _signals_deferred():
-    """Hold SIGINT and SIGTERM (main thread) while the body runs; they arrive right after."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    held = {signal.SIGINT, signal.SIGTERM}
-    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
-    try:
-        yield
-    finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
-
-
-@contextlib.contextmanager
-def hold_native_stderr(drop_on=(InputError,)):
-    """Hold what is written to file descriptor 2 while the body runs (libpng, OpenEXR and other C
-    libraries print there directly), and pass it on afterwards, unless the body raised one of
-    `drop_on`: bad input then gets exactly the one stderr line the contract promises.
-
-    Only when stderr is not a terminal (on a terminal progress bars must show as they go), and
-    only in the main thread (fd 2 is the process's: threads running commands would race on it).
-    """
-    if not _fd_is_file(2) or threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    with contextlib.suppress(AttributeError, OSError, ValueError):
-        sys.stderr.flush()
-    saved = os.dup(2)
-    buffer = tempfile.TemporaryFile()
-    os.dup2(buffer.fileno(), 2)
-    drop = False
-    try:
-        yield
-    except drop_on:
-        drop = True
-        raise
-    finally:
-        with contextlib.suppress(AttributeError, OSError, ValueError):
-            sys.stderr.flush()
-        os.dup2(saved, 2)
-        os.close(saved)
-        buffer.seek(0)
-        held = buffer.read()
-        buffer.close()
-        if held and not drop:
-            os.write(2, held)
-
-
-def _fd_is_file(fd):
-    try:
-        return not os.isatty(fd) and os.fstat(fd) is not None
-    except OSError:
-        return False
-
-
-@contextlib.contextmanager
-def handle_signals():
-    """While the body runs, SIGTERM raises Terminated and SIGINT KeyboardInterrupt in the main
-    thread (so staged outputs are cleaned up). SIGINT is set too because a library imported
-    earlier (drjit, via mitsuba) may have replaced Python's default handler. Outside the main
-    thread (e.g. a Dask worker) nothing changes."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def raise_terminated(signum, frame):
-        raise Terminated()
-
-    previous = signal.signal(signal.SIGTERM, raise_terminated)
-    previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-        signal.signal(signal.SIGINT, previous_int)

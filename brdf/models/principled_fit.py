@@ -17,7 +17,7 @@ import numpy as np
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
-from flashbrdf.brdf.principled import PARAMETER_NAMES, merl_bin_cosines, principled_brdf_angles
+from flashbrdf.brdf.models.principled import PARAMETER_NAMES, merl_bin_cosines, principled_brdf_angles
 
 FIT_OFFSET = 0.01  # 1/sr, eps of the log residual
 OPTIMISER = "scipy.optimize.least_squares (trf, bounded), multi-start"
@@ -36,7 +36,7 @@ def params_from_vector(x):
 
 def vector_from_params(params):
     """The fit vector (11,) of a parameter dict (missing names at Mitsuba's defaults)."""
-    from flashbrdf.brdf.principled import full_parameters
+    from flashbrdf.brdf.models.principled import full_parameters
     p = full_parameters(params)
     return np.concatenate([p["base_color"], [p[name] for name in _SCALARS]])
 
