@@ -25,7 +25,7 @@ import numpy as np
 
 from flashbrdf.brdf.angles import merl_bin_index
 from flashbrdf.brdf.merl import N_THETA_H
-from flashbrdf.slice_extract.segment import _binned_median, _fill_bins
+from flashbrdf.slice_extract.segment.features import binned_median, fill_bins
 
 
 @dataclass(frozen=True)
@@ -50,7 +50,7 @@ class AlbedoMap:
 
 def _binned(values, bins, min_count):
     """Per-theta_h-bin median (N_THETA_H, 3) of values (N, 3), NaN below min_count."""
-    return _binned_median(values, bins, N_THETA_H, min_count)
+    return binned_median(values, bins, N_THETA_H, min_count)
 
 
 def material_floor_and_slice(rho, theta_h, options=None):
@@ -66,7 +66,7 @@ def material_floor_and_slice(rho, theta_h, options=None):
     floor_from = well[ok] if ok.any() else median[np.all(np.isfinite(median), axis=1)]
     floor = (np.maximum(floor_from.min(axis=0), 0.0) if len(floor_from)
              else np.zeros(3))
-    return floor, _fill_bins(median)
+    return floor, fill_bins(median)
 
 
 def _normalised_blur(values, weight, sigma):

@@ -5,7 +5,9 @@ assignment applies the same rule as the k-slice refinement."""
 import numpy as np
 
 from flashbrdf.brdf.merl import N_THETA_H
-from flashbrdf.slice_extract.segment import _assign_all, _bins, _log_rho, _residuals, _slices
+from flashbrdf.slice_extract.segment.features import log_samples, theta_h_bins
+from flashbrdf.slice_extract.segment.slices import (assign_all, material_slices,
+                                                    residuals)
 from flashbrdf.slice_extract.segment import material_features
 
 
@@ -16,7 +18,7 @@ def test_a_brighter_pixel_of_a_colour_keeps_its_material():
     a = np.full((N_THETA_H, 3), np.log(0.1))
     b = np.broadcast_to(np.log([0.15, 0.12, 0.18]), (N_THETA_H, 3))
     sample = np.log(np.full((1, 3), 0.1)) + 0.4
-    residual = _residuals(sample, np.array([10]), [a, b])
+    residual = residuals(sample, np.array([10]), [a, b])
     np.testing.assert_allclose(residual[0], [0.1, 0.1417], atol=2e-3)
     assert residual[0].argmin() == 0
 
@@ -41,10 +43,10 @@ def test_every_pixel_assignment_agrees_with_the_refinement_rule():
     theta_h = np.radians(rng.uniform(0, 80, 20000))
     labels = material[:5000]
     pick = np.arange(5000)
-    fast = _assign_all(rho, theta_h, pick, labels, 3)
-    log_rho, _, floor = _log_rho(rho[pick])
-    slices = _slices(log_rho, _bins(theta_h[pick]), labels, 3)
-    residual = _residuals(_log_rho(rho, floor)[0], _bins(theta_h), slices, floor)
+    fast = assign_all(rho, theta_h, pick, labels, 3)
+    log_rho, _, floor = log_samples(rho[pick])
+    slices = material_slices(log_rho, theta_h_bins(theta_h[pick]), labels, 3)
+    residual = residuals(log_samples(rho, floor)[0], theta_h_bins(theta_h), slices, floor)
     exact = residual.argmin(axis=1)
     best_two = np.sort(residual, axis=1)[:, :2]
     clear = best_two[:, 1] - best_two[:, 0] > 1e-5

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from flashbrdf.brdf.merl import N_THETA_H
-from flashbrdf.slice_extract.segment import _residuals, align_bin_labels, clean_label_image
+from flashbrdf.slice_extract.segment import align_bin_labels, clean_label_image
+from flashbrdf.slice_extract.segment.slices import residuals
 
 TEAL = np.array([0.01, 0.06, 0.058])      # a coloured material's slice value (1/sr)
 SILVER = np.array([0.045, 0.083, 0.094])  # a pale lavender one
@@ -17,11 +18,11 @@ def _slice(rho):
 
 
 def _plain(sample):
-    return _residuals(np.log(sample)[None], BIN, [_slice(TEAL), _slice(SILVER)])[0]
+    return residuals(np.log(sample)[None], BIN, [_slice(TEAL), _slice(SILVER)])[0]
 
 
 def _white(sample):
-    return _residuals(np.log(sample)[None], BIN, [_slice(TEAL), _slice(SILVER)], 0.0)[0]
+    return residuals(np.log(sample)[None], BIN, [_slice(TEAL), _slice(SILVER)], 0.0)[0]
 
 
 def test_a_highlight_with_the_flash_colour_added_keeps_its_material():
@@ -51,8 +52,8 @@ def test_a_grey_slice_takes_no_white_term():
     grey = np.array([0.1, 0.1, 0.1])
     sample = 2 * grey + 0.05 + np.array([0.0, 0.004, -0.004])
     slices = [_slice(grey)]
-    plain = _residuals(np.log(sample)[None], BIN, slices)
-    np.testing.assert_allclose(_residuals(np.log(sample)[None], BIN, slices, 0.0), plain,
+    plain = residuals(np.log(sample)[None], BIN, slices)
+    np.testing.assert_allclose(residuals(np.log(sample)[None], BIN, slices, 0.0), plain,
                                rtol=1e-12)
 
 

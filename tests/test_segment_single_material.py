@@ -15,8 +15,8 @@ import pytest
 from flashbrdf import capture
 from flashbrdf.brdf.merl import read_merl
 from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
-from flashbrdf.slice_extract.segment import (RESOLVED_GAP, SegmentOptions, neighbour_samples,
-                                   resolution_floor, segment_samples)
+from flashbrdf.slice_extract.segment import SegmentOptions, resolution_floor, segment_samples
+from flashbrdf.slice_extract.segment.features import RESOLVED_GAP, neighbour_samples
 from synthetic import (combine, phone_jpeg, pinhole_camera, point_light, sphere_mesh, table_brdf,
                        torus_mesh, write_synthetic_scene)
 

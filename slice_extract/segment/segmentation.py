@@ -1,0 +1,73 @@
+"""The segmentation of a flash photo's samples into materials: the entry point (segment_samples).
+"""
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+from flashbrdf.files.errors import InputError
+from flashbrdf.slice_extract.segment.clustering import Segmentation, SegmentOptions, cluster_samples
+from flashbrdf.slice_extract.segment.features import (
+    log_samples,
+    material_features,
+    resolution_floor,
+    theta_h_bins,
+)
+from flashbrdf.slice_extract.segment.labels import align_bin_labels, clean_label_image
+from flashbrdf.slice_extract.segment.slices import assign_all, refine_labels
+
+
+def segment_samples(samples, materials="auto", options=None):
+    """Segmentation of FlashSamples (slice_extract.extract.collect_samples) of the first flash
+    photo; materials: "auto" or an int K >= 1 (then the mixture has K components, unmerged)."""
+    options = options or SegmentOptions()
+    with threadpool_limits(1):  # tiny 3x3 algebra: BLAS threads only contend on a busy machine
+        return _segment_samples(samples, materials, options)
+
+
+def _segment_samples(samples, materials, options):
+    first = (samples.photo == 0) & ~samples.censored & np.all(np.isfinite(samples.rho), axis=1)
+    if first.all():  # the usual case (one flash photo, nothing clipped): no 12-MP copies
+        rho, theta_h, pixels = samples.rho, samples.theta_h, samples.pixels
+    else:
+        rho, theta_h, pixels = samples.rho[first], samples.theta_h[first], samples.pixels[first]
+    if not len(rho):  # nothing to segment: the error extracting a slice would give
+        raise samples.no_sample_error()
+    if materials == "auto":
+        every = slice(None, None, max(1, len(rho) // 50000))  # no 12-MP gather for a floor
+        at_least = resolution_floor(rho[every], samples.radiance.reshape(-1, 3)[pixels[every]])
+        labels, k, criterion = cluster_samples(rho, theta_h, options, pixels, samples.shape,
+                                               at_least, samples.normals_at)
+    else:
+        k = int(materials)
+        if k > 1 and len(rho) < 2 * k:  # a K-component mixture needs 2K samples at least
+            raise InputError("--materials", f"{k} materials need at least {2 * k} usable object "
+                                            f"pixels; the flash photo has {len(rho)}")
+        labels, criterion = _fixed_k(rho, theta_h, k, options)
+    labels, renamed = align_bin_labels(labels, theta_h_bins(theta_h), pixels, samples.shape)
+    criterion["bins_renamed"] = renamed
+    image = np.zeros(samples.shape, np.int32)
+    image.ravel()[pixels] = labels + 1
+    cleaned = clean_label_image(image, samples.object_mask, options.min_area_fraction)
+    criterion["chosen_k"] = int(cleaned.max())
+    sample_labels = np.zeros(len(samples.pixels), int)
+    sample_labels[first] = np.take(cleaned.ravel(), pixels)
+    return Segmentation(cleaned, int(cleaned.max()), criterion, sample_labels)
+
+
+def _fixed_k(rho, theta_h, k, options):
+    """K given by the user: a K-component mixture, refined by K slices, no merging."""
+    from sklearn.mixture import GaussianMixture  # lazy: +2.4 s on every import of slice_extract
+    n = len(rho)
+    if k == 1 or n < 2 * k:
+        return np.zeros(n, int), {"samples": int(n), "reason": f"--materials {k}"}
+    rng = np.random.default_rng(options.seed)
+    pick = rng.choice(n, size=min(options.work_samples, n), replace=False)
+    features, _ = material_features(rho[pick], theta_h[pick])
+    fit = rng.choice(len(pick), size=min(options.fit_samples, len(pick)), replace=False)
+    x = features / (features[fit].std(axis=0) + 1e-6)
+    gm = GaussianMixture(k, covariance_type="full", reg_covar=1e-4, init_params="k-means++",
+                         random_state=options.seed).fit(x[fit])
+    log_rho, _, _ = log_samples(rho[pick])
+    labels, k = refine_labels(log_rho, theta_h_bins(theta_h[pick]), gm.predict(x), k, options)
+    return assign_all(rho, theta_h, pick, labels, k), {"samples": int(n),
+                                                        "reason": f"--materials {k}"}
