@@ -39,7 +39,7 @@ def argument_parser(description, data_name, work_name):
 
 def run_cli(argv):
     """Run `flashbrdf ARGV` in-process: (exit status, stderr text, seconds)."""
-    from flashbrdf.pipeline.cli import main
+    from flashbrdf.cli.main import main
     err = io.StringIO()
     start = time.perf_counter()
     with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):

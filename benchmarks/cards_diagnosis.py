@@ -107,7 +107,7 @@ def _albedo_maps(labels_png, views):
 
 
 def _pipeline_rows(work, views, images, methods):
-    from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
+    from flashbrdf.pipeline.options import DEFAULT_MODEL
     rows = []
     for label_name, labels in images.items():
         slices = labels.parent / "slices"

@@ -100,8 +100,8 @@ def _planar_cards(work, methods, log, albedo=False):
     """The planar cards: segment view 00 (auto), a slice and a BRDF per material, and every
     other view rendered with them. The views are rectified to the card, so one label image
     serves every view's pixel grid (each view's scene has its own flash photo and camera)."""
-    from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
-    from flashbrdf.pipeline.real_scenes import planar_card_scenes
+    from flashbrdf.pipeline.options import DEFAULT_MODEL
+    from planar_scenes import planar_card_scenes
     folder = work / "planar_scenes"
     views = (sorted(p for p in folder.iterdir() if (p / "scene.json").is_file())
              if folder.is_dir() else

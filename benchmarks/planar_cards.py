@@ -3,7 +3,7 @@
     PYTHONPATH=$PWD python benchmarks/planar_cards.py [--flash-view 0] [--model MODEL.npz]
         [--merl-dir /work/merl] [--methods dsgplvm,pca,noll,chandraker,ashikhmin] [--work DIR]
 
-The capture is written as 9 per-view scene folders (pipeline.real_scenes: exact pinhole cameras for
+The capture is written as 9 per-view scene folders (benchmarks/planar_scenes.py: exact pinhole cameras for
 the rectified photos, flash = point light at the lens). The flash view is extracted and inferred
 (`extract`, `infer` per method); every other view is rendered (`render`) and compared with its photo.
 The cards are printed in several materials (gold foil, teal foil, grey felt), so one BRDF cannot
@@ -30,7 +30,7 @@ N_CLUSTERS = 3
 
 def _geometry(scene):
     """Per-pixel (wi = wo, normal, I/r^2) for a view: all (N,3), from the scene's own camera."""
-    from flashbrdf.pipeline.real_scenes import plane_point_from_pixel
+    from planar_scenes import plane_point_from_pixel
     cam = scene["camera"]
     pose = np.array(cam["world_from_camera"])
     lens = pose[:3, 3]
@@ -139,7 +139,7 @@ def main(argv=None):
     from flashbrdf.files.errors import InputError
     from flashbrdf.brdf.merl import read_merl
     from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
-    from flashbrdf.pipeline.real_scenes import planar_card_scenes
+    from planar_scenes import planar_card_scenes
     from flashbrdf.pipeline.report import image_errors
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     work = args.work

@@ -63,7 +63,7 @@ def score(pred, true, lo_deg, hi_deg):
 def main(argv=None):
     from flashbrdf.infer import anchoring, make_method
     from flashbrdf.infer.model_file import read_model
-    from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
+    from flashbrdf.pipeline.options import DEFAULT_MODEL
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--folds", type=int, default=5)
     ap.add_argument("--windows", default="0-19,10-25,20-40")

@@ -26,7 +26,7 @@ from flashbrdf.brdf import merl, views  # noqa: E402
 from flashbrdf.files.atomic import write_text  # noqa: E402
 from flashbrdf.infer.model_file import load_methods  # noqa: E402
 from flashbrdf.infer.slices import without_sparse_tail  # noqa: E402
-from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL  # noqa: E402
+from flashbrdf.pipeline.options import DEFAULT_MODEL  # noqa: E402
 
 
 def _cli(argv):

@@ -58,6 +58,12 @@ def table_2d(merl_table):
     return _nanmean(np.asarray(merl_table), axis=2)
 
 
+def table_2d_view(table):
+    """rho(theta_h, theta_d) (90, 90, 3) of a 2D table (as is) or a 3D one (table_2d)."""
+    table = np.asarray(table, dtype=float)
+    return table_2d(table) if table.ndim == 4 else table
+
+
 def table_3d_from_2d(table_2d):
     """A (90, 90, 180, 3) table copying `table_2d` across phi_d, NaN where MERL has no data."""
     table = np.repeat(np.asarray(table_2d, dtype=np.float64)[:, :, None, :], 180, axis=2)

@@ -8,6 +8,7 @@ clamped: noise can make (flash - ambient) negative, which keeps per-bin estimate
 """
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -25,6 +26,14 @@ class FlashImage:
     radiance: np.ndarray
     usable: np.ndarray
     clipped: np.ndarray
+
+
+def photo_exists(photo):
+    """Whether a photos[] entry's file (or every bracket) is on disk; a reference may be absent
+    (then it is rendered, not compared)."""
+    if photo.file is not None:
+        return Path(photo.file).is_file()
+    return bool(photo.brackets) and all(Path(p).is_file() for p, _ in photo.brackets)
 
 
 def load_photo_entry(photo, return_clipped=False):

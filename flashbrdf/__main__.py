@@ -1,6 +1,6 @@
 """`python -m flashbrdf` is the `flashbrdf` command."""
 import sys
 
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 
 sys.exit(main())

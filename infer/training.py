@@ -1,6 +1,6 @@
 """What `flashbrdf train` does to a training set, in one place: tune, fit, write MODEL.npz.
 
-`pipeline.cmd_infer.train` (the command) and `experiments.test_set` (the external test-set
+`pipeline.infer_jobs.train` (the command) and `experiments.test_set` (the external test-set
 protocol of `flashbrdf evaluate --test-dir`) both call train_model, so an evaluated model is
 exactly the one `train` would have written.
 """

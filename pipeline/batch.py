@@ -1,7 +1,7 @@
 """`flashbrdf batch CAPTURES_DIR --out OUT_DIR [--workers N] [--scheduler ADDRESS] [run options]`.
 
 Every subfolder of CAPTURES_DIR that holds a scene.json is one capture. Each capture is one Dask
-task that calls `run` in the worker process (pipeline/cmd_run.py, the same function as
+task that calls `run` in the worker process (pipeline/run.py, the same function as
 `flashbrdf run`), so OUT_DIR/<subfolder>/ is exactly what `run` writes, plus the completion marker.
 
 All or nothing per capture: the task builds the capture in a hidden staging folder inside OUT_DIR
@@ -27,9 +27,7 @@ terminal shows one progress bar over captures. OUT_DIR/summary.csv and summary.m
 capture. Exit 0 when all succeeded, 1 when any failed, 2 when CAPTURES_DIR holds no capture.
 """
 
-import argparse
 import contextlib
-import csv
 import io
 import json
 import os
@@ -45,23 +43,15 @@ from pathlib import Path
 from flashbrdf.files.atomic import write_text
 from flashbrdf.files.errors import InputError
 from flashbrdf.pipeline import dask_engine
+from flashbrdf.pipeline.batch_summary import (SUMMARY_HEADS, failed_row, row_from_report,
+                                              write_summary)
 from flashbrdf.files.outputs import MARKER as RUN_MARKER
 from flashbrdf.files.outputs import check_writable_folder
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
-# The contract's column order: `capture`, `status`, `reason`, per-method ΔE-log, seconds, then
-# ours (cpu_seconds, worker).
-SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "cpu_seconds", "worker")
-SUMMARY_LEAD, SUMMARY_TAIL = SUMMARY_FIELDS[:3], SUMMARY_FIELDS[3:]  # before / after the ΔE-log
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map", "export")
 OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md")  # what a batch writes in OUT_DIR itself
-SUMMARY_TITLE = "# flashbrdf batch summary"
-# How a summary that a batch wrote starts: summary.csv without ΔE-log columns (or as batches
-# before the contract's column order wrote it), or with them.
-SUMMARY_HEADS = {"summary.csv": (",".join(SUMMARY_FIELDS).encode(),
-                                 (",".join(SUMMARY_LEAD) + ",delta_e_log ").encode()),
-                 "summary.md": (SUMMARY_TITLE.encode(),)}
 
 
 def find_captures(captures_dir):
@@ -122,9 +112,9 @@ _MODELS_LOCK = threading.Lock()
 
 
 def cached_load_methods(names, model_path, anchor):
-    """cmd_run's _load_methods, read once per worker process: cached on the model file's path,
+    """run_steps.load_methods, read once per worker process: cached on the model file's path,
     size and modification time (a retrained model is read again), the method names and anchor."""
-    from flashbrdf.pipeline.cmd_run import _load_methods
+    from flashbrdf.pipeline.run_steps import load_methods
     stat = None if model_path is None else Path(model_path).stat()
     key = (None if model_path is None else str(Path(model_path).resolve()),
            None if stat is None else (stat.st_size, stat.st_mtime_ns), tuple(names), bool(anchor))
@@ -132,7 +122,7 @@ def cached_load_methods(names, model_path, anchor):
         if key not in _MODELS:
             print(f"model: reading {model_path} in worker process {os.getpid()}", file=sys.stderr)
             _MODELS.clear()  # one model at a time: a worker serves one batch
-            _MODELS[key] = _load_methods(names, model_path, anchor)
+            _MODELS[key] = load_methods(names, model_path, anchor)
         else:
             print(f"model: already read by worker process {os.getpid()}", file=sys.stderr)
         return _MODELS[key]
@@ -175,44 +165,20 @@ def _output_to(log_file):
             sys.stdout.local.file = sys.stderr.local.file = None
 
 
-def _row_from_report(name, report, seconds, cpu_seconds, worker):
-    """The summary row of one finished capture from its report.json (dict). seconds: wall;
-    cpu_seconds: the worker process's CPU time (user + system) over the capture, which a loaded
-    machine does not inflate as it does the wall time."""
-    row = {"capture": name, "status": "ok", "reason": "", "seconds": round(seconds, 3),
-           "cpu_seconds": round(cpu_seconds, 3), "worker": worker, "delta_e_log": {}}
-    for method, s in report.get("summary", {}).items():
-        row["delta_e_log"][method] = s.get("delta_e_log_mean", {}).get("mean")
-    for r in report.get("references", []):
-        row["delta_e_log"][f"{r['method']}/{r['photo']}"] = r.get("delta_e_log_mean")
-    return row
-
-
-def failed_row(name, reason, seconds=None, worker=""):
-    """The summary row of a failed capture; `reason` is cut to its first line."""
-    lines = str(reason).strip().splitlines()
-    return {"capture": name, "status": "failed", "reason": lines[0] if lines else "failed",
-            "seconds": None if seconds is None else round(seconds, 3), "cpu_seconds": None,
-            "worker": worker,
-            "delta_e_log": {}}
-
-
 def check_run_options(options, as_text=False):
     """`run`'s checks of the run options (RUN_OPTIONS dict): method names, the model file (the
     default one when none is given and a method needs it; whole and of our format), --spp,
     --materials. -> the options with the model as an absolute path or None. Bad options raise
     InputError, or with `as_text` (a Dask task) are returned as its (where, problem) tuple."""
-    from flashbrdf.pipeline.cmd_render import samples_per_pixel
-    from flashbrdf.pipeline.cmd_run import _methods, _model_path
     from flashbrdf.infer.model_file import check_model_file
-    from flashbrdf.pipeline.cmd_segment import materials_option
-    settings = argparse.Namespace(**options)
+    from flashbrdf.pipeline.options import (materials_option, method_names, model_path,
+                                            samples_per_pixel)
     try:
-        model = _model_path(settings, _methods(settings.methods))
+        model = model_path(options["model"], method_names(options["methods"]))
         if model is not None:  # a truncated model would fail every capture, not the batch
             check_model_file(model)
-        samples_per_pixel(settings)
-        materials_option(settings.materials)
+        samples_per_pixel(options["spp"])
+        materials_option(options["materials"])
     except InputError as err:
         if as_text:
             return err.where, err.problem
@@ -227,7 +193,7 @@ def run_capture(scene_dir, out_dir, options):
     albedo_map, export). Raises on unexpected errors (Dask
     retries once); bad input in the capture is returned as a failed row.
     """
-    from flashbrdf.pipeline.cmd_run import run
+    from flashbrdf.pipeline.run import run_capture as run
     options = dict(options)
     requested = options.pop("requested", None)  # the options as asked, kept in the marker
     name = Path(scene_dir).name
@@ -242,12 +208,14 @@ def run_capture(scene_dir, out_dir, options):
         try:
             # final_out: the paths run records (slice.json's slice.csv, --export's table) are
             # those of the capture's folder once published, not of this staging folder
-            run(argparse.Namespace(scene_dir=str(scene_dir), out=str(staging),
-                                   final_out=str(out_dir / name), **options),
-                load_methods=cached_load_methods)
+            run(str(scene_dir), str(staging), model=options["model"],
+                methods=options["methods"], spp=options["spp"], materials=options["materials"],
+                albedo_map=options["albedo_map"], anchor=not options["no_anchor"],
+                export=options["export"], final_out=str(out_dir / name),
+                read_methods=cached_load_methods)
             seconds = time.perf_counter() - start
             report = json.loads((staging / "report.json").read_text())
-            row = _row_from_report(name, report, seconds, time.process_time() - cpu_start,
+            row = row_from_report(name, report, seconds, time.process_time() - cpu_start,
                                    worker)
             write_text(staging / MARKER, json.dumps(row | {"run_options": requested},
                                                     indent=1) + "\n")
@@ -282,11 +250,11 @@ def _check_outputs(out_dir, captures_dir, captures):
                 target.is_relative_to(p) for p in inputs[1:]):
             raise InputError(out_dir, f"output {target} would overwrite the input capture(s); "
                                       "choose an --out outside CAPTURES_DIR's captures")
-    _check_batch_folder(given)
+    check_batch_folder(given)
     check_writable_folder(given)  # before the cluster starts, not a traceback at the first write
 
 
-def _check_batch_folder(out_dir):
+def check_batch_folder(out_dir):
     """InputError unless OUT_DIR is missing, empty, or holds only what a batch writes: its
     summary and logs, captures' output folders (a `run` output: safety.MARKER, or MARKER) and
     hidden staging folders."""
@@ -322,54 +290,6 @@ def _reason(err):
                 "(KilledWorker)")
     text = str(err).strip().splitlines()
     return f"{type(err).__name__}: {text[0] if text else ''}".rstrip(": ")
-
-
-def _columns(rows, methods=()):
-    """ΔE-log columns: (each method's mean, `methods` first then any other seen, in the
-    contract's place before `seconds`; each method/photo, after our own fields)."""
-    keys = list(dict.fromkeys([*methods, *(k for r in rows for k in r["delta_e_log"])]))
-    return [k for k in keys if "/" not in k], [k for k in keys if "/" in k]
-
-
-def _cell(value):
-    if value is None:
-        return ""
-    return f"{value:.6g}" if isinstance(value, float) else str(value)
-
-
-def _field(row, name):
-    return "" if row.get(name) is None else row[name]
-
-
-def write_summary(out_dir, rows, header_lines=(), methods=()):
-    """OUT_DIR/summary.csv and summary.md, one row per capture (atomic writes). Columns: the
-    contract's `capture`, `status`, `reason`, per-method ΔE-log (every one of `methods`, even when
-    no capture succeeded), `seconds`; then ours: `cpu_seconds`, `worker`, per-photo ΔE-log."""
-    per_method, per_photo = _columns(rows, methods)
-    buffer = io.StringIO()
-    writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(list(SUMMARY_LEAD) + [f"delta_e_log {c}" for c in per_method]
-                    + list(SUMMARY_TAIL) + [f"delta_e_log {c}" for c in per_photo])
-
-    def values(r, columns):
-        return [repr(r["delta_e_log"][c]) if r["delta_e_log"].get(c) is not None else ""
-                for c in columns]
-
-    for r in rows:
-        writer.writerow([_field(r, f) for f in SUMMARY_LEAD] + values(r, per_method)
-                        + [_field(r, f) for f in SUMMARY_TAIL] + values(r, per_photo))
-    write_text(Path(out_dir) / "summary.csv", buffer.getvalue())
-    head = (list(SUMMARY_LEAD) + [f"ΔE-log {c}" for c in per_method] + list(SUMMARY_TAIL)
-            + [f"ΔE-log {c}" for c in per_photo])
-    lines = [SUMMARY_TITLE, "", *header_lines, "",
-             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for r in rows:
-        cells = [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_LEAD]
-        cells += [_cell(r["delta_e_log"].get(c)) for c in per_method]
-        cells += [_cell(r.get(f)).replace("|", "\\|") for f in SUMMARY_TAIL]
-        cells += [_cell(r["delta_e_log"].get(c)) for c in per_photo]
-        lines.append("| " + " | ".join(cells) + " |")
-    write_text(Path(out_dir) / "summary.md", "\n".join(lines) + "\n")
 
 
 def capture_bytes(capture_dir):
@@ -469,30 +389,32 @@ def _prepare(out, captures):
             shutil.rmtree(leftover, ignore_errors=True)
 
 
-def batch(args):
-    captures = find_captures(args.captures_dir)
-    dask_engine.check_engine_options(args)
-    out = Path(args.out)
+def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model=None,
+          methods="dsgplvm", spp=64, anchor=True, materials="auto", albedo_map=False,
+          export=False):
+    """`flashbrdf batch`: `run` on every capture of captures_dir into out/<capture>/, and the
+    summary. Returns the exit status: 0 all ok, 1 any failed."""
+    captures = find_captures(captures_dir)
+    dask_engine.check_engine_options(workers, scheduler)
+    out = Path(out)
     if out.exists() and not out.is_dir():
         raise InputError(out, "exists and is not a folder")
-    _check_outputs(out, args.captures_dir, captures)
+    _check_outputs(out, captures_dir, captures)
     # Absolute paths (not resolved: a symlinked file keeps its name): workers elsewhere see the
     # same shared filesystem, not our working directory.
-    options = {"model": None if args.model is None else str(Path(args.model).absolute()),
-               "methods": args.methods, "spp": args.spp, "no_anchor": args.no_anchor,
-               "materials": getattr(args, "materials", "auto"),
-               "albedo_map": bool(getattr(args, "albedo_map", False)),
-               "export": bool(getattr(args, "export", False))}
+    options = {"model": None if model is None else str(Path(model).absolute()),
+               "methods": methods, "spp": spp, "no_anchor": not anchor, "materials": materials,
+               "albedo_map": bool(albedo_map), "export": bool(export)}
     requested = dict(options)  # what a capture's output depends on, as asked
     rows, todo = {}, []
     for c in captures:
-        row = None if args.force else completed_row(out / c.name, requested)
+        row = None if force else completed_row(out / c.name, requested)
         if row is not None:
             row["reason"] = "complete from an earlier batch: skipped (--force reruns it)"
             rows[c.name] = row
         else:
             todo.append(c)
-    in_process = len(todo) == 1 and not args.scheduler  # see _run_here
+    in_process = len(todo) == 1 and not scheduler  # see _run_here
     if in_process or not todo:
         options = check_run_options(options)
     start = time.perf_counter()
@@ -505,9 +427,8 @@ def batch(args):
         elif todo:
             # Never more local workers than captures to run: a spare worker would cost its
             # start-up and hold cores the busy ones' render threads can use.
-            workers = None if args.scheduler else min(args.workers or os.cpu_count() or 1,
-                                                      len(todo))
-            with dask_engine.dask_client(workers, args.scheduler) as client:
+            local = None if scheduler else min(workers or os.cpu_count() or 1, len(todo))
+            with dask_engine.dask_client(local, scheduler) as client:
                 # run's option checks import every stage (seconds); a worker imports them for
                 # its first capture anyway, so they run there, before any output is written.
                 options = _check_options_on(client, options)
@@ -520,20 +441,20 @@ def batch(args):
                 shutil.rmtree(leftover, ignore_errors=True)
     ordered = [rows[c.name] for c in captures]
     failed = [r for r in ordered if r["status"] != "ok"]
-    engine = args.scheduler or (
+    engine = scheduler or (
         "the batch's own process (one capture to run: no cluster)" if in_process
         else f"a local cluster of {n_workers} worker process(es)")
     write_summary(out, ordered, [
-        f"- {len(ordered)} capture(s) in `{args.captures_dir}`: {len(ordered) - len(failed)} ok "
+        f"- {len(ordered)} capture(s) in `{captures_dir}`: {len(ordered) - len(failed)} ok "
         f"({len(captures) - len(todo)} skipped as complete), {len(failed)} failed.",
         f"- Ran on {engine if todo else 'nothing (all complete)'}; "
         f"wall time {time.perf_counter() - start:.1f} s.",
-        f"- Run options: methods {args.methods}, spp {args.spp}, model "
-        f"{options['model'] or '(none)'}{', no anchor' if args.no_anchor else ''}"
+        f"- Run options: methods {methods}, spp {spp}, model "
+        f"{options['model'] or '(none)'}{', no anchor' if not anchor else ''}"
         f"{', export' if options['export'] else ''}.",
         f"- Per-capture logs: `{LOG_DIR}/<capture>.log`. ΔE-log is `delta_e_log_mean` of each "
         "method's renders against the reference photos (mean over photos, then per photo)."],
-        methods=dict.fromkeys(m.strip() for m in args.methods.split(",") if m.strip()))
+        methods=dict.fromkeys(m.strip() for m in methods.split(",") if m.strip()))
     for r in failed:
         print(f"flashbrdf batch: {r['capture']} failed: {r['reason']}", file=sys.stderr)
     print(f"summary: {(out / 'summary.md').resolve()}")

@@ -29,27 +29,13 @@ PROBE_TIMEOUT_S = 5.0  # a TCP handshake with a live scheduler takes millisecond
 MAX_WORKERS = 256
 
 
-def add_engine_options(parser, what, default):
-    """--workers N and --scheduler ADDRESS on an argparse sub-parser; `default` says what
-    happens without either."""
-    parser.add_argument("--workers", type=int, metavar="N",
-                        help=f"run {what} as tasks on a local Dask cluster of N worker processes "
-                             f"(the cores shared out between them); without --workers and --scheduler: "
-                             f"{default}")
-    parser.add_argument("--scheduler", metavar="ADDRESS",
-                        help=f"run {what} on the running Dask scheduler at ADDRESS "
-                             "(tcp://HOST:PORT) instead of a local cluster")
-
-
-def check_engine_options(args):
+def check_engine_options(workers=None, scheduler=None):
     """Bad --workers / --scheduler values as InputError, before any work."""
-    workers = getattr(args, "workers", None)
     if workers is not None and workers < 1:
         raise InputError("--workers", f"must be at least 1, got {workers}")
     if workers is not None and workers > MAX_WORKERS:
         raise InputError("--workers", f"must be at most {MAX_WORKERS} (worker processes on this "
                                       f"machine), got {workers}; use --scheduler for more")
-    scheduler = getattr(args, "scheduler", None)
     if scheduler is not None and not scheduler.strip():  # "" would silently mean a local cluster
         raise InputError("--scheduler", "is empty; give tcp://HOST:PORT")
     if workers is not None and scheduler:

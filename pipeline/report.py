@@ -30,7 +30,7 @@ from flashbrdf.files.atomic import write_text
 from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import theta_h_centres
 from flashbrdf.brdf.metrics import summarise
-from flashbrdf.brdf.views import slice_coverage, table_2d
+from flashbrdf.brdf.views import slice_coverage, table_2d_view
 from flashbrdf.render import images
 from flashbrdf.render.compare import compare_images
 from flashbrdf.pipeline import report_figures as figs
@@ -139,14 +139,7 @@ def coverage(theta_h_deg, observed):
     return info, warnings
 
 
-def _table_2d(table):
-    table = np.asarray(table, dtype=float)
-    if table.ndim == 4:
-        return table_2d(table)
-    return table
-
-
-def _variance_2d(variance):
+def variance_2d(variance):
     """A (90,90[,3]) uncertainty to show beside the 2D table, or None when there is none to show."""
     if variance is None:
         return None
@@ -281,7 +274,7 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
     theta_h_deg = np.degrees(theta_h_centres())
     predictions = {m: (p if isinstance(p, dict) else {"table": p})
                    for m, p in (predictions or {}).items()}
-    tables = {m: _table_2d(p["table"]) for m, p in predictions.items()}
+    tables = {m: table_2d_view(p["table"]) for m, p in predictions.items()}
     figures, warnings = {}, list(warnings)
     cover = None
     if observed is not None:
@@ -294,7 +287,7 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
         figures["slice"] = "figures/slice.png"
     for method, p in predictions.items():
         figs.brdf_images(fig_dir / f"brdf_{method}.png", method, tables[method],
-                         _variance_2d(p.get("variance")), p.get("variance_label", "uncertainty"))
+                         variance_2d(p.get("variance")), p.get("variance_label", "uncertainty"))
         figures[f"brdf_{method}"] = f"figures/brdf_{method}.png"
     rows, ref_figures, n_photos = _reference_rows(references, fig_dir, max_reference_figures)
     if rows:

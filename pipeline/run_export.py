@@ -9,7 +9,7 @@ OUT_DIR/<method>-principled/   renders of the reference photos with the fitted P
 from pathlib import Path
 
 from flashbrdf.brdf.models.principled import tabulate_principled
-from flashbrdf.pipeline.cmd_export import export_brdf
+from flashbrdf.render.export import export_brdf
 
 
 def export_method(methods):

@@ -14,18 +14,21 @@ import sys
 import numpy as np
 
 from flashbrdf.brdf.merl import theta_h_centres
+from flashbrdf.brdf.models import TabulatedBRDF
+from flashbrdf.brdf.views import table_2d_view
 from flashbrdf.pipeline import report_figures as figs
 from flashbrdf.pipeline.albedo_files import albedo_for_scene, write_albedo
-from flashbrdf.pipeline.cmd_extract import (NARROW_LAST_THETA_H_DEG, material_coverage, write_extraction,
-                                  write_material_slices)
-from flashbrdf.pipeline.cmd_segment import write_labels
-from flashbrdf.pipeline.report import _table_2d, _variance_2d, write_report
-from flashbrdf.pipeline.run_export import export_for_report, export_method
-from flashbrdf.brdf.models import TabulatedBRDF
-from flashbrdf.render import MaterialMap
-from flashbrdf.render.albedo_map import DiffuseAlbedoMap
+from flashbrdf.pipeline.label_files import write_labels
+from flashbrdf.pipeline.report import variance_2d, write_report
+from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
+from flashbrdf.pipeline.run_steps import infer_method, render_and_compare
+from flashbrdf.render import DiffuseAlbedoMap, MaterialMap
 from flashbrdf.render.images import write_preview
+from flashbrdf.render.scene_render import SceneGeometry
+from flashbrdf.slice_extract import ExtractOptions
 from flashbrdf.slice_extract.extract import bin_samples, extract_material_slices
+from flashbrdf.slice_extract.slice_files import (NARROW_LAST_THETA_H_DEG, material_coverage,
+                                                 write_extraction, write_material_slices)
 
 
 def label_section(labels, fig_dir, criterion):
@@ -44,70 +47,73 @@ def material_entries(labels, slice_files, brdf_files):
             for k in range(1, int(labels.max()) + 1)]
 
 
-def run_materials(ctx, samples, segmentation, faces):
-    """The K > 1 branch of cmd_run.run. Returns the report dict.
+def run_materials(settings, scene, out, stages, fitted, samples, segmentation, faces,
+                  references, loaded, notes, with_albedo=None):
+    """The K > 1 branch of pipeline.run: the report dict.
 
-    ctx: a namespace from cmd_run.run (scene, scene_dir, out, stages, options, methods,
-    model_path, spp, notes, title, load_methods(), geometry(), loaded (photos read
-    by run's input check), final_out (where `out` will be renamed to)); samples: FlashSamples;
-    segmentation: slice_extract.segment.Segmentation; faces: (F,) int32 or None.
+    settings: pipeline.run.RunSettings; out: the staged output folder; stages: the StageTimer;
+    fitted: {method: fitted method}; samples: FlashSamples; segmentation:
+    slice_extract.segment.Segmentation; faces: (F,) int32 or None; references and loaded: the
+    reference photos and those read by run's input check (pipeline.run_steps.check_references);
+    notes: the report's notes so far (appended to); with_albedo: None, or a function putting
+    the albedo map on a BRDF (run --albedo-map).
     """
-    from flashbrdf.pipeline.cmd_run import _infer, _render_and_compare  # cmd_run imports this module
-
-    stages, out, labels = ctx.stages, ctx.out, segmentation.labels
+    labels = segmentation.labels
     slices = stages.run("extract materials", extract_material_slices, samples, labels, "labels")
     write_labels(out / "labels.png", segmentation, faces)
-    rhos = write_material_slices(out / "materials", ctx.scene_dir, slices, ctx.options, labels)
+    rhos = write_material_slices(out / "materials", settings.scene_dir, slices, ExtractOptions(),
+                                 labels)
     cover = material_coverage(slices, labels)
     warnings = list(cover["warnings"])
     # the whole object's slice too, as a single-material run writes it (for comparison)
     whole = stages.run("extract", bin_samples, samples)
-    write_extraction(out / "slice.csv", ctx.scene_dir, whole, ctx.options,
-                     final_path=ctx.final_out / "slice.csv")
+    write_extraction(out / "slice.csv", settings.scene_dir, whole, ExtractOptions(),
+                     final_path=settings.final_out / "slice.csv")
     for k, result in slices.items():
         if result is None:
             rhos[k] = whole.rho
             warnings.append(f"material {k}: inferred from the whole object's slice")
-    fitted = stages.run("load model", ctx.load_methods)
     tables, brdf_files = {}, {}
-    for name in ctx.methods:
+    for name in settings.methods:
         tables[name], brdf_files[name] = {}, {}
         for k, rho in rhos.items():
             folder = out / name / f"material_{k}"
             counts = (whole if slices[k] is None else slices[k]).n
-            tables[name][k] = stages.run(f"infer {name}", _infer, fitted[name], name,
-                                         ctx.model_path, rho, counts, folder)
-            tail_note = tables[name][k][5]
+            tables[name][k] = stages.run(f"infer {name}", infer_method, fitted[name], name,
+                                         settings.model_path, rho, counts, folder)
+            tail_note = tables[name][k].tail_note
             tail_warning = tail_note and f"material {k}: {tail_note.removeprefix('note: ')}"
             if tail_warning and tail_warning not in warnings:  # the same for every method
                 print(f"note: {tail_warning}", file=sys.stderr)
                 warnings.append(tail_warning)
             brdf_files[name][k] = f"{name}/material_{k}/brdf.binary"
     exported = {}  # --export: each material's table of one method, as run exports one table
-    if getattr(ctx, "export", False):
-        method = export_method(ctx.methods)
+    if settings.export:
+        method = export_method(settings.methods)
         for k in sorted(rhos):
             label, exported[k], note = stages.run("export", export_for_report, out, method,
-                                                  ctx.envmap, ctx.final_out, k)
-            ctx.notes.append(note)
+                                                  scene_envmap(references),
+                                                  settings.final_out, k)
+            notes.append(note)
     rows = []
-    references = ctx.scene.photos_with_role("reference")
     if references:
-        geometry = stages.run("ray cast", ctx.geometry)
-        camera = ctx.scene.photos_with_role("flash")[0].camera
-        for name in ctx.methods:
-            materials = ctx.with_albedo(MaterialMap(
-                [TabulatedBRDF(tables[name][k][0]) for k in sorted(rhos)], labels, camera, faces))
-            rows += stages.run(f"render+compare {name}", _render_and_compare, ctx.scene, geometry,
-                               name, materials, ctx.spp, out / name, references, ctx.loaded)
+        geometry = stages.run("ray cast", SceneGeometry, scene)
+        camera = scene.photos_with_role("flash")[0].camera
+        for name in settings.methods:
+            materials = MaterialMap([TabulatedBRDF(tables[name][k].table) for k in sorted(rhos)],
+                                    labels, camera, faces)
+            if with_albedo is not None:
+                materials = with_albedo(materials)
+            rows += stages.run(f"render+compare {name}", render_and_compare, scene, geometry,
+                               name, materials, settings.spp, out / name, references, loaded)
         if exported:
             fits = MaterialMap([TabulatedBRDF(exported[k]) for k in sorted(rhos)], labels,
                                camera, faces)
-            rows += stages.run(f"render+compare {label}", _render_and_compare, ctx.scene,
-                               geometry, label, fits, ctx.spp, out / label, references,
-                               ctx.loaded, level=False)
+            rows += stages.run(f"render+compare {label}", render_and_compare, scene,
+                               geometry, label, fits, settings.spp, out / label, references,
+                               loaded, level=False)
     else:
-        ctx.notes.append("The scene has no reference photo: nothing was rendered or compared.")
+        notes.append("The scene has no reference photo: nothing was rendered or compared.")
     fig_dir = out / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     sections = label_section(labels, fig_dir, segmentation.criterion)
@@ -116,7 +122,7 @@ def run_materials(ctx, samples, segmentation, faces):
         result = slices[k]
         observed = None if result is None else {"rho": result.rho, "n": result.n,
                                                 "spread": result.spread}
-        curves = {m: _theta_d0(tables[m][k][0]) for m in ctx.methods}
+        curves = {m: table_2d_view(tables[m][k].table)[:, 0, :] for m in settings.methods}
         figs.slice_plot(fig_dir / f"material_{k}_slice.png", theta_h_deg, observed, curves)
         entry = cover["materials"][k - 1]
         note = (" (sparse: missing bins are imputed by inference)" if entry["sparse"] else
@@ -126,18 +132,20 @@ def run_materials(ctx, samples, segmentation, faces):
                      f"{entry['pixels']} pixels, {entry['bins_filled']} of 90 θh bins filled"
                      + note + f"; slice `materials/material_{k}.csv`.", "",
                      f"![material {k} slice](figures/material_{k}_slice.png)", ""]
-        for m in ctx.methods:
-            table, variance, label = tables[m][k][0], tables[m][k][1], tables[m][k][3]
+        for m in settings.methods:
+            prediction = tables[m][k]
+            label = "predictive variance (" + getattr(fitted[m], "feature_label",
+                                                      "features") + ")"
             name = f"material_{k}_brdf_{m}.png"
-            figs.brdf_images(fig_dir / name, f"{m}, material {k}", _table_2d(table),
-                             _variance_2d(variance), label)
+            figs.brdf_images(fig_dir / name, f"{m}, material {k}", table_2d_view(prediction.table),
+                             variance_2d(prediction.variance), label)
             sections += [f"![material {k} {m}](figures/{name})"]
         sections += [""]
     extra = {"materials": material_entries(labels, {k: f"materials/material_{k}.csv"
                                                     for k in rhos}, brdf_files),
              "segmentation": segmentation.criterion}
     return stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
-                      warnings=warnings, notes=ctx.notes, title=ctx.title, extra=extra,
+                      warnings=warnings, notes=notes, title=settings.title, extra=extra,
                       sections=sections)
 
 
@@ -157,7 +165,3 @@ def run_albedo_map(stages, out, samples, segmentation, faces, scene, notes):
     camera = scene.photos_with_role("flash")[0].camera
     return lambda brdf: DiffuseAlbedoMap(brdf, result.albedo, result.floors, camera,
                                          albedo_faces)
-
-
-def _theta_d0(table):
-    return _table_2d(table)[:, 0, :]

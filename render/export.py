@@ -19,6 +19,8 @@ import numpy as np
 
 from flashbrdf.files.atomic import write_text
 from flashbrdf.files.errors import InputError
+from flashbrdf.files.outputs import check_outputs, staged_output_dir
+from flashbrdf.brdf.merl import read_merl
 from flashbrdf.brdf.metrics import brdf_error
 from flashbrdf.brdf.models.principled import MITSUBA_LUMINANCE, PARAMETER_NAMES, eta_from_specular, \
     tabulate_principled
@@ -215,3 +217,20 @@ def export_table(table, table_path, out_dir, formats=FORMATS, envmap=None, final
         write_text(os.path.join(out_dir, "material.gltf"), json.dumps(doc, indent=2) + "\n")
         files.append("material.gltf")
     return {"files": files, "params": params, "fit": fit, "images": images}
+
+
+def export_brdf(brdf_path, out_dir, formats=FORMATS, envmap=None, force=False, final_path=None):
+    """Export a MERL table into out_dir (an earlier export there is replaced only with force); the
+    result dict of render.export.export_table. envmap: a lat-long map (`export --envmap`) for the
+    sphere render check of the fit, or None to skip it (nothing outside the project is read
+    unless a flag names it). final_path: where brdf_path will be once its staged folder is
+    renamed into place, recorded in the files instead of brdf_path (`run --export`)."""
+    check_outputs(inputs=[brdf_path, envmap], outputs=[out_dir], folders=[out_dir])
+    table = read_merl(brdf_path)
+    if envmap is not None:
+        from flashbrdf.render.envmap import read_envmap_pixels
+        read_envmap_pixels(envmap)  # bad input before any work: missing, unreadable or not 2:1
+    with staged_output_dir(out_dir, force=force, command="export") as tmp:
+        result = export_table(table, brdf_path, tmp, formats, envmap=envmap,
+                              final_path=final_path)
+    return result

@@ -2,7 +2,7 @@
 
 Takes a capture folder (or capture.Scene): flash photos, camera, geometry.
 Gives the 90-bin theta_d ~ 0 slice with a robust per-bin estimate, sample counts, spread and a
-coverage report; written as the contract's `slice.csv` plus a JSON sidecar (pipeline/cmd_extract).
+coverage report; written as the contract's `slice.csv` plus a JSON sidecar (slice_extract.slice_files).
 
 Public API:
   extract_slice(scene_dir_or_scene, options=None) -> SliceResult(rho (90, 3), n (90,),

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from flashbrdf.capture import load_scene
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 from flashbrdf.slice_extract.albedo import estimate_albedo_map
 from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
 from synthetic import (add_reference_photo, directional_light, ggx_lambert, pinhole_camera,

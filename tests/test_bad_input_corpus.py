@@ -23,8 +23,8 @@ import numpy as np
 import pytest
 import scipy.io
 
-from flashbrdf.pipeline.cli import main
-from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
+from flashbrdf.cli.main import main
+from flashbrdf.pipeline.options import DEFAULT_MODEL
 from flashbrdf.files.outputs import MARKER
 from synthetic import ggx_lambert, pinhole_camera, point_light, sphere_mesh, write_synthetic_scene
 from test_diligent_import import make_diligent
@@ -1222,7 +1222,7 @@ def test_segment_keeps_no_albedo_map_when_its_labels_fail(world, tmp_path, capfd
 
     def fail(out, *args, **kwargs):
         raise InputError(out, "cannot write a PNG there")
-    monkeypatch.setattr("flashbrdf.pipeline.cmd_segment.write_labels", fail)
+    monkeypatch.setattr("flashbrdf.pipeline.capture_jobs.write_labels", fail)
     assert main(["segment", str(world.scene), "--out", str(tmp_path / "l.png"), "--albedo",
                  str(tmp_path / "a.exr")]) == 2
     assert len(capfd.readouterr().err.strip().splitlines()) == 1

@@ -21,12 +21,13 @@ import pytest
 from distributed import Client, LocalCluster
 from distributed.diagnostics.plugin import WorkerPlugin
 
-import flashbrdf.pipeline.cmd_run as cmd_run  # in a worker: the worker's copy, which `run` calls
+import flashbrdf.pipeline.run as run_module  # in a worker: the worker's copy, which `run` calls
 from flashbrdf.files.errors import InputError
-from flashbrdf.pipeline.batch import MARKER, _check_batch_folder, capture_bytes, failed_row, write_summary
-from flashbrdf.pipeline.cli import main
+from flashbrdf.pipeline.batch import MARKER, capture_bytes, check_batch_folder
+from flashbrdf.pipeline.batch_summary import failed_row, write_summary
+from flashbrdf.cli.main import main
 from flashbrdf.pipeline.dask_engine import ALLOWED_FAILURES, threads_per_worker
-from flashbrdf.pipeline.sample_capture import make_sample_capture
+from sample_capture import make_sample_capture
 
 MATERIALS = {"a": "red-specular-plastic", "b": "gold-paint"}
 RUN_OPTIONS = ["--methods", "dsgplvm,chandraker", "--spp", "4"]
@@ -252,18 +253,18 @@ def test_summary_columns_in_the_contract_order(tmp_path):
     assert [c.strip() for c in table.strip("|").split("|")][:5] == [
         "capture", "status", "reason", "ΔE-log dsgplvm", "seconds"]
     # A batch recognises the summaries it wrote, in either order, and no one else's.
-    _check_batch_folder(tmp_path)
+    check_batch_folder(tmp_path)
     # every --methods column is there even when no capture succeeded
     write_summary(tmp_path, [failed_row("b", "bad scene.json")], methods=["dsgplvm", "pca"])
     with open(tmp_path / "summary.csv", newline="") as f:
         assert next(csv.reader(f))[:6] == ["capture", "status", "reason",
                                            "delta_e_log dsgplvm", "delta_e_log pca", "seconds"]
-    _check_batch_folder(tmp_path)
+    check_batch_folder(tmp_path)
     write_summary(tmp_path, [failed_row("b", "bad scene.json")])  # no ΔE-log column
-    _check_batch_folder(tmp_path)
+    check_batch_folder(tmp_path)
     (tmp_path / "summary.csv").write_text("capture,status,reason,notes\n")
     with pytest.raises(InputError):
-        _check_batch_folder(tmp_path)
+        check_batch_folder(tmp_path)
 
 
 class KillMidRun(WorkerPlugin):
@@ -278,7 +279,7 @@ class KillMidRun(WorkerPlugin):
         self.name = name
 
     def setup(self, worker):
-        self.original = original = cmd_run._render_and_compare
+        self.original = original = run_module.render_and_compare
         marker = f"..{self.name}.partial-"  # run's temporary folder of the capture's staging
 
         def render_or_die(*args, **kwargs):
@@ -291,10 +292,10 @@ class KillMidRun(WorkerPlugin):
                 os._exit(1)
             return original(*args, **kwargs)
 
-        cmd_run._render_and_compare = render_or_die
+        run_module.render_and_compare = render_or_die
 
     def teardown(self, worker):
-        cmd_run._render_and_compare = self.original
+        run_module.render_and_compare = self.original
 
 
 def test_failures_exit_1_killed_worker_retried_once(captures, scheduler, tmp_path, capsys):

@@ -6,7 +6,7 @@ import pytest
 from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import MERL_FILE_SIZE, MERL_SCALE, merl_valid_mask, read_merl, write_merl
 from flashbrdf.brdf.views import flash_slice, read_slice_csv, slice_coverage, table_2d, table_3d_from_2d
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 
 
 @pytest.fixture(scope="module")
@@ -92,22 +92,24 @@ def test_missing_file_exits_2(tmp_path, capsys):
 def test_a_bug_inside_a_command_is_not_hidden(tmp_path, monkeypatch):
     # only bad input (InputError) and signals map to exit statuses; anything else is a bug and
     # propagates (the console script then exits 1 with its traceback)
-    from flashbrdf.pipeline import commands
+    import flashbrdf.pipeline.run as run_module
 
-    def broken(args):
+    def broken(*args, **kwargs):
         raise NotImplementedError("a bug")
 
-    monkeypatch.setattr(commands, "run", broken)
+    monkeypatch.setattr(run_module, "run_capture", broken)
     with pytest.raises(NotImplementedError, match="a bug"):
         main(["run", str(tmp_path), "--out", str(tmp_path / "o")])
 
 
-def test_every_command_has_its_function():
-    from flashbrdf.pipeline import commands
-    from flashbrdf.pipeline.cli import _parser
-    names = {c.replace("-", "_") for c in _parser()._subparsers._group_actions[0].choices}
-    assert names == set(commands.COMMANDS)
-    assert all(callable(getattr(commands, n)) for n in names)
+def test_every_contract_command_has_a_handler():
+    """Each command of the contract (INTERFACES.md "Commands") is parsed, with a handler."""
+    from flashbrdf.cli.main import build_parser
+    parsers = build_parser()._subparsers._group_actions[0].choices
+    contract = {"merl-slice", "train", "infer", "extract", "segment", "render", "compare", "run",
+                "batch", "export", "evaluate", "import-diligent"}
+    assert contract <= set(parsers)
+    assert all(callable(parsers[c].get_default("handler")) for c in parsers)
 
 
 def test_read_merl_bins_equals_read_merl_at_those_bins(blue_acrylic, tmp_path):

@@ -203,7 +203,7 @@ def test_gltf_file_normals_are_used_and_placed_by_the_scene_graph(tmp_path):
 def test_non_numeric_normal_map_is_bad_input(tmp_path, capsys):
     """A normals.npy of strings is bad input (exit 2, one line naming the file), not a
     traceback (exit 1)."""
-    from flashbrdf.pipeline.cli import main
+    from flashbrdf.cli.main import main
     from synthetic import write_exr
     np.save(tmp_path / "normals.npy", np.full((4, 4, 3), "a"))
     cv2.imwrite(str(tmp_path / "mask.png"), np.full((4, 4), 255, np.uint8))

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import scipy.io
 
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 
 # The shared folder sits beside the repo checkout; FLASHBRDF_SHARED overrides it (worktrees).
 SHARED = Path(os.environ.get("FLASHBRDF_SHARED", Path(__file__).resolve().parents[2] / "shared"))

@@ -11,7 +11,7 @@ from flashbrdf.brdf.metrics import brdf_error
 from flashbrdf.brdf.models.principled import principled_brdf_angles, principled_brdf_local, tabulate_principled
 from flashbrdf.brdf.models.principled_fit import fit_principled
 from flashbrdf.brdf.views import table_2d
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 from flashbrdf.render.export import FORMATS, gltf_material
 
 # The four known materials: rough and glossy dielectrics, a rough metal, a clearcoated paint.

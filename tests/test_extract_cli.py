@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from flashbrdf.brdf.views import read_slice_csv
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 from synthetic import (ggx_lambert, orthographic_camera, pinhole_camera, point_light,
                        sphere_mesh, write_exr, write_synthetic_scene)
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from flashbrdf.brdf import merl, views
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 
 TRAIN = ["gold-metallic-paint", "blue-acrylic", "white-fabric", "red-plastic", "nickel"]
 TEST = "green-plastic"
@@ -193,11 +193,10 @@ def test_evaluate_render_takes_its_envmaps_from_a_flag(tmp_path, capsys, monkeyp
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{missing}: file not found" in err[0]
     assert not (tmp_path / "ev").exists()
-    from flashbrdf.pipeline.cmd_infer import _render_envmaps
+    from flashbrdf.pipeline.evaluate_job import render_envmaps
     mine = tmp_path / "mine_latlong.exr"
     write_exr(mine, np.ones((4, 8, 3)))
-    args = argparse.Namespace(render=True, envmap=[str(mine)])
-    assert _render_envmaps(args) == [mine]
+    assert render_envmaps([str(mine)], render=True) == [mine]
 
 
 def test_evaluate_render_without_envmap_reads_no_file(monkeypatch):
@@ -205,9 +204,9 @@ def test_evaluate_render_without_envmap_reads_no_file(monkeypatch):
     in code (render.envmap.default_envmaps), so nothing is read from ../shared (it was before)."""
     import argparse
 
-    from flashbrdf.pipeline.cmd_infer import _render_envmaps
+    from flashbrdf.pipeline.evaluate_job import render_envmaps
     monkeypatch.setenv("FLASHBRDF_SHARED", "/nonexistent")  # the old fallback's override
-    assert _render_envmaps(argparse.Namespace(render=True, envmap=None)) is None
+    assert render_envmaps(None, render=True) is None
 
 
 def test_sparse_tail_bins_are_missing_for_inference(trained, tmp_path, capsys):

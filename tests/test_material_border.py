@@ -47,7 +47,7 @@ def test_a_bin_the_interior_leaves_empty_keeps_its_border_samples():
 
 
 def test_a_material_seen_only_inside_the_lobe_is_flagged_narrow_and_warned():
-    from flashbrdf.pipeline.cmd_extract import material_coverage
+    from flashbrdf.slice_extract.slice_files import material_coverage
     from flashbrdf.slice_extract.extract import SliceResult
 
     def seen(bins, lo, hi):

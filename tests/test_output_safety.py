@@ -139,17 +139,17 @@ def test_interrupted_run_leaves_nothing(world, tmp_path):  # noqa: F811
 def test_signal_inside_a_command_exits_130_or_143_with_nothing_written(tmp_path, monkeypatch,
                                                                        capsys, sig, status):
     """In-process: the signal arrives while a command writes its staged folder."""
-    from flashbrdf.pipeline import commands
-    from flashbrdf.pipeline.cli import main
+    import flashbrdf.pipeline.render_jobs as render_jobs
+    from flashbrdf.cli.main import main
 
-    def interrupted_compare(args):
-        with staged_output_dir(args.out) as tmp:
+    def interrupted_compare(pred, ref, out, **options):
+        with staged_output_dir(out) as tmp:
             (Path(tmp) / "half.json").write_text("{}")
             os.kill(os.getpid(), sig)
             time.sleep(5)  # the handler raises before this ends
         return 0
 
-    monkeypatch.setattr(commands, "compare", interrupted_compare)
+    monkeypatch.setattr(render_jobs, "compare", interrupted_compare)
     assert main(["compare", "a.exr", "b.exr", "--out", str(tmp_path / "out")]) == status
     assert os.listdir(tmp_path) == []
     assert "no output written" in capsys.readouterr().err

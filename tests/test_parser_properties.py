@@ -19,7 +19,7 @@ from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import MERL_FILE_SIZE, MERL_SHAPE, read_merl
 from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
 from flashbrdf.capture import load_scene
-from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
+from flashbrdf.pipeline.options import DEFAULT_MODEL
 
 SETTINGS = settings(deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 

@@ -9,9 +9,9 @@ import json
 import numpy as np
 import pytest
 
-from flashbrdf.pipeline.cli import main
-from flashbrdf.pipeline.cmd_run import DEFAULT_MODEL
-from flashbrdf.pipeline.sample_capture import make_sample_capture
+from flashbrdf.cli.main import main
+from flashbrdf.pipeline.options import DEFAULT_MODEL
+from sample_capture import make_sample_capture
 
 HELD_OUT = "red-specular-plastic"
 

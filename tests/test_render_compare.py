@@ -5,7 +5,7 @@ import json
 import numpy as np
 import pytest
 
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 from flashbrdf.render.compare import compare_images
 from flashbrdf.render.images import read_image, write_exr, write_png
 

@@ -134,7 +134,7 @@ def test_pfm_envmap_and_compare_images_are_top_row_first(tmp_path):
     """PFM stores rows bottom to top. A .pfm envmap's top row is +y (contract: "The top edge is
     +y"), and `compare` reads .pfm images the way photos are read; OpenImageIO alone gave the rows
     bottom first, so the sky lit the object from below."""
-    from flashbrdf.pipeline.cli import main
+    from flashbrdf.cli.main import main
     sky = np.zeros((8, 16, 3), np.float32)
     sky[0] = [2.0, 3.0, 4.0]                       # top row: light from straight above (+y)
 

@@ -10,7 +10,7 @@ from flashbrdf.brdf.angles import half_diff_from_world
 from flashbrdf.brdf.lookup import evaluate_table
 from flashbrdf.brdf.merl import read_merl, write_merl
 from flashbrdf.brdf.views import table_2d, table_3d_from_2d
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 from flashbrdf.render.images import read_image, write_exr, write_png
 from synthetic import (directional_light, orthographic_camera, pinhole_camera, point_light,
                        render, sphere_mesh, table_brdf, torus_mesh, write_png16,

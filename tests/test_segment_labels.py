@@ -131,7 +131,7 @@ def test_lossy_label_files_are_told_by_their_bytes(tmp_path):
     # A label image must be lossless: JPEG, JPEG 2000 (either wrapping) and lossy WebP, also in
     # its extended form where an alpha chunk precedes the image, are refused; PNG and lossless
     # WebP are not. The bytes decide, not the name (every file here is named .png).
-    from flashbrdf.pipeline.cmd_segment import _lossy_format
+    from flashbrdf.pipeline.label_files import lossy_format
 
     def riff(*chunks):
         body = b"WEBP" + b"".join(c + len(d).to_bytes(4, "little") + d + b"\0" * (len(d) & 1)
@@ -144,11 +144,11 @@ def test_lossy_label_files_are_told_by_their_bytes(tmp_path):
              None: riff((b"VP8X", bytes(10)), (b"VP8L", bytes(8)))}
     for kind, data in files.items():
         (tmp_path / "l.png").write_bytes(data)
-        assert _lossy_format(tmp_path / "l.png") == kind
+        assert lossy_format(tmp_path / "l.png") == kind
     (tmp_path / "l.png").write_bytes(b"\xff\x4f\xff\x51" + bytes(20))  # a bare J2K codestream
-    assert _lossy_format(tmp_path / "l.png") == "JPEG 2000"
+    assert lossy_format(tmp_path / "l.png") == "JPEG 2000"
     (tmp_path / "l.png").write_bytes(b"\x89PNG\r\n\x1a\n" + bytes(20))
-    assert _lossy_format(tmp_path / "l.png") is None
+    assert lossy_format(tmp_path / "l.png") is None
 
     # a TIFF is lossy when its first directory's Compression tag (259) names a lossy codec: in
     # either byte order, a SHORT left-justified in its entry; BigTIFF's entries are 20 bytes
@@ -168,9 +168,9 @@ def test_lossy_label_files_are_told_by_their_bytes(tmp_path):
             for compression, kind in ((7, "TIFF compressed as JPEG"), (34712, "TIFF compressed as "
                                       "JPEG 2000"), (1, None), (5, None), (8, None)):
                 (tmp_path / "l.png").write_bytes(tiff(order, compression, big))
-                assert _lossy_format(tmp_path / "l.png") == kind, (order, big, compression)
+                assert lossy_format(tmp_path / "l.png") == kind, (order, big, compression)
     (tmp_path / "l.png").write_bytes(b"II+\x00\x08\x00\x00\x00" + b"\xff" * 8)  # no directory
-    assert _lossy_format(tmp_path / "l.png") is None
+    assert lossy_format(tmp_path / "l.png") is None
 
 
 def test_a_label_of_2_31_is_refused_without_counting_up_to_it(tmp_path):

@@ -16,7 +16,7 @@ import pytest
 
 from flashbrdf.brdf.merl import read_merl
 from flashbrdf.brdf.views import flash_slice, read_slice_csv
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 from synthetic import (add_reference_photo, by_region, directional_light, pinhole_camera,
                        point_light, region_image, sphere_mesh, table_brdf, write_synthetic_scene)
 

@@ -9,7 +9,7 @@ import pytest
 
 from flashbrdf.brdf import merl, metrics, views
 from flashbrdf.experiments.test_set import THETA_D_BANDS_DEG, band_errors, band_label
-from flashbrdf.pipeline.cli import main
+from flashbrdf.cli.main import main
 
 FOLDER_A = ["gold-metallic-paint", "blue-acrylic", "white-fabric"]
 FOLDER_B = ["red-plastic", "nickel"]

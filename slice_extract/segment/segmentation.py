@@ -4,6 +4,7 @@
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from flashbrdf.capture import load_mesh
 from flashbrdf.files.errors import InputError
 from flashbrdf.slice_extract.segment.clustering import Segmentation, SegmentOptions, cluster_samples
 from flashbrdf.slice_extract.segment.features import (
@@ -12,7 +13,7 @@ from flashbrdf.slice_extract.segment.features import (
     resolution_floor,
     theta_h_bins,
 )
-from flashbrdf.slice_extract.segment.labels import align_bin_labels, clean_label_image
+from flashbrdf.slice_extract.segment.labels import align_bin_labels, clean_label_image, face_labels
 from flashbrdf.slice_extract.segment.slices import assign_all, refine_labels
 
 
@@ -71,3 +72,14 @@ def _fixed_k(rho, theta_h, k, options):
     labels, k = refine_labels(log_rho, theta_h_bins(theta_h[pick]), gm.predict(x), k, options)
     return assign_all(rho, theta_h, pick, labels, k), {"samples": int(n),
                                                         "reason": f"--materials {k}"}
+
+
+def segment_scene(samples, materials="auto", options=None):
+    """(Segmentation, face labels (F,) int32 or None) of FlashSamples: with a mesh, each face
+    takes its pixels' label (face_labels)."""
+    segmentation = segment_samples(samples, materials, options)
+    faces = None
+    if samples.face_image is not None:
+        mesh, _ = load_mesh(samples.scene.geometry.mesh)
+        faces = face_labels(segmentation.labels, samples.face_image, mesh.triangles_center)
+    return segmentation, faces

@@ -1,7 +1,6 @@
-"""`flashbrdf extract SCENE_DIR --out SLICE.csv`: the flash slice of a capture folder.
-
-Writes the contract's slice.csv (with provenance comments) and SLICE.json beside it (coverage,
-rejection counts, theta_d spread, timings). Nothing is written when extraction fails.
+"""The slice files extraction writes: slice.csv (contract) with provenance comments and its JSON
+sidecar (coverage, rejections, theta_d spread, timings); per material, material_<k>.csv and
+coverage.json (sparse and narrow materials flagged). All or nothing per call.
 """
 
 import json
@@ -9,44 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf import capture
-from flashbrdf.files.atomic import write_text
-from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import N_THETA_H
 from flashbrdf.brdf.views import write_slice_csv
-from flashbrdf.pipeline.cmd_segment import read_labels
-from flashbrdf.files.outputs import check_outputs, sidecar_json, staged_output_dir
-from flashbrdf.slice_extract import ExtractOptions, extract_slice
-from flashbrdf.slice_extract.extract import collect_samples, extract_material_slices
-
-
-def _options(args):
-    max_theta_d = getattr(args, "max_theta_d", None)
-    min_cos = getattr(args, "min_cos", None)
-    if max_theta_d is not None and not 0 < max_theta_d <= 90:
-        raise InputError("--max-theta-d", f"expected degrees in (0, 90], got {max_theta_d}")
-    if min_cos is not None and not 0 <= min_cos < 1:
-        raise InputError("--min-cos", f"expected a value in [0, 1), got {min_cos}")
-    silhouette = getattr(args, "silhouette_px", None)
-    if silhouette is not None and not 0 <= silhouette <= 50:
-        raise InputError("--silhouette-px", f"expected 0..50 pixels, got {silhouette}")
-    return ExtractOptions(
-        silhouette_px=ExtractOptions.silhouette_px if silhouette is None else silhouette,
-        max_theta_d_deg=ExtractOptions.max_theta_d_deg if max_theta_d is None else max_theta_d,
-        min_cos=ExtractOptions.min_cos if min_cos is None else min_cos)
-
-
-def extract(args):
-    options = _options(args)
-    if getattr(args, "labels", None):
-        return extract_materials(args, options)
-    scene = capture.load_scene(args.scene_dir)
-    check_outputs(inputs=[args.scene_dir, *scene.input_files()],
-                  outputs=[args.out, sidecar_json(args.out)])
-    result = extract_slice(scene, options)
-    write_extraction(args.out, args.scene_dir, result, options)
-    return 0
-
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.outputs import sidecar_json
 
 SPARSE_BINS = 10  # a material slice with fewer filled theta_h bins than this is flagged sparse
 # a material slice whose filled bins all lie below this theta_h is flagged "narrow": it never
@@ -54,24 +19,6 @@ SPARSE_BINS = 10  # a material slice with fewer filled theta_h bins than this is
 # last bin the table is the model's extrapolation (held-out MERL/RGL (NBRDF proxy) slices cut to
 # 0-19 deg: the theta_d = 0 row past 19 deg off by 1.33x, mean |ln|; benchmarks/sparse_slices.md)
 NARROW_LAST_THETA_H_DEG = 20.0
-
-
-def extract_materials(args, options):
-    """extract --labels LABELS.png --out DIR: DIR/material_<k>.csv and DIR/coverage.json."""
-    out = Path(args.out)
-    if out.suffix.lower() == ".csv" or (out.exists() and not out.is_dir()):
-        raise InputError("--out", "with --labels, --out is a folder (material_<k>.csv go in it)")
-    scene = capture.load_scene(args.scene_dir)
-    check_outputs(inputs=[args.scene_dir, args.labels, *scene.input_files()], outputs=[out],
-                  folders=[out])
-    # a folder output, so built aside and renamed: never written into someone's folder, and
-    # never half-written
-    with staged_output_dir(out, force=getattr(args, "force", False), command="extract") as staged:
-        samples = collect_samples(scene, options)
-        labels = read_labels(args.labels, samples.shape)
-        slices = extract_material_slices(samples, labels, args.labels)
-        write_material_slices(staged, args.scene_dir, slices, options, labels)
-    return 0
 
 
 def material_coverage(slices, labels):

@@ -1,42 +1,22 @@
-"""`flashbrdf segment SCENE_DIR --out LABELS.png [--materials auto|K]` and the label files.
-
-LABELS.png: 16-bit, the first flash photo's pixel grid, 0 = background or unused, 1..K the
-material (slice_extract.segment). With a mesh, LABELS.faces.npy beside it: int32 per face
-(unseen faces take the nearest seen face's label). LABELS.json: K and why it was chosen.
-Written together through temporary files and renamed, so a failure leaves none of them.
+"""Label files: LABELS.png (16-bit, the first flash photo's pixel grid, 0 = background or unused,
+1..K the material), LABELS.faces.npy beside it (int32 per mesh face; unseen faces take the nearest
+seen face's label) and LABELS.json (K and why). Written together through temporary files and
+renamed, so a failure leaves none of them; read back with every check `render --labels` and
+`extract --labels` need (a lossy format is refused: its compression changes labels at borders).
 """
 
 import contextlib
 import json
-import time
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from flashbrdf import capture
-from flashbrdf.files.atomic import atomic_path
-from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.capture import load_mesh
 from flashbrdf.capture.photo import imread_unchanged
-from flashbrdf.files.outputs import check_outputs
-from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
-from flashbrdf.slice_extract.segment import check_labels, face_labels, segment_samples
-
-
-def materials_option(text):
-    """--materials: "auto" or an int K >= 1; InputError otherwise."""
-    text = "auto" if text is None else str(text).strip()
-    if text == "auto":
-        return "auto"
-    try:
-        k = int(text)
-    except ValueError:
-        k = 0
-    if k < 1 or k > 64:
-        raise InputError("--materials", f"expected auto or a number of materials 1..64, got "
-                                        f"{text!r}")
-    return k
+from flashbrdf.files.atomic import atomic_path
+from flashbrdf.files.errors import DECODE_ERRORS, InputError
+from flashbrdf.slice_extract.segment import check_labels
 
 
 def flash_photo_camera(scene, where):
@@ -52,16 +32,6 @@ def faces_path(labels_png):
     """LABELS.faces.npy beside LABELS.png."""
     labels_png = Path(labels_png)
     return labels_png.with_name(labels_png.stem + ".faces.npy")
-
-
-def segment_scene(samples, materials="auto", options=None):
-    """(Segmentation, face labels (F,) int32 or None) of FlashSamples."""
-    segmentation = segment_samples(samples, materials, options)
-    faces = None
-    if samples.face_image is not None:
-        mesh, _ = load_mesh(samples.scene.geometry.mesh)
-        faces = face_labels(segmentation.labels, samples.face_image, mesh.triangles_center)
-    return segmentation, faces
 
 
 def write_labels(out, segmentation, faces, extra=None):
@@ -131,7 +101,7 @@ def _tiff_compression(f, head):
     return None
 
 
-def _lossy_format(path):
+def lossy_format(path):
     """"JPEG", "JPEG 2000", "lossy WebP" or "TIFF compressed as ..." (a lossy TIFF codec) when the
     file's first bytes say so, else None (the name's suffix is not asked: a JPEG named .png is
     still a JPEG). InputError when the file cannot be read. JPEG 2000 is refused whole: its
@@ -161,7 +131,7 @@ def read_labels(path, shape):
     if not path.is_file():
         raise InputError(path, "is a folder, not a label image" if path.is_dir() else
                          "label image not found")
-    lossy = _lossy_format(path)
+    lossy = lossy_format(path)
     if lossy:  # its compression moves values at every border: a label becomes another
         raise InputError(path, f"is a {lossy}, whose lossy compression changes labels at the "
                                "borders between materials: write labels as a PNG")
@@ -199,38 +169,3 @@ def material_map_inputs(scene, labels_png, count):
             if len(faces) != n_faces:
                 raise InputError(npy, f"has {len(faces)} labels but the mesh has {n_faces} faces")
     return labels, faces, camera
-
-
-def segment(args):
-    materials = materials_option(getattr(args, "materials", None))
-    if Path(args.out).suffix.lower() != ".png":
-        raise InputError("--out", f"the label image must be a .png, got {args.out}")
-    albedo_out = getattr(args, "albedo", None)
-    if albedo_out:
-        from flashbrdf.pipeline.albedo_files import albedo_sidecars, check_albedo_out
-        check_albedo_out(albedo_out)
-    scene = capture.load_scene(args.scene_dir)
-    check_outputs(inputs=[args.scene_dir, *scene.input_files()],
-                  outputs=[args.out, faces_path(args.out), Path(args.out).with_suffix(".json"),
-                           *([albedo_out, *albedo_sidecars(albedo_out)] if albedo_out else [])])
-    started = time.perf_counter()
-    samples = collect_samples(scene, ExtractOptions())
-    traced = time.perf_counter()
-    segmentation, faces = segment_scene(samples, materials)
-    done = time.perf_counter()
-    albedo_written = False
-    try:
-        if albedo_out:  # computed before anything is written: a failure leaves no file
-            from flashbrdf.pipeline.albedo_files import albedo_for_scene, write_albedo
-            albedo, albedo_faces = albedo_for_scene(samples, segmentation.labels, faces)
-            write_albedo(albedo_out, albedo, albedo_faces)
-            albedo_written = True
-        write_labels(args.out, segmentation, faces,
-                     {"seconds": {"samples": round(traced - started, 3),
-                                  "segment": round(done - traced, 3)}})
-    except BaseException:  # the labels failed (or Ctrl-C): the albedo map goes too, all or none
-        for path in [albedo_out, *albedo_sidecars(albedo_out)] if albedo_written else []:
-            Path(path).unlink(missing_ok=True)
-        raise
-    print(f"{segmentation.k} material(s): {Path(args.out).resolve()}")
-    return 0

@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from flashbrdf.files.errors import InputError
-from flashbrdf.pipeline.diligent import dumps_scene
+from flashbrdf.capture.importers.diligent import dumps_scene
 from flashbrdf.files.outputs import staged_output_dir
 from flashbrdf.render.images import write_exr
 
@@ -165,7 +165,7 @@ def planar_card_scenes(src_dir, out_dir, progress=None):
     return views
 
 
-if __name__ == "__main__":  # python -m pipeline.real_scenes SRC_DIR OUT_DIR
+if __name__ == "__main__":  # python benchmarks/planar_scenes.py SRC_DIR OUT_DIR
     import sys
     for view in planar_card_scenes(sys.argv[1], sys.argv[2]):
         print(view)

@@ -1,4 +1,6 @@
-"""The planar-cards writer: exact pixel <-> plane mapping, linearisation, and the real data's orientation."""
+"""Checks of the planar-cards scene writer (benchmarks/planar_scenes.py) that planar_cards.py and
+multi_material.py rely on: exact pixel <-> plane mapping, linearisation, and the real data's
+orientation. Run: `python -m pytest benchmarks/check_planar_scenes.py`."""
 
 import json
 import os
@@ -8,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from flashbrdf.pipeline.real_scenes import plane_point_from_pixel, planar_card_scenes, rectified_plane_camera
+from planar_scenes import plane_point_from_pixel, planar_card_scenes, rectified_plane_camera
 
 SHARED = Path(os.environ.get("FLASHBRDF_SHARED", Path(__file__).resolve().parents[2] / "shared"))
 CARDS = SHARED / "data" / "real" / "flash-planar-cards-blue"

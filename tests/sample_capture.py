@@ -1,7 +1,7 @@
 """Make the synthetic sample capture in sample_data/: a sphere beside a vase, photographed with a
 flash 3 cm off the lens, plus reference photos under two environment maps.
 
-    python -m pipeline.sample_capture --table MATERIAL.binary --out sample_data/capture
+    python tests/sample_capture.py --table MATERIAL.binary --out sample_data/capture
 
 The photos are rendered by flashbrdf's own renderer from a known MERL table (the ground truth),
 through the contract's pixel model. Scene frame (world): metres, +y up, objects on the plane

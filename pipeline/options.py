@@ -1,0 +1,66 @@
+"""Checks of the option values `run`, `batch`, `render` and `segment` share: method names, the
+model file, samples per pixel, the number of materials. Each returns the value to use or raises
+InputError naming the option."""
+
+from pathlib import Path
+
+from flashbrdf.files.errors import InputError
+
+# The model `run` and `batch` use when none is given; beside the package (sample_data/ in the
+# repository, flashbrdf/sample_data/ in a wheel).
+DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "sample_data" / "models" / "merl100_1d2d.npz"
+METHODS_NEEDING_NO_MODEL = ("chandraker",)
+MAX_SPP = 1 << 20  # samples per pixel; 16,384 times the default
+
+
+def method_names(methods):
+    """--methods "a,b" (or a list) as a list of distinct method names, in order; InputError for
+    an unknown name or none."""
+    from flashbrdf.infer import METHODS, make_method
+    text = methods if isinstance(methods, str) else ",".join(methods)
+    names = [m.strip() for m in text.split(",") if m.strip()]
+    usable = [m for m in METHODS if not make_method(m).evaluation_only]
+    unknown = [m for m in names if m not in usable]
+    if not names or unknown:
+        raise InputError("--methods", f"unknown method(s) {', '.join(unknown) or '(none)'}; "
+                                      f"expected some of {', '.join(usable)}")
+    return list(dict.fromkeys(names))
+
+
+def model_path(model, methods):
+    """The model file to read (Path), or None when no method needs one; DEFAULT_MODEL when none
+    is given."""
+    if model is not None:
+        if not Path(model).is_file():
+            raise InputError(model, "no such model file")
+        return Path(model)
+    if all(m in METHODS_NEEDING_NO_MODEL for m in methods):
+        return None  # nothing to read: the default model is 9 MB and takes seconds to load
+    if DEFAULT_MODEL.is_file():
+        return DEFAULT_MODEL
+    raise InputError("--model", f"no model given and the default {DEFAULT_MODEL} is missing "
+                                "(make it with `flashbrdf train`)")
+
+
+def samples_per_pixel(spp):
+    """--spp of `render` and `run`: 64 when None; InputError below 1 (never silently 64) or
+    above MAX_SPP (the sample pattern alone would not fit in memory)."""
+    spp = 64 if spp is None else int(spp)
+    if not 1 <= spp <= MAX_SPP:
+        raise InputError("--spp", f"must be in 1..{MAX_SPP}, got {spp}")
+    return spp
+
+
+def materials_option(text):
+    """--materials: "auto" or an int K in 1..64; InputError otherwise."""
+    text = "auto" if text is None else str(text).strip()
+    if text == "auto":
+        return "auto"
+    try:
+        k = int(text)
+    except ValueError:
+        k = 0
+    if k < 1 or k > 64:
+        raise InputError("--materials", f"expected auto or a number of materials 1..64, got "
+                                        f"{text!r}")
+    return k
