@@ -268,7 +268,8 @@ def part_table1(work, merl_dir, k, materials, k_3d=0):
     """run_evaluation in this process (k experiments, 3D metrics on k_3d of them), in a loop and
     on a 2-worker local cluster."""
     sys.path.insert(0, str(REPO))
-    from flashbrdf.experiments.evaluate import json_leaves, run_evaluation
+    from flashbrdf.experiments.evaluate import run_evaluation
+    from flashbrdf.experiments.table1_files import json_leaves
     from flashbrdf.pipeline.dask_engine import dask_client
     subset = work / "merl"
     subset.mkdir()

@@ -20,16 +20,15 @@ import tracemalloc
 import numpy as np
 
 from flashbrdf.brdf import merl
-from flashbrdf.files.atomic import write_text
-from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.bins import valid_mask_2d
-from flashbrdf.infer import TrainingSet, make_method, method_from_model
-from flashbrdf.infer.training_set import check_distinct
 from flashbrdf.brdf.shadowing import inverse_denominator
+from flashbrdf.experiments.eval3d import RowsView, build_cache, evaluate_3d
+from flashbrdf.experiments.table1_files import mean_performing, write_table1
+from flashbrdf.files.errors import InputError
+from flashbrdf.infer import TrainingSet, make_method, method_from_model
 from flashbrdf.infer.baselines.pca import cosine_weights
 from flashbrdf.infer.model_selection import DS_FIXED, DS_GRID, PCA_GRID, errors_2d, lab_log, select
-from flashbrdf.experiments.eval3d import RowsView, build_cache, evaluate_3d
-from flashbrdf.experiments.table1_report import PAPER_TABLE1, summarise_errors, write_markdown
+from flashbrdf.infer.training_set import check_distinct
 
 PAPER = "dsgplvm-paper"                          # the paper's DS-GPLVM, scored from the same fits
 PAPER_FIXED = {"feature_space": "lab", "anchor": False}
@@ -223,20 +222,7 @@ def experiment_predictor(merl_dir, result, view="2d", seed=0):
     return [data.names[i] for i in test_idx], predict
 
 
-def _mean_performing(records):
-    means = np.array([lab_log(r["errors_2d"]["dsgplvm"]) for r in records])
-    return int(np.argmin(np.abs(means - means.mean())))
-
-
-def _summary(records, key):
-    out = {}
-    for r in records:
-        for name, errs in r.get(key, {}).items():
-            out.setdefault(name, []).extend(errs)
-    return {name: summarise_errors(errs) for name, errs in out.items()}
-
-
-def _warm_up():
+def warm_up():
     """Fill the geometry caches so that timings measure methods, not one-off set-up."""
     valid_mask_2d(), cosine_weights(), inverse_denominator()
 
@@ -247,7 +233,7 @@ def experiment_task(k, split, data, cache_file, quick, with_ablations):
     -> {"record", "costs", "points", "ablations", "seconds"} of this experiment alone, which
     merge_experiment adds in experiment order, giving the sequential loop's numbers."""
     t0 = time.perf_counter()
-    _warm_up()
+    warm_up()
     cache = build_cache(data.paths, cache_file) if cache_file else None  # opens the shared file
     costs, points, ablations = {}, [], {} if with_ablations else None
     record, _ = run_experiment(k, split, data, cache, quick, costs, points, ablations,
@@ -365,7 +351,7 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
     cache file must then be on a filesystem the workers share. experiments: how many (default
     25, or 1 with quick)."""
     start = time.perf_counter()
-    _warm_up()
+    warm_up()
     check_protocol_tables(merl_dir)
     data = TrainingSet.from_merl_dir(merl_dir)
     check_distinct(data.paths, data.tables_2d)
@@ -387,7 +373,7 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
         reserve_3d = per_3d_s * n_3d
 
         def write():
-            _write(out_dir, result, records, costs, points, ablations, len(all_splits))
+            write_table1(out_dir, result, records, costs, points, ablations, len(all_splits))
 
         if client is not None:
             _experiments_on_dask(client, data, all_splits, cache_file if n_3d else None, quick,
@@ -408,7 +394,7 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
             print(f"experiment {k}: {per_exp_s[-1]:.1f} s, dsgplvm LAB-log "
                   f"{lab_log(record['errors_2d']['dsgplvm']):.3f}", flush=True)
             write()
-        best = _mean_performing(records)
+        best = mean_performing(records)
         order = [best] + [i for i in range(len(records)) if i != best]
         done_3d = 0
         if client is not None and n_3d:
@@ -432,7 +418,7 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
                         "every valid bin of every test table."))
         notes.append(f"wall time {time.perf_counter() - start:.0f} s; peak RSS "
                      f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB.")
-        _write(out_dir, result, records, costs, points, ablations, len(all_splits))
+        write_table1(out_dir, result, records, costs, points, ablations, len(all_splits))
     finally:
         if not keep_cache and os.path.exists(cache_file):
             os.remove(cache_file)
@@ -454,48 +440,3 @@ def run_3d(record, split, data, cache, costs, first, stride=1):
                 m.predict(slices[0], "3d")
                 costs[name]["infer_3d_s"] = time.perf_counter() - t0
     record["errors_3d"] = evaluate_3d(cache, train_idx, test_idx, methods, slices, stride=stride)
-
-
-def _write(out_dir, result, records, costs, points, ablations, planned):
-    result["protocol"] = (f"{len(records)} of {planned} planned experiments (5-fold splits of seeded "
-                          "permutations: 60/20/20 % train/validation/test); validation picks "
-                          "dsgplvm q, beta and pca/oracle hyperparameters by 2D LAB-log error.")
-    result["summary"] = {"2d": _summary(records, "errors_2d")}
-    s3 = _summary(records, "errors_3d")
-    if s3:
-        result["summary"]["3d"] = s3
-    mp = _mean_performing(records)
-    result["mean_performing"] = {"experiment": records[mp]["experiment"],
-                                 "summary": {"2d": {m: summarise_errors(e) for m, e in
-                                                    records[mp]["errors_2d"].items()}}}
-    result["costs"] = {m: {"train_s": float(np.mean(c["train_s"])),
-                           "infer_2d_s": float(np.mean(c["infer_2d_s"])),
-                           "infer_3d_s": c["infer_3d_s"], "peak_mb": c["peak_mb"]}
-                       for m, c in costs.items()}
-    result["ablations"] = {k: summarise_errors(v["errors"]) for k, v in ablations.items()
-                           if v.get("errors")}
-    result["ablations_skipped"] = {k: v["skipped"] for k, v in ablations.items() if "skipped" in v}
-    result["hyperparameters"] = [{"experiment": r["experiment"], "chosen": r["chosen"]}
-                                 for r in records]
-    result["runtime_points"] = points
-    result["per_experiment"] = [{"experiment": r["experiment"], "test": r["test"],
-                                 "errors_2d": r["errors_2d"], "errors_3d": r.get("errors_3d")}
-                                for r in records]
-    result["paper_table1"] = PAPER_TABLE1
-    write_text(os.path.join(out_dir, "table1.json"), json.dumps(result, indent=1, default=str) + "\n")
-    write_markdown(os.path.join(out_dir, "table1.md"), result)
-    if points:
-        from flashbrdf.experiments.runtime_plot import write_runtime_plot  # matplotlib: here only
-        write_runtime_plot(os.path.join(out_dir, "error_vs_runtime.png"), points)
-
-
-def json_leaves(value, path=""):
-    """{"/key/0/...": leaf} of a nested JSON value: compares two runs' numbers path by path
-    (the loop against Dask in tests/test_evaluate_dask.py and benchmarks/batch_speed.py)."""
-    if isinstance(value, dict):
-        return {k: v for key, item in value.items()
-                for k, v in json_leaves(item, f"{path}/{key}").items()}
-    if isinstance(value, list):
-        return {k: v for i, item in enumerate(value)
-                for k, v in json_leaves(item, f"{path}/{i}").items()}
-    return {path: value}

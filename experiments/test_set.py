@@ -27,7 +27,7 @@ import numpy as np
 from flashbrdf.brdf import merl, metrics
 from flashbrdf.files.atomic import write_text
 from flashbrdf.infer import METHODS, TrainingSet, make_method
-from flashbrdf.experiments.evaluate import PAPER, _warm_up, build_method
+from flashbrdf.experiments.evaluate import PAPER, warm_up, build_method
 from flashbrdf.infer.model_file import load_methods
 from flashbrdf.infer.model_selection import check_training_size
 from flashbrdf.experiments.table1_report import summarise_errors
@@ -116,7 +116,7 @@ def score_methods(train, test, methods=None, seed=0, feature_space="auto"):
     unknown = [n for n in names if n not in default_methods()]
     if unknown:
         raise ValueError(f"unknown method {unknown[0]!r}; expected some of {default_methods()}")
-    _warm_up()   # geometry caches, so that the first prediction's time is a prediction's
+    warm_up()   # geometry caches, so that the first prediction's time is a prediction's
     from_file = [n for n in names if n not in BESIDE_MODEL]
     fitted, fit_s, record = {}, {}, {"materials": list(train.names)}
     if from_file:

@@ -18,7 +18,7 @@ import pytest
 from distributed import Client, LocalCluster
 
 from flashbrdf.experiments import evaluate
-from flashbrdf.experiments.evaluate import json_leaves
+from flashbrdf.experiments.table1_files import json_leaves
 from test_infer_cli import QUICK
 
 
