@@ -35,24 +35,16 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   srgb_to_linear(values) -> linear
 """
 
-from flashbrdf.files.errors import InputError
 from flashbrdf.capture.camera import (camera_rays, embree_rays, pixel_box, pixel_rays, project_points,
                             view_directions)
-from flashbrdf.capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex, load_mesh,
-                              occluded, surface_at_pixels, surface_from_mesh)
+from flashbrdf.capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex,
+                                        load_mesh, occluded, scene_intersector,
+                                        surface_at_pixels, surface_from_mesh)
 from flashbrdf.capture.normal_map import load_normal_map, surface_from_normal_map
 from flashbrdf.capture.load import (FlashImage, load_flash_images, load_photo_entry,
                                     load_reference_entry, photo_exists)
 from flashbrdf.capture.photo import load_brackets, load_photo, read_float_image, srgb_to_linear
 from flashbrdf.capture.scene import Camera, Geometry, Light, Photo, Scene, load_scene
-
-
-def scene_intersector(scene):
-    """MeshIntersector for scene.geometry.mesh (InputError if the scene uses a normal map)."""
-    if scene.geometry.mesh is None:
-        raise InputError(f"{scene.json_path}: geometry", "has no mesh (it is a normal map)")
-    mesh, has_normals = load_mesh(scene.geometry.mesh)
-    return MeshIntersector(mesh, use_vertex_normals=has_normals)
 
 
 __all__ = [

@@ -199,12 +199,19 @@ class MeshIntersector:
         return is_convex(self.mesh)
 
 
+def scene_intersector(scene):
+    """MeshIntersector for scene.geometry.mesh (InputError if the scene uses a normal map)."""
+    if scene.geometry.mesh is None:
+        raise InputError(f"{scene.json_path}: geometry", "has no mesh (it is a normal map)")
+    mesh, has_normals = load_mesh(scene.geometry.mesh)
+    return MeshIntersector(mesh, use_vertex_normals=has_normals)
+
+
 def _as_intersector(target):
     """MeshIntersector from a MeshIntersector, a trimesh.Trimesh or a capture.Scene."""
     if isinstance(target, MeshIntersector):
         return target
     if isinstance(target, Scene):
-        from flashbrdf.capture import scene_intersector  # capture/__init__ imports this module
         return scene_intersector(target)
     return MeshIntersector(target)
 

@@ -15,9 +15,6 @@ Subpackages (each a folder of the repository, installed under this one import na
 Importing this package imports no stage: `flashbrdf --help` stays fast.
 """
 
-from importlib.metadata import PackageNotFoundError, version
-
-try:
-    __version__ = version("flashbrdf")
-except PackageNotFoundError:  # a source tree that was never installed
-    __version__ = "0+unknown"
+# The one place the version is set (pyproject.toml reads it): importlib.metadata would cost
+# `flashbrdf --help` a sixth of a second.
+__version__ = "0.1.0"

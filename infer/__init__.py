@@ -13,37 +13,10 @@ from flashbrdf.infer.estimator import InferenceMethod
 from flashbrdf.infer.training_set import TrainingSet
 from flashbrdf.infer.model_file import load_method, read_model, save_model
 from flashbrdf.infer.relative import RelativeDSGPLVMMethod
+from flashbrdf.infer.methods import METHODS, dsgplvm_method, make_method, method_from_model
 from flashbrdf.infer.novelty import novelty_warning
 
 
-def dsgplvm_method(representation="absolute", **params):
-    """The DS-GPLVM estimator for a representation: "absolute" (the default: whole-table features as
-    in the paper; infer.adapter) or "relative" (per-channel log-ratio to the observed row,
-    infer.relative; measured in benchmarks/generalisation.py, not yet the default)."""
-    if representation == "relative":
-        return RelativeDSGPLVMMethod(**params)
-    if representation == "absolute":
-        return DSGPLVMMethod(**params)
-    raise ValueError(f"unknown DS-GPLVM representation {representation!r}")
-
-
-METHODS = {"dsgplvm": dsgplvm_method, "pca": PCA, "noll": Noll, "chandraker": Chandraker,
-           "ashikhmin": Ashikhmin, "oracle": Oracle}
-
-
-def make_method(name, **params):
-    """A new (unfitted) method by name, with its hyperparameters; ValueError for unknown names."""
-    if name not in METHODS:
-        raise ValueError(f"unknown method {name!r}; expected one of {sorted(METHODS)}")
-    return METHODS[name](**params)
-
-
-def method_from_model(name, model, training, **params):
-    """A fitted method `name` around a DSGPLVM `model` trained before on `training` (TrainingSet),
-    e.g. read from MODEL.npz or reused across prediction-time switches: loading, not fitting."""
-    return type(make_method(name, **params)).from_model(model, training, **params)
-
-
-__all__ = ["METHODS", "make_method", "method_from_model", "novelty_warning", "InferenceMethod", "TrainingSet", "DSGPLVMMethod",
+__all__ = ["METHODS", "dsgplvm_method", "make_method", "method_from_model", "novelty_warning", "InferenceMethod", "TrainingSet", "DSGPLVMMethod",
            "RelativeDSGPLVMMethod", "PCA",
            "Ashikhmin", "Chandraker", "Noll", "Oracle", "save_model", "read_model", "load_method"]

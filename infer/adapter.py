@@ -11,18 +11,27 @@ a 3D view uses its 2D view's weights (the GP posterior mean is linear in the tra
 from contextlib import nullcontext
 
 import numpy as np
-from scipy.optimize import minimize
 
 from flashbrdf.brdf import colour
-from flashbrdf.infer.dsgplvm import DSGPLVM
-from flashbrdf.infer.gp import loo_bin_variance
 from flashbrdf.brdf.bins import scatter_valid, valid_flat_3d, valid_mask_2d
 from flashbrdf.brdf.merl import N_THETA_D, N_THETA_H
-from flashbrdf.infer.blas import one_blas_thread
 from flashbrdf.infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
-from flashbrdf.infer.estimator import InferenceMethod, LinearSpace, clip_to_range, stream_combination
+from flashbrdf.infer.blas import one_blas_thread
+from flashbrdf.infer.dsgplvm import DSGPLVM
+from flashbrdf.infer.estimator import (
+    InferenceMethod,
+    LinearSpace,
+    clip_to_range,
+    stream_combination,
+)
+from flashbrdf.infer.gp import loo_bin_variance
 from flashbrdf.infer.row_blend import ROW_BLEND_DEG, RowBlendSpace, blend_toward_row
-from flashbrdf.infer.slice_fit import SLICE_FIT_WEIGHT, convex_slice_weights, mixed_weights, slice_fit_share
+from flashbrdf.infer.slice_fit import (
+    SLICE_FIT_WEIGHT,
+    convex_slice_weights,
+    mixed_weights,
+    slice_fit_share,
+)
 from flashbrdf.infer.slices import check_slice
 from flashbrdf.infer.uncertainty import mixture_spread, weights_disagreement
 
@@ -98,7 +107,7 @@ class DSGPLVMMethod(InferenceMethod):
         return ("CIELAB" if self.feature_space == "lab" else "RGB") + " of ln(1 + rho/1e-3)"
 
     def get_params(self, deep=True):
-        """BaseEstimator's, plus the keyword arguments that go to DSGPLVM."""
+        """InferenceMethod's, plus the keyword arguments that go to DSGPLVM."""
         return {**super().get_params(deep), **self.model_kw}
 
     def view_features(self, training, features_2d=None):
@@ -123,10 +132,11 @@ class DSGPLVMMethod(InferenceMethod):
         return self._use_model(model, training, feats)
 
     @classmethod
-    def from_model(cls, model, training, **params):
+    def from_model(cls, model, training, features_2d=None, **params):
         """A fitted estimator around a DSGPLVM trained before (e.g. read from MODEL.npz) on
-        `training` (TrainingSet): loading, not fitting. params: the constructor's arguments."""
-        return cls(**params)._use_model(model, training)
+        `training` (TrainingSet): loading, not fitting. params: the constructor's arguments;
+        features_2d: table_features of the training tables, if at hand."""
+        return cls(**params)._use_model(model, training, features_2d)
 
     def _use_model(self, model, training, feats=None):
         """Set the fitted state from a trained DSGPLVM and its training set; returns self."""
@@ -296,5 +306,6 @@ def optimise_latent(model, feats, n_starts=5):
 
     d2 = ((np.nan_to_num(data) - y[ok]) ** 2).sum(1)
     starts = [model.project(feats)[0]] + [model.latent_[i] for i in np.argsort(d2)[:n_starts - 1]]
+    from scipy.optimize import minimize  # here: the default latent="backprojection" never calls it
     best = min((minimize(nll, x0, method="L-BFGS-B") for x0 in starts), key=lambda r: r.fun)
     return best.x[None]

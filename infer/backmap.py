@@ -5,7 +5,7 @@ k_bc(y_i, y_m) = exp(-γ/2 |y_i − y_m|²);  A = (K_bc + λ/μ I)⁻¹ (X + Λ/
 """
 
 import numpy as np
-from scipy import linalg, optimize
+from scipy import linalg
 
 from .gp import robust_cholesky
 
@@ -97,6 +97,7 @@ def fit_loo(d2, latent, multipliers, mu, gamma0, lam0, eig_cache=None):
     eig_cache: a dict kept by the caller for one d2 across calls (the ADM cycles): the grid's
     eigendecompositions depend on d2 alone, so they are computed once (same results).
     """
+    from scipy import optimize  # fitting only: prediction skips its import
     t = np.mean(d2[~np.eye(len(d2), dtype=bool)]) if len(d2) > 1 else 1.0
     log_gamma_ref = np.log(2.0 / t) if t > 0 else 0.0
     g_lo, g_hi = log_gamma_ref + LOG_GAMMA_SPAN[0], log_gamma_ref + LOG_GAMMA_SPAN[1]

@@ -11,7 +11,6 @@ import logging
 import time
 
 import numpy as np
-from scipy import optimize
 
 from . import adm
 from .blas import one_blas_thread
@@ -144,6 +143,7 @@ class DSGPLVM:
         history = [previous]
         info = [{"cycle": -1, "objective": previous, "L_s": ls_value, "max_ibp": resid, "mu": mu,
                  "step1_iters": 0, "gamma": list(gammas), "lambda": list(lams)}]
+        from scipy import optimize  # fitting only: prediction (`flashbrdf infer`) skips its import
         for cycle in range(self.max_cycles):
             # Step 1: X, θ by L-BFGS on Eq. 13
             kbcs = [backmap_kernel(d2s[v], gammas[v]) for v in range(len(names))]

@@ -8,10 +8,10 @@ where MERL's layout has no data (below the horizon).
 """
 
 import functools
+import inspect
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
-from sklearn.base import BaseEstimator
 
 from flashbrdf.brdf.bins import scatter_valid, valid_flat_3d
 from flashbrdf.files.errors import InputError
@@ -19,7 +19,7 @@ from flashbrdf.infer.slices import check_slice
 from flashbrdf.infer.training_set import default_threads
 
 
-class InferenceMethod(BaseEstimator):
+class InferenceMethod:
     """Base of every method: fit(training) then predict(flash_slice, view) -> (table, variance).
 
     table: (90, 90, 3) for view "2d", (90, 90, 180, 3) for "3d", 1/sr, NaN where MERL has no data.
@@ -27,10 +27,11 @@ class InferenceMethod(BaseEstimator):
     Methods whose 3D prediction is a weighted sum of training tables in some mapped space implement
     `combination(flash_slice)` -> (weights (N,), LinearSpace); the 3D table is then streamed.
 
-    The scikit-learn contract: __init__ only stores its arguments (get_params/clone/set_params
-    come from BaseEstimator), fit sets attributes ending in "_" and returns self, and never changes
-    a constructor argument. Optional abilities are declared here, so callers ask for them instead
-    of testing names:
+    The scikit-learn contract: __init__ only stores its arguments (get_params/set_params read and
+    write them, as sklearn.base.BaseEstimator's do; importing sklearn would cost `flashbrdf infer`
+    half a second, scipy.stats with it), fit sets attributes ending in "_" and returns self, and
+    never changes a constructor argument. Optional abilities are declared here, so callers ask for
+    them instead of testing names:
     - evaluation_only: the method predicts from the true table (predict_truth), not from a slice;
     - closed_form_3d: predict_valid_3d(rho, sel) gives 3D bins directly, without training tables;
     - has_uncertainty: predict returns a per-bin variance (bin_variance).
@@ -39,6 +40,31 @@ class InferenceMethod(BaseEstimator):
     evaluation_only = False
     closed_form_3d = False
     has_uncertainty = False
+
+    @classmethod
+    def _param_names(cls):
+        """The constructor's named arguments, sorted (its **kwargs are not among them)."""
+        parameters = inspect.signature(cls.__init__).parameters.values()
+        return sorted(p.name for p in parameters if p.name != "self"
+                      and p.kind not in (p.VAR_POSITIONAL, p.VAR_KEYWORD))
+
+    def get_params(self, deep=True):
+        """{constructor argument: its value} (deep: accepted for scikit-learn's signature)."""
+        return {name: getattr(self, name) for name in self._param_names()}
+
+    def set_params(self, **params):
+        """Set constructor arguments by name (ValueError for any other name); returns self."""
+        valid = self.get_params()
+        for key, value in params.items():
+            if key not in valid:
+                raise ValueError(f"invalid parameter {key!r} for {type(self).__name__}; valid: "
+                                 f"{sorted(valid)}")
+            setattr(self, key, value)
+            valid[key] = value
+        return self
+
+    def __repr__(self):
+        return f"{type(self).__name__}({', '.join(f'{k}={v!r}' for k, v in self.get_params().items())})"
 
     def fit(self, training):
         raise NotImplementedError

@@ -18,6 +18,7 @@ from flashbrdf.files.atomic import atomic_path
 from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.infer.adapter import table_features
 from flashbrdf.infer.dsgplvm import DSGPLVM
+from flashbrdf.infer.methods import make_method, method_from_model
 from flashbrdf.infer.training_set import TrainingSet
 from flashbrdf.infer.viewdata import restore_rows
 
@@ -133,21 +134,19 @@ def read_model(path, merl_dir=None):
     return training, params, blob
 
 
-def load_dsgplvm(blob, training=None, feature_space="lab"):
-    """The DSGPLVM in `blob`; views stored without training rows get them back from `training`."""
+def load_dsgplvm(blob, training=None, feature_space="lab", features_2d=None):
+    """The DSGPLVM in `blob`; views stored without training rows get them back from `training`
+    (its 2D tables' features: features_2d when the caller has them, infer.adapter.table_features)."""
     with tempfile.TemporaryDirectory() as folder:
         path = os.path.join(folder, "dsgplvm.npz")
         with open(path, "wb") as f:
             f.write(blob)
         model = DSGPLVM.load(path)
     if training is not None and model.view_data_["2d"].data is None:
-        _restore_2d_rows(model, training, feature_space)
+        if features_2d is None:
+            features_2d = table_features(training.tables_2d, feature_space)
+        restore_rows(model, "2d", features_2d)
     return model
-
-
-def _restore_2d_rows(model, training, feature_space):
-    """Rebuild the 2D view's training rows from the stored tables (infer.viewdata.restore_rows)."""
-    restore_rows(model, "2d", table_features(training.tables_2d, feature_space))
 
 
 def load_method(path, name, merl_dir=None, **overrides):
@@ -160,7 +159,6 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
     """{name: fitted method} for several methods from one read of MODEL.npz (a model with a 3D
     view holds GBs of rows: read once, shared). overrides: {name: {hyperparameter: value}}.
     fit_seconds: a dict that receives each method's load-and-fit wall time, if given."""
-    from flashbrdf.infer import make_method, method_from_model  # infer/__init__ imports this module
     training, params, blob = read_model(path, merl_dir)
     methods = {}
     for name in names:
@@ -179,14 +177,19 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
                 raise InputError(path, "model holds no DS-GPLVM")
             # models written before the relative representation store none: they are absolute
             kw.setdefault("representation", "absolute")
+            absolute = kw["representation"] == "absolute"
+            # the 2D tables' features, computed once: the rows the model is restored from and
+            # the ranges the method clips to (a third of the load's time)
+            features = (table_features(training.tables_2d, kw.get("feature_space", "lab"))
+                        if absolute else None)
             try:
-                model = load_dsgplvm(
-                    blob, training if kw["representation"] == "absolute" else None,
-                    kw.get("feature_space", "lab"))
+                model = load_dsgplvm(blob, training if absolute else None,
+                                     kw.get("feature_space", "lab"), features)
             except DECODE_ERRORS as err:
                 raise InputError(path, f"cannot read the DS-GPLVM stored in the model "
                                        f"({type(err).__name__}: {err})") from None
-            methods[name] = method_from_model(name, model, training, **kw)
+            extra = {"features_2d": features} if absolute else {}
+            methods[name] = method_from_model(name, model, training, **extra, **kw)
         else:
             methods[name] = make_method(name, **kw).fit(training)
         if fit_seconds is not None:

@@ -123,7 +123,7 @@ class RelativeDSGPLVMMethod(InferenceMethod):
         self.seed, self.calibration, self.model_kw = seed, calibration, model_kw
 
     def get_params(self, deep=True):
-        """BaseEstimator's, plus the keyword arguments that go to DSGPLVM."""
+        """InferenceMethod's, plus the keyword arguments that go to DSGPLVM."""
         return {**super().get_params(deep), **self.model_kw}
 
     def fit(self, training, labels=None):

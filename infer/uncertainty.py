@@ -21,8 +21,9 @@ the intervals hold 90% of the bins with 90% confidence over the held-out sample,
 90/90 tolerance interval, and a lucky split does not make every later interval overconfident.
 """
 
+from statistics import NormalDist
+
 import numpy as np
-from scipy.stats import norm
 
 from flashbrdf.brdf import colour
 
@@ -74,7 +75,7 @@ def quantile_factor(z_per_material, coverage=0.9):
     z = np.concatenate(z_per_material) if len(z_per_material) else np.empty(0)
     if not z.size:
         return 1.0
-    return float((np.quantile(z, coverage) / norm.ppf(0.5 + coverage / 2)) ** 2)
+    return float((np.quantile(z, coverage) / NormalDist().inv_cdf(0.5 + coverage / 2)) ** 2)
 
 
 def calibration_factor(method, slices, tables_2d, coverage=0.9, seed=0):

@@ -101,8 +101,11 @@ def restore_rows(model, view, rows):
     if not np.array_equal(rebuilt.keep, stored.keep) or \
             not np.isclose(rebuilt.scale, stored.scale, rtol=1e-4):
         raise InputError("model", f"the stored tables do not match the trained DS-GPLVM ({view})")
-    data = rebuilt.data * (rebuilt.scale / stored.scale)
-    if not np.allclose(data @ data.T, stored.gram, rtol=1e-3, atol=1e-3 * np.abs(stored.gram).max()):
+    ratio = rebuilt.scale / stored.scale
+    data = rebuilt.data * ratio
+    # the Gram of `data` is the rebuilt one rescaled: no second (N x D) @ (D x N) product
+    if not np.allclose(rebuilt.gram * ratio ** 2, stored.gram, rtol=1e-3,
+                       atol=1e-3 * np.abs(stored.gram).max()):
         raise InputError("model", f"the stored tables do not match the trained DS-GPLVM's Gram "
                                   f"({view})")
     model.view_data_[view] = ViewData(keep=stored.keep, mean=rebuilt.mean, scale=stored.scale,

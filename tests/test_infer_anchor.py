@@ -62,3 +62,16 @@ def test_past_the_observed_range_the_correction_is_held_or_faded(monkeypatch):
     # d bins past the last observed one: ln 2 exp(-d^2 / 18); at d = 3, exp(-1/2)
     assert np.isclose(faded[42, 0], np.log(2.0) * np.exp(-0.5))
     assert np.all(np.abs(faded[55:]) < 1e-6)
+
+
+@pytest.mark.parametrize("sigma", [0.5, 2.0, 3.7, 10.0])
+@pytest.mark.parametrize("rows", [1, 5, 90])
+def test_smoothing_is_scipys_gaussian_filter_to_the_bit(sigma, rows):
+    """anchoring's own Gaussian (no scipy.ndimage import at predict time) gives exactly
+    gaussian_filter1d(mode="nearest"): same kernel, same order of the sums."""
+    from scipy.ndimage import gaussian_filter1d
+
+    from flashbrdf.infer.anchoring import gaussian_smooth_rows
+    values = np.random.default_rng(rows).normal(size=(rows, 3)) * 37.0
+    assert np.array_equal(gaussian_smooth_rows(values, sigma),
+                          gaussian_filter1d(values, sigma, axis=0, mode="nearest"))
