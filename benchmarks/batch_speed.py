@@ -14,10 +14,10 @@ rewritten from the JSON):
             `--workers 2`; the ratio of wall times and the largest difference in any number.
 The machine's load average is recorded before and after each measurement: it is shared.
 
-    nice -n 10 python benchmarks/batch_speed.py --part batch --captures 8
-    nice -n 10 python benchmarks/batch_speed.py --part overhead --repeats 3
-    nice -n 10 python benchmarks/batch_speed.py --part cluster --captures 8
-    nice -n 10 python benchmarks/batch_speed.py --part table1 --merl-dir /work/data/merl \
+    nice -n 10 python -m benchmarks.batch_speed --part batch --captures 8
+    nice -n 10 python -m benchmarks.batch_speed --part overhead --repeats 3
+    nice -n 10 python -m benchmarks.batch_speed --part cluster --captures 8
+    nice -n 10 python -m benchmarks.batch_speed --part table1 --merl-dir /work/data/merl \
         --experiments 4 --materials 40
 """
 
@@ -39,7 +39,7 @@ REPO = Path(__file__).resolve().parents[1]
 RESULTS = REPO / "benchmarks" / "results"
 SAMPLE = REPO / "sample_data" / "capture"
 SHARED = Path(os.environ.get("FLASHBRDF_SHARED", REPO.parent / "shared"))
-FLASHBRDF = [sys.executable, "-m", "pipeline"]
+FLASHBRDF = [sys.executable, "-m", "flashbrdf"]
 
 
 def _load():
@@ -255,7 +255,7 @@ def write_cluster_plot(c, path):
     ax.set_ylabel("speed-up against 1 worker")
     ax.set_title(f"flashbrdf batch, {c['captures']} captures of the sample's size", fontsize=10)
     ax.legend(fontsize=8, loc="upper left")
-    fig.text(0.01, 0.01, "nice -n 10 python benchmarks/batch_speed.py --part cluster", fontsize=6,
+    fig.text(0.01, 0.01, "nice -n 10 python -m benchmarks.batch_speed --part cluster", fontsize=6,
              color="grey")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -267,7 +267,6 @@ def write_cluster_plot(c, path):
 def part_table1(work, merl_dir, k, materials, k_3d=0):
     """run_evaluation in this process (k experiments, 3D metrics on k_3d of them), in a loop and
     on a 2-worker local cluster."""
-    sys.path.insert(0, str(REPO))
     from flashbrdf.experiments.evaluate import run_evaluation
     from flashbrdf.experiments.table1_files import json_leaves
     from flashbrdf.pipeline.dask_engine import dask_client
@@ -418,7 +417,7 @@ def main(argv=None):
                                            args.experiments_3d)
     if args.part != "report":
         result.setdefault("commands", {})[args.part] = (
-            "nice -n 10 python benchmarks/batch_speed.py " + " ".join(argv or sys.argv[1:]))
+            "nice -n 10 python -m benchmarks.batch_speed " + " ".join(argv or sys.argv[1:]))
     if "cluster" in result:
         profile_path = RESULTS / "run_profile.json"
         profile = json.loads(profile_path.read_text()) if profile_path.exists() else None

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from planar_scenes import plane_point_from_pixel, planar_card_scenes, rectified_plane_camera
+from benchmarks.planar_scenes import plane_point_from_pixel, planar_card_scenes, rectified_plane_camera
 
 SHARED = Path(os.environ.get("FLASHBRDF_SHARED", Path(__file__).resolve().parents[2] / "shared"))
 CARDS = SHARED / "data" / "real" / "flash-planar-cards-blue"

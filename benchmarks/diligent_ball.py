@@ -1,6 +1,6 @@
 """Real-photo validation on DiLiGenT's ball: infer from one near-axis light, predict 95 others.
 
-    PYTHONPATH=$PWD python benchmarks/diligent_ball.py [--flash 52] [--model MODEL.npz]
+    python -m benchmarks.diligent_ball.py [--flash 52] [--model MODEL.npz]
         [--merl-dir /work/merl] [--methods dsgplvm,pca,noll,chandraker,ashikhmin] [--work DIR]
 
 Steps (all through the contract's command line): import-diligent (image --flash as the flash),
@@ -17,8 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._real_common import (RESULTS, argument_parser, direct_extract,  # noqa: E402
+from benchmarks._real_common import (RESULTS, argument_parser, direct_extract,
                                      direct_render, infer_all, resolve_model, run_cli,
                                      theta_h_deg, write_json)
 
@@ -115,7 +114,7 @@ def main(argv=None):
     model = resolve_model(args.model, args.merl_dir, work, log)
     brdfs = infer_all(work / "slice.csv", work, args.methods.split(","), model, args.merl_dir, log)
     stages["infer"] = time.perf_counter() - start
-    result = {"command": "python benchmarks/diligent_ball.py " + " ".join(argv or sys.argv[1:]),
+    result = {"command": "python -m benchmarks.diligent_ball " + " ".join(argv or sys.argv[1:]),
               "flash_photo": f"{args.flash:03d}", "extractor": extractor,
               "model": None if model is None else str(model),
               "slice_bins_observed": int((observed["n"] > 0).sum()),

@@ -1,6 +1,6 @@
 """Synthetic DiLiGenT-format objects: non-convex shapes with a known BRDF, cast shadows, clipping.
 
-    PYTHONPATH=$PWD python benchmarks/diligent_synth.py --out DIR [--cases dent_diffuse,...]
+    python -m benchmarks.diligent_synth.py --out DIR [--cases dent_diffuse,...]
         [--lights /work/shared/data/real/diligent-ball] [--width 612 --height 512] [--list]
 
 Each case is written as DIR/<case>/ exactly as DiLiGenT ships an object: 001.png ... 096.png
@@ -24,9 +24,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests"))
-from synthetic import ggx_lambert, torus_mesh, true_slice  # noqa: E402
+from tests.synthetic import ggx_lambert, torus_mesh, true_slice
 
 BALL = Path("/work/shared/data/real/diligent-ball")
 CAMERA_Z = 5000.0

@@ -1,6 +1,6 @@
 """Run the contract on synthetic DiLiGenT objects (benchmarks/diligent_synth.py) and tabulate.
 
-    PYTHONPATH=$PWD python benchmarks/diligent_synth_check.py --synth DIR --work WORK
+    python -m benchmarks.diligent_synth_check.py --synth DIR --work WORK
         [--cases a,b] [--flash 52] [--extra segment,extract,render]
 
 Per case: `flashbrdf import-diligent CASE --flash 52 --out WORK/CASE/scene`, then
@@ -36,9 +36,8 @@ def _listing(folder):
 
 
 def _timed(args, log):
-    cmd = ["/usr/bin/time", "-v", "nice", "-n", "10", PY, "-m", "pipeline", *map(str, args)]
-    env = dict(os.environ, PYTHONPATH=os.fspath(ROOT))
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    cmd = ["/usr/bin/time", "-v", "nice", "-n", "10", PY, "-m", "flashbrdf", *map(str, args)]
+    proc = subprocess.run(cmd, capture_output=True, text=True)
     Path(log).write_text(proc.stdout + "\n----- stderr -----\n" + proc.stderr)
     wall = re.search(r"Elapsed \(wall clock\) time.*: (?:(\d+):)?(\d+):([\d.]+)", proc.stderr)
     seconds = (int(wall.group(1) or 0) * 3600 + int(wall.group(2)) * 60 + float(wall.group(3))) \
@@ -133,7 +132,6 @@ def main(argv=None):
     parser.add_argument("--results", action="store_true",
                         help="also write benchmarks/results/diligent_synth.{json,md}")
     args = parser.parse_args(argv)
-    sys.path.insert(0, os.fspath(ROOT))
     cases = sorted(p.name for p in args.synth.iterdir() if (p / "truth.json").is_file()) \
         if args.cases == "all" else args.cases.split(",")
     extra = [e for e in args.extra.split(",") if e]
@@ -160,10 +158,10 @@ def write_results(summary, command):
     """benchmarks/results/diligent_synth.{json,md}: one row per case of the summary."""
     results = ROOT / "benchmarks" / "results"
     (results / "diligent_synth.json").write_text(json.dumps(
-        {"command": "PYTHONPATH=$PWD python benchmarks/diligent_synth_check.py " + command,
+        {"command": "python -m benchmarks.diligent_synth_check.py " + command,
          "cases": summary}, indent=1) + "\n")
     lines = ["# The contract on synthetic DiLiGenT-format objects", "",
-             f"Command: `PYTHONPATH=$PWD python benchmarks/diligent_synth_check.py {command}` "
+             f"Command: `python -m benchmarks.diligent_synth_check.py {command}` "
              "(objects from `benchmarks/diligent_synth.py`: 612×512, the ball's 96 lights, a known "
              "BRDF, cast shadows). Per case: `import-diligent --flash 52`, then `run` with the "
              "default method. slice error: median relative error of the extracted slice against "

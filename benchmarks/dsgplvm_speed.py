@@ -5,7 +5,7 @@ prediction, record Eq. 12 per ADM cycle, and the LAB-log error (brdf.metrics.brd
 prediction of the 20 test materials from their flash slices, beside predicting the training mean and
 the pca baseline (infer.baselines.PCA) for context. Settings: the defaults, and the paper as written.
 
-    python benchmarks/dsgplvm_speed.py --merl-dir /work/merl [--splits 3] \
+    python -m benchmarks.dsgplvm_speed --merl-dir /work/merl [--splits 3] \
         [--out benchmarks/results/dsgplvm_speed.json]
 """
 
@@ -18,13 +18,12 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from flashbrdf.brdf import colour, metrics  # noqa: E402
-from flashbrdf.files.atomic import write_text  # noqa: E402
-from flashbrdf.infer.baselines import PCA  # noqa: E402
-from flashbrdf.infer.training_set import TrainingSet  # noqa: E402
-from flashbrdf.infer.dsgplvm import DSGPLVM  # noqa: E402
+from flashbrdf.brdf import colour, metrics
+from flashbrdf.files.atomic import write_text
+from flashbrdf.infer.baselines import PCA
+from flashbrdf.infer.training_set import TrainingSet
+from flashbrdf.infer.dsgplvm import DSGPLVM
 
 SETTINGS = {
     "default": {},
@@ -98,7 +97,7 @@ def main(argv=None):
     load_s = time.perf_counter() - t0
     results = [run_split(data, seed) for seed in range(args.splits)]
     report = {
-        "command": "python benchmarks/dsgplvm_speed.py --merl-dir " + args.merl_dir
+        "command": "python -m benchmarks.dsgplvm_speed --merl-dir " + args.merl_dir
                    + f" --splits {args.splits}",
         "machine": {"cpus": os.cpu_count()},
         "materials": len(data), "load_all_tables_s": load_s,

@@ -1,7 +1,7 @@
 """Error against run time, one point per method and setting, labels that never overlap:
 benchmarks/results/error_vs_runtime.png (reads JSON only, runs in a second).
 
-    python benchmarks/error_vs_runtime.py [--table1 benchmarks/results/table1.json]
+    python -m benchmarks.error_vs_runtime [--table1 benchmarks/results/table1.json]
         [--ood benchmarks/results/generalisation.json] [--out benchmarks/results/error_vs_runtime.png]
 
 - Panel 1, MERL (NBRDF proxy): Table 1's run-time points (table1.json "runtime_points": every method
@@ -23,9 +23,8 @@ import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from flashbrdf.experiments.runtime_plot import grid_points, make_figure, write_figure  # noqa: E402
+from flashbrdf.experiments.runtime_plot import grid_points, make_figure, write_figure
 
 RESULTS = ROOT / "benchmarks" / "results"
 
@@ -63,7 +62,7 @@ def main(argv=None):
         note = (f"OOD panel skipped: {os.path.relpath(args.ood, ROOT)} is absent (the "
                 "generalisation benchmark writes it).")
     fig = make_figure(merl_points, dataset, ood, args.ood_label,
-                      "python benchmarks/error_vs_runtime.py. " + note)
+                      "python -m benchmarks.error_vs_runtime. " + note)
     panels = len(fig.axes)
     write_figure(args.out, fig)
     print(f"{args.out} ({panels} panel(s)); {note}")

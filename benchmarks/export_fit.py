@@ -11,16 +11,15 @@ the JSON files present):
 - measured: the fit on every MERL (NBRDF proxy) and RGL (NBRDF proxy) table: 2D LAB-log error,
             fit seconds, and (for --render-every k-th material) the sphere Delta E under pisa.
 
-    nice -n 10 python benchmarks/export_fit.py --part plugin --spp 1024 --size 128
-    nice -n 10 python benchmarks/export_fit.py --part recovery
-    nice -n 10 python benchmarks/export_fit.py --part measured --merl-dir /work/data/merl \
+    nice -n 10 python -m benchmarks.export_fit --part plugin --spp 1024 --size 128
+    nice -n 10 python -m benchmarks.export_fit --part recovery
+    nice -n 10 python -m benchmarks.export_fit --part measured --merl-dir /work/data/merl \
         --rgl-dir /work/data/rgl
 """
 
 import argparse
 import json
 import os
-import sys
 import time
 from pathlib import Path
 
@@ -30,15 +29,14 @@ ROOT = Path(__file__).resolve().parents[1]
 # the paper's pisa probe (research use only: read from ../shared, never shipped)
 PISA = (Path(os.environ.get("FLASHBRDF_SHARED", ROOT.parent / "shared")) / "data" / "envmaps"
         / "pisa_latlong_256x128.hdr")
-sys.path.insert(0, str(ROOT))
 
-from flashbrdf.files.atomic import write_text  # noqa: E402
-from flashbrdf.brdf.merl import list_merl, read_merl  # noqa: E402
-from flashbrdf.brdf.metrics import brdf_error  # noqa: E402
-from flashbrdf.brdf.models.principled import tabulate_principled  # noqa: E402
-from flashbrdf.brdf.models.principled_fit import fit_principled  # noqa: E402
-from flashbrdf.brdf.views import table_2d  # noqa: E402
-from flashbrdf.render.export import fit_quality  # noqa: E402
+from flashbrdf.files.atomic import write_text
+from flashbrdf.brdf.merl import list_merl, read_merl
+from flashbrdf.brdf.metrics import brdf_error
+from flashbrdf.brdf.models.principled import tabulate_principled
+from flashbrdf.brdf.models.principled_fit import fit_principled
+from flashbrdf.brdf.views import table_2d
+from flashbrdf.render.export import fit_quality
 
 RESULTS = ROOT / "benchmarks" / "results"
 KNOWN = {
@@ -123,7 +121,7 @@ def part_plugin(args):
         rows.append(row)
         np.save(RESULTS / f"export_plugin_{name}.npy",
                 np.stack([images["mitsuba"][0], images["ours"][0]]).astype(np.float16))
-    return {"command": "nice -n 10 python benchmarks/export_fit.py --part plugin "
+    return {"command": "nice -n 10 python -m benchmarks.export_fit --part plugin "
                        f"--spp {args.spp} --size {args.size} --plugin-materials "
                        f"{args.plugin_materials}", "envmap": str(pisa), "rows": rows}
 
@@ -154,7 +152,7 @@ def part_noise(args):
                          "noise_rel": float(noise),
                          "seconds": (time.perf_counter() - start) / 2})
             print(rows[-1], flush=True)
-    return {"command": "nice -n 10 python benchmarks/export_fit.py --part noise "
+    return {"command": "nice -n 10 python -m benchmarks.export_fit --part noise "
                        f"--spp {args.spp} --size {args.size} --plugin-materials "
                        f"{args.plugin_materials}", "rows": rows}
 
@@ -170,7 +168,7 @@ def part_recovery(args):
                      "lab_log_2d": brdf_error(table_2d(tabulate_principled(fit)),
                                               table_2d(table))})
         print(name, rows[-1]["lab_log_2d"], result["seconds"], flush=True)
-    return {"command": "nice -n 10 python benchmarks/export_fit.py --part recovery", "rows": rows}
+    return {"command": "nice -n 10 python -m benchmarks.export_fit --part recovery", "rows": rows}
 
 
 def part_measured(args):
@@ -182,7 +180,7 @@ def part_measured(args):
     # Shuffle each set (seed 0) and interleave them, so a run cut short is a random subset of both.
     jobs = [[group[i] for i in np.random.default_rng(0).permutation(len(group))] for group in jobs]
     order = [job for group in _interleave(jobs) for job in group]
-    command = ("nice -n 10 python benchmarks/export_fit.py --part measured --merl-dir "
+    command = ("nice -n 10 python -m benchmarks.export_fit --part measured --merl-dir "
                f"{args.merl_dir} --rgl-dir {args.rgl_dir} --render-every {args.render_every}")
     for k, (label, name, path) in enumerate(order):
         table = read_merl(path)
@@ -228,7 +226,7 @@ def part_bands(args):
         de = delta_e_log(table_2d(tabulate_principled(r["params"])), table_2d(table))
         rows.append({"set": r["set"], "material": r["material"],
                      "bands": {f"{lo}-{hi}": float(np.nanmean(de[:, lo:hi])) for lo, hi in BANDS}})
-    return {"command": "nice -n 10 python benchmarks/export_fit.py --part bands", "rows": rows}
+    return {"command": "nice -n 10 python -m benchmarks.export_fit --part bands", "rows": rows}
 
 
 def _stats(values):

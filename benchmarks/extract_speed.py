@@ -7,13 +7,12 @@ pixel of the photo, i.e. with no culling; and for the rays extraction actually t
 The target: extraction < 10 s on 2 cores and < 3x Embree's own time. Each time is the best of
 --repeats runs (wall and CPU separately), as the machine is shared with other jobs.
 
-Run: PYTHONPATH=$PWD python benchmarks/extract_speed.py [--width 4000 --height 3000]
+Run: python -m benchmarks.extract_speed.py [--width 4000 --height 3000]
 """
 
 import argparse
 import json
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -21,7 +20,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))  # the synthetic-scene renderer lives with the tests
 
 
 def _embree_time(scene_dir, rows_cols=None):
@@ -52,8 +50,8 @@ def main():
     args = p.parse_args()
     from flashbrdf import capture
     from flashbrdf.slice_extract import extract_slice
-    from synthetic import ggx_lambert, pinhole_camera, point_light, torus_mesh
-    from synthetic import write_synthetic_scene
+    from tests.synthetic import ggx_lambert, pinhole_camera, point_light, torus_mesh
+    from tests.synthetic import write_synthetic_scene
 
     mesh = torus_mesh(sections=(320, 160))  # 102,400 faces, non-convex
     focal = 9000.0 * args.width / 4000

@@ -1,6 +1,6 @@
 """Does `extract` recover the flash slice of every table? A sweep over whole sets.
 
-    nice -n 10 python benchmarks/extract_sweep.py --merl-dir /work/data/merl [--merl-dir /work/data/rgl]
+    nice -n 10 python -m benchmarks.extract_sweep --merl-dir /work/data/merl [--merl-dir /work/data/rgl]
         [--offset 0.03] [--photons N] [--work DIR]
 
 Every table of each folder (MERL (NBRDF proxy), RGL (NBRDF proxy)) is rendered on a sphere through
@@ -20,9 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from benchmarks._real_common import RESULTS, write_json  # noqa: E402
+from benchmarks._real_common import RESULTS, write_json
 
 N_MIN = 20
 
@@ -35,7 +33,7 @@ def table_errors(table_path, work, offset, photons, seed):
     from flashbrdf.brdf.merl import read_merl
     from flashbrdf.brdf.views import flash_slice
     from flashbrdf.slice_extract import extract_slice
-    from synthetic import pinhole_camera, point_light, sphere_mesh, table_brdf, write_synthetic_scene
+    from tests.synthetic import pinhole_camera, point_light, sphere_mesh, table_brdf, write_synthetic_scene
     table = read_merl(table_path)
     truth, _ = flash_slice(table)
     folder = write_synthetic_scene(work / Path(table_path).stem, sphere_mesh(), table_brdf(table),
@@ -65,7 +63,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     work = args.work or Path(tempfile.mkdtemp(prefix="extract_sweep_"))
     work.mkdir(parents=True, exist_ok=True)
-    result = {"command": "python benchmarks/extract_sweep.py " + " ".join(argv or sys.argv[1:]),
+    result = {"command": "python -m benchmarks.extract_sweep " + " ".join(argv or sys.argv[1:]),
               "offset_m": args.offset, "photons": args.photons, "tables": {}}
     start = time.perf_counter()
     paths = [p for folder in args.merl_dir for p in sorted(Path(folder).glob("*.binary"))]

@@ -1,6 +1,6 @@
 """Generalisation beyond MERL: every method scored on measured materials it was not trained on.
 
-    PYTHONPATH=$PWD nice -n 10 python benchmarks/generalisation.py --merl-dir MERL --test-dir RGL
+    nice -n 10 python -m benchmarks.generalisation --merl-dir MERL --test-dir RGL
         [--folds 5 | --fold-groups benchmarks/rgl_kinds.json] [--seed 0] [--out benchmarks/results]
 
 MERL and RGL here are the MERL (NBRDF proxy) and RGL (NBRDF proxy) tables written by
@@ -37,12 +37,11 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from flashbrdf.brdf import merl, metrics  # noqa: E402
-from flashbrdf.infer import TrainingSet, make_method, novelty_warning  # noqa: E402
-from flashbrdf.infer.uncertainty import standardised_residuals  # noqa: E402
-from flashbrdf.experiments.evaluate import PAPER_FIXED, run_evaluation  # noqa: E402
-from flashbrdf.infer.model_selection import tune_baselines  # noqa: E402
+from flashbrdf.brdf import merl, metrics
+from flashbrdf.infer import TrainingSet, make_method, novelty_warning
+from flashbrdf.infer.uncertainty import standardised_residuals
+from flashbrdf.experiments.evaluate import PAPER_FIXED, run_evaluation
+from flashbrdf.infer.model_selection import tune_baselines
 
 BANDS_DEG = ((0, 30), (30, 60), (60, 75), (75, 90))
 METHODS = ("dsgplvm", "dsgplvm-paper", "dsgplvm-relative", "pca", "noll", "chandraker",
@@ -317,7 +316,7 @@ def main(argv=None):
         p.error("--merl-dir and --test-dir are required (or --merge)")
     merl_set = TrainingSet.from_merl_dir(args.merl_dir)
     test = TrainingSet.from_merl_dir(args.test_dir)
-    result = {"command": "PYTHONPATH=$PWD nice -n 10 python benchmarks/generalisation.py "
+    result = {"command": "nice -n 10 python -m benchmarks.generalisation "
                          + " ".join(sys.argv[1:] if argv is None else argv),
               "train": "MERL (NBRDF proxy)", "test": "RGL (NBRDF proxy)", "settings": {}}
     wanted = args.settings.split(",")

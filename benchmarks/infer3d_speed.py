@@ -6,7 +6,7 @@ For 60 training materials (Table 1's size) and for the shipped model's 99: fit (
 then time predict(slice, "3d") for a held-out slice, cold (first call) and warm (median of the
 next --repeats), with 1 and 2 worker threads. Writes benchmarks/results/infer3d_speed.json.
 
-    python benchmarks/infer3d_speed.py --merl-dir /work/merl [--repeats 3]
+    python -m benchmarks.infer3d_speed --merl-dir /work/merl [--repeats 3]
 """
 
 import argparse
@@ -19,11 +19,10 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
 
-from flashbrdf.brdf import merl, views  # noqa: E402
-from flashbrdf.files.atomic import write_text  # noqa: E402
-from flashbrdf.infer import TrainingSet, load_method, make_method  # noqa: E402
+from flashbrdf.brdf import merl, views
+from flashbrdf.files.atomic import write_text
+from flashbrdf.infer import TrainingSet, load_method, make_method
 
 HELD_OUT = "red-specular-plastic"
 
@@ -54,7 +53,7 @@ def main(argv=None):
         TrainingSet.from_merl_dir(args.merl_dir, train60))
     fit60 = time.perf_counter() - t0
     m99 = load_method(args.model, "dsgplvm", args.merl_dir, anchor=True)
-    result = {"command": "python benchmarks/infer3d_speed.py --merl-dir DIR",
+    result = {"command": "python -m benchmarks.infer3d_speed --merl-dir DIR",
               "machine": {"cpus": os.cpu_count(), "load_average_start": os.getloadavg()},
               "held_out": HELD_OUT, "fit_60_s (read + fit)": fit60, "runs": {}}
     for label, method in (("60 training tables", m60), ("99 training tables (shipped model)", m99)):

@@ -1,6 +1,6 @@
 """Several materials on a real object: DiLiGenT pot2, one BRDF against one per material.
 
-    nice -n 10 python benchmarks/multi_material.py [--methods dsgplvm] [--work DIR]
+    nice -n 10 python -m benchmarks.multi_material [--methods dsgplvm] [--work DIR]
         [--objects pot2,ball,cards] [--runs single,auto,auto_albedo]
 
 pot2 (../shared/data/real/diligent-pot2, 8-bit linear crops) is imported with shot 052 as the
@@ -21,8 +21,7 @@ import shutil
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._real_common import RESULTS, SHARED, argument_parser, run_cli  # noqa: E402
+from benchmarks._real_common import RESULTS, SHARED, argument_parser, run_cli
 
 
 RUNS = {"single": ("1", []), "auto": ("auto", []), "auto_albedo": ("auto", ["--albedo-map"])}
@@ -59,7 +58,7 @@ def main(argv=None):
     work.mkdir(parents=True, exist_ok=True)
     previous = RESULTS / "multi_material.json"
     result = json.loads(previous.read_text()) if previous.is_file() else {"objects": {}}
-    command = "nice -n 10 python benchmarks/multi_material.py " + " ".join(argv or sys.argv[1:])
+    command = "nice -n 10 python -m benchmarks.multi_material " + " ".join(argv or sys.argv[1:])
     result["command"] = command
     for name, folder in (("pot2", args.data),
                          ("ball", SHARED / "data" / "real" / "diligent-ball")):
@@ -101,7 +100,7 @@ def _planar_cards(work, methods, log, albedo=False):
     other view rendered with them. The views are rectified to the card, so one label image
     serves every view's pixel grid (each view's scene has its own flash photo and camera)."""
     from flashbrdf.pipeline.options import DEFAULT_MODEL
-    from planar_scenes import planar_card_scenes
+    from benchmarks.planar_scenes import planar_card_scenes
     folder = work / "planar_scenes"
     views = (sorted(p for p in folder.iterdir() if (p / "scene.json").is_file())
              if folder.is_dir() else

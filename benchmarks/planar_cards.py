@@ -1,6 +1,6 @@
 """Real-photo validation on flash-planar-cards-blue: infer from one phone-flash view, predict 8 others.
 
-    PYTHONPATH=$PWD python benchmarks/planar_cards.py [--flash-view 0] [--model MODEL.npz]
+    python -m benchmarks.planar_cards.py [--flash-view 0] [--model MODEL.npz]
         [--merl-dir /work/merl] [--methods dsgplvm,pca,noll,chandraker,ashikhmin] [--work DIR]
 
 The capture is written as 9 per-view scene folders (benchmarks/planar_scenes.py: exact pinhole cameras for
@@ -20,8 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._real_common import (RESULTS, argument_parser, direct_extract,  # noqa: E402
+from benchmarks._real_common import (RESULTS, argument_parser, direct_extract,
                                      direct_render, infer_all, resolve_model, run_cli,
                                      theta_h_deg, write_json)
 
@@ -30,7 +29,7 @@ N_CLUSTERS = 3
 
 def _geometry(scene):
     """Per-pixel (wi = wo, normal, I/r^2) for a view: all (N,3), from the scene's own camera."""
-    from planar_scenes import plane_point_from_pixel
+    from benchmarks.planar_scenes import plane_point_from_pixel
     cam = scene["camera"]
     pose = np.array(cam["world_from_camera"])
     lens = pose[:3, 3]
@@ -139,7 +138,7 @@ def main(argv=None):
     from flashbrdf.files.errors import InputError
     from flashbrdf.brdf.merl import read_merl
     from flashbrdf.brdf.views import read_slice_csv, write_slice_csv
-    from planar_scenes import planar_card_scenes
+    from benchmarks.planar_scenes import planar_card_scenes
     from flashbrdf.pipeline.report import image_errors
     log = lambda msg: print(msg, flush=True)  # noqa: E731
     work = args.work
@@ -169,7 +168,7 @@ def main(argv=None):
     start = time.perf_counter()
     model = resolve_model(args.model, args.merl_dir, work, log)
     brdfs = infer_all(work / "slice.csv", work, args.methods.split(","), model, args.merl_dir, log)
-    result = {"command": "python benchmarks/planar_cards.py " + " ".join(argv or sys.argv[1:]),
+    result = {"command": "python -m benchmarks.planar_cards " + " ".join(argv or sys.argv[1:]),
               "flash_view": flash_view.name, "extractor": extractor,
               "model": None if model is None else str(model),
               "slice_bins_observed": int((n > 0).sum()),

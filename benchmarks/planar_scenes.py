@@ -27,7 +27,6 @@ Pixels at 255 in any channel are clipped and written as NaN. light_power 1500 is
 pixel-units * cm^2; in metres that is intensity 1500e-4 = 0.15 (absolute scale is an estimate).
 """
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -165,7 +164,7 @@ def planar_card_scenes(src_dir, out_dir, progress=None):
     return views
 
 
-if __name__ == "__main__":  # python benchmarks/planar_scenes.py SRC_DIR OUT_DIR
+if __name__ == "__main__":  # python -m benchmarks.planar_scenes SRC_DIR OUT_DIR
     import sys
     for view in planar_card_scenes(sys.argv[1], sys.argv[2]):
         print(view)

@@ -11,7 +11,7 @@
 
 Writes benchmarks/results/render_speed.json, render_speed.png (error vs time) and
 render_variance.png (error vs spp). Usage:
-    python benchmarks/render_speed.py [--merl-dir DIR] [--material NAME] [--quick]
+    python -m benchmarks.render_speed [--merl-dir DIR] [--material NAME] [--quick]
 Without --merl-dir the table is generated with ../shared/tools/merl_proxy.py into a temp folder.
 """
 
@@ -28,18 +28,17 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(REPO))
 SHARED = Path(os.environ.get("FLASHBRDF_SHARED", REPO.parent / "shared"))
 if not SHARED.exists():
     SHARED = Path("/work/shared")
 ENVMAPS = SHARED / "data" / "envmaps"
 RESULTS = REPO / "benchmarks" / "results"
 
-from flashbrdf.brdf.merl import read_merl                       # noqa: E402
-from flashbrdf.brdf.models import TabulatedBRDF          # noqa: E402
-from flashbrdf.render.envmap import EnvMap                      # noqa: E402
-from flashbrdf.render.integrator import render_envmap           # noqa: E402
-from flashbrdf.render.scene_render import sphere_view           # noqa: E402
+from flashbrdf.brdf.merl import read_merl                     
+from flashbrdf.brdf.models import TabulatedBRDF        
+from flashbrdf.render.envmap import EnvMap                    
+from flashbrdf.render.integrator import render_envmap         
+from flashbrdf.render.scene_render import sphere_view         
 
 
 def table_path(args, name):

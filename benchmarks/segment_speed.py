@@ -1,6 +1,6 @@
 """Segmentation speed on a 12-megapixel flash photo (4000 x 3000, the object fills a disc).
 
-    nice -n 10 python benchmarks/segment_speed.py
+    nice -n 10 python -m benchmarks.segment_speed
 
 The samples are made directly (no ray tracing: extraction's own cost is extract_speed.py): an
 orthographic sphere under a co-located flash, theta_h = the angle between normal and view, two
@@ -18,13 +18,11 @@ import json
 import os
 import sys
 import time
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from benchmarks._real_common import RESULTS  # noqa: E402
+from benchmarks._real_common import RESULTS
 
 
 def main(argv=None):
@@ -75,7 +73,7 @@ def main(argv=None):
     truth = np.where(mask, np.where((x + 0.3 * y) < 0.2, 1, 2), 0)
     agree = max(np.mean(seg.labels[mask] == truth[mask]),
                 np.mean(seg.labels[mask] == 3 - truth[mask]))
-    result = {"command": "nice -n 10 python benchmarks/segment_speed.py "
+    result = {"command": "nice -n 10 python -m benchmarks.segment_speed "
                          + " ".join(argv or sys.argv[1:]),
               "pixels": int(height * width),
               "object_pixels": int(mask.sum()), "seconds": round(seconds, 3),

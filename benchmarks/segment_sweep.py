@@ -1,6 +1,6 @@
 """Does `segment --materials auto` keep every single-material object whole? A sweep over whole sets.
 
-    nice -n 10 python benchmarks/segment_sweep.py --merl-dir /work/data/merl [--merl-dir /work/data/rgl]
+    nice -n 10 python -m benchmarks.segment_sweep --merl-dir /work/data/merl [--merl-dir /work/data/rgl]
         [--photons N] [--bits B] [--demosaic] [--jpeg Q]
         [--pairs N [--pair-seed S] [--blobs WAVENUMBER]] [--out NAME] [--work DIR] [--limit N]
 
@@ -23,10 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-from benchmarks._real_common import RESULTS, write_json  # noqa: E402
-from synthetic import demosaiced, phone_jpeg, quantiser  # noqa: E402
+from benchmarks._real_common import RESULTS, write_json
+from tests.synthetic import demosaiced, phone_jpeg, quantiser
 
 PHOTONS = 2000
 
@@ -43,7 +41,7 @@ def material_k(table_path, work, seed, photons=PHOTONS, bits=None, demosaic=Fals
     from flashbrdf.brdf.merl import read_merl
     from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
     from flashbrdf.slice_extract.segment import segment_samples
-    from synthetic import (combine, pinhole_camera, point_light, sphere_mesh, table_brdf,
+    from tests.synthetic import (combine, pinhole_camera, point_light, sphere_mesh, table_brdf,
                            torus_mesh, write_synthetic_scene)
     mesh = combine(sphere_mesh(radius=0.07, centre=(0, 0, 1.1)), torus_mesh(centre=(0.0, 0.0, 0.98)))
     folder = write_synthetic_scene(work / Path(table_path).stem, mesh,
@@ -90,7 +88,7 @@ def pair_result(paths, work, seed, photons=PHOTONS, post=None, region=half):
     from flashbrdf.brdf.views import flash_slice
     from flashbrdf.slice_extract.extract import ExtractOptions, collect_samples
     from flashbrdf.slice_extract.segment import segment_samples
-    from synthetic import (by_region, pinhole_camera, point_light, region_image, sphere_mesh,
+    from tests.synthetic import (by_region, pinhole_camera, point_light, region_image, sphere_mesh,
                            table_brdf, write_synthetic_scene)
     tables = [read_merl(p) for p in paths]
     mesh, cam = sphere_mesh(), pinhole_camera(256, 256, 1000.0)
@@ -133,7 +131,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
     work = args.work or Path(tempfile.mkdtemp(prefix="segment_sweep_"))
     work.mkdir(parents=True, exist_ok=True)
-    result = {"command": "python benchmarks/segment_sweep.py " + " ".join(argv or sys.argv[1:]),
+    result = {"command": "python -m benchmarks.segment_sweep " + " ".join(argv or sys.argv[1:]),
               "photons": args.photons, "bits": args.bits, "demosaic": args.demosaic,
               "jpeg": args.jpeg,
               "folders": {}}

@@ -1,7 +1,7 @@
 """The paper's Table 1 on the 100 MERL (NBRDF proxy) tables: writes benchmarks/results/table1.md,
 table1.json and error_vs_runtime.png (slow: tens of minutes on 2 shared cores).
 
-    nice -n 10 python benchmarks/table1.py --merl-dir /work/merl --time-budget 4800
+    nice -n 10 python -m benchmarks.table1 --merl-dir /work/merl --time-budget 4800
 
 --time-budget stops starting new experiments when the remaining ones would not fit (the md says how
 many ran). The 3D cache (~4 GB float32) goes to --cache-dir and is deleted at the end.
@@ -12,9 +12,8 @@ import os
 import sys
 import tempfile
 
-sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
-from flashbrdf.experiments.evaluate import run_evaluation  # noqa: E402
+from flashbrdf.experiments.evaluate import run_evaluation
 
 
 def main(argv=None):
@@ -27,7 +26,7 @@ def main(argv=None):
     ap.add_argument("--time-budget", type=float)
     ap.add_argument("--cache-dir", default=tempfile.gettempdir())
     args = ap.parse_args(argv)
-    command = "nice -n 10 python benchmarks/table1.py " + " ".join(
+    command = "nice -n 10 python -m benchmarks.table1 " + " ".join(
         a if not a.startswith("/") or "merl" in a else os.path.basename(a)
         for a in (argv if argv is not None else sys.argv[1:]))
     run_evaluation(args.merl_dir, args.out, experiments=args.experiments,

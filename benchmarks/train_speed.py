@@ -7,7 +7,7 @@ average before and after (the machine is shared: wall time means little without 
 file's sha256 and the stage times the model records (params: train_seconds, fit_seconds).
 Same seed -> same content, whatever the worker count, is checked and recorded.
 
-    nice -n 10 python benchmarks/train_speed.py --merl-dir /work/data/merl \
+    nice -n 10 python -m benchmarks.train_speed --merl-dir /work/data/merl \
         [--runs 1] [--out benchmarks/results/train_speed.json]
 """
 
@@ -25,9 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from flashbrdf.files.atomic import write_text  # noqa: E402
+from flashbrdf.files.atomic import write_text
 
 
 def _children_cpu():

@@ -61,7 +61,8 @@ def slice_features(rho, space="lab"):
 def table_features(tables_2d, space="lab"):
     """(N, 90, 90, 3) ρ -> (N, 24300) features, NaN where the table has no data."""
     tables = np.asarray(tables_2d, float)
-    feats = colour.rho_to_features(np.nan_to_num(tables), space=space)
+    # NaN passes through the feature map; inf, or a bin with a channel missing, is masked below
+    feats = colour.rho_to_features(tables, space=space)
     feats[~np.isfinite(tables).all(axis=-1)] = np.nan
     return feats.reshape(len(tables), -1)
 
