@@ -56,13 +56,31 @@ def load_reference_entry(photo):
     return load_photo_entry(photo)
 
 
-def _ambient(scene, camera):
+def _same_camera(a, b):
+    """Whether two cameras are one view: the same pixel grid, intrinsics and pose."""
+    def fields(c):
+        return (c.model, c.shape, c.fx, c.fy, c.cx, c.cy, c.pixel_size,
+                None if c.distortion is None else tuple(np.ravel(c.distortion)))
+    return a is b or (fields(a) == fields(b)
+                      and np.allclose(a.world_from_camera, b.world_from_camera))
+
+
+def _ambient(scene, photo):
+    """(rgb, usable, scale or None) of the ambient photo(s) of a flash photo's view, averaged, or
+    (None, None, None) when the scene has none. With several views (a multi-view capture), the
+    ambient photos taken from the flash photo's camera; with one, every ambient photo."""
     ambients = scene.photos_with_role("ambient")
     if not ambients:
         return None, None, None
+    same_view = [a for a in ambients if _same_camera(a.camera, photo.camera)]
+    if same_view:
+        ambients = same_view
+    elif any(not _same_camera(a.camera, ambients[0].camera) for a in ambients):
+        raise InputError(photo.where, "no ambient photo was taken from this flash photo's "
+                                      "camera; give one ambient photo per view, or none")
     total, usable = None, None
     for a in ambients:
-        if a.camera.shape != camera.shape:
+        if a.camera.shape != photo.camera.shape:
             raise InputError(a.where, "ambient photo's camera differs in size from the flash's")
         rgb, ok = load_photo_entry(a)
         total = rgb if total is None else total + rgb
@@ -75,23 +93,24 @@ def _ambient(scene, camera):
     return total, usable, scales.pop()
 
 
-def load_flash_images(scene):
-    """All flash photos of a scene with ambient subtracted and divided by their scale.
+def iter_flash_images(scene):
+    """The flash photos of a scene one at a time, ambient subtracted and divided by their scale:
+    a FlashImage each, so that a capture of many full-resolution photos never holds more than
+    one (and its view's ambient) in memory.
 
-    scene: capture.Scene or a scene folder. Returns a list of FlashImage. InputError when the
-    scene has no flash photo.
+    scene: capture.Scene or a scene folder. InputError when the scene has no flash photo.
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
     flashes = scene.photos_with_role("flash")
     if not flashes:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'flash'")
-    out = []
-    ambient = None
+    ambient, ambient_camera = None, None
     for photo in flashes:
         rgb, usable, clipped = load_photo_entry(photo, return_clipped=True)
-        if ambient is None and scene.photos_with_role("ambient"):
-            ambient = _ambient(scene, photo.camera)
+        if scene.photos_with_role("ambient") and (
+                ambient_camera is None or not _same_camera(ambient_camera, photo.camera)):
+            ambient, ambient_camera = _ambient(scene, photo), photo.camera
         if ambient is not None:
             amb, amb_ok, amb_scale = ambient
             factor = 1.0 if amb_scale is None else photo.scale / amb_scale
@@ -100,5 +119,9 @@ def load_flash_images(scene):
             clipped &= amb_ok
         if photo.scale != 1.0:
             rgb /= np.float32(photo.scale)
-        out.append(FlashImage(photo, rgb, usable, clipped))
-    return out
+        yield FlashImage(photo, rgb, usable, clipped)
+
+
+def load_flash_images(scene):
+    """Every flash photo at once (iter_flash_images as a list): for captures of a few photos."""
+    return list(iter_flash_images(scene))

@@ -16,6 +16,7 @@ Default thresholds:
   ~ 1e-12) and the slice stays the theta_d ~ 0 slice of the paper; raise it only knowingly.
 """
 
+import sys
 import time
 from dataclasses import dataclass, field
 
@@ -42,6 +43,16 @@ class ExtractOptions:
     shadow_rays: bool = True  # False only to diagnose (or to show what shadows would cost)
     silhouette_px: int = 1  # reject pixels this close to the object's outline (0: keep them)
     chunk_pixels: int = 1 << 20  # pixels traced per batch: bounds memory, keeps arrays in cache
+    # Many photos at full resolution (30 x 24 MP) give far more samples than a bin needs: past
+    # sample_budget pooled samples, each theta_h bin keeps a uniform random subset of at most
+    # max_samples_per_bin (its robust estimate moves by ~1/sqrt(150,000) of its spread), so
+    # memory stays bounded whatever the number of photos. Below the budget nothing is dropped.
+    sample_budget: int = 15_000_000
+    max_samples_per_bin: int = 150_000
+    # an inner occluding contour (a depth jump between neighbouring pixels steeper than
+    # atan(depth_edge_slope) ~ 87 deg) is rejected like the outline: a pose a pixel off puts
+    # the surface behind, or the background, there (0: off)
+    depth_edge_slope: float = 20.0
 
 
 @dataclass(eq=False)
@@ -90,7 +101,8 @@ class _Clock:
 
 def _trace(scene, camera, intersector, chunk):
     """capture.Surface batches of the pixels of `camera` that see the object (every pixel that
-    can: usability is each photo's business), and the object mask (H, W) bool."""
+    can: usability is each photo's business), the object mask (H, W) bool, and the depth of each
+    hit (H, W) float32 (inf off the object; None for normal-map geometry)."""
     mask = np.zeros(camera.shape, dtype=bool)
     if intersector is None:
         surfaces = [capture.surface_from_normal_map(scene.geometry, camera)]
@@ -102,9 +114,49 @@ def _trace(scene, camera, intersector, chunk):
         surfaces = [capture.surface_at_pixels(intersector, camera, rows[s:s + chunk],
                                               cols[s:s + chunk], dtype=np.float32)
                     for s in range(0, len(rows), chunk)]
+    depth = None if intersector is None else np.full(camera.shape, np.inf, np.float32)
     for surface in surfaces:
-        mask.ravel()[surface.rows * camera.width + surface.cols] = True
-    return surfaces, mask
+        flat = surface.rows * camera.width + surface.cols
+        mask.ravel()[flat] = True
+        if depth is not None:
+            depth.ravel()[flat] = _depth(camera, surface.points)
+    return surfaces, mask, depth
+
+
+def _depth(camera, points):
+    """Distance (N,) float32 of world points from a pinhole camera's centre, or along an
+    orthographic camera's forward axis."""
+    offset = points - camera.centre_world
+    if camera.model == "orthographic":
+        return (offset @ camera.forward).astype(np.float32)
+    return np.sqrt(np.einsum("ij,ij->i", offset, offset)).astype(np.float32)
+
+
+def depth_edge_mask(depth, camera, slope, width_px):
+    """(H, W) bool: object pixels within width_px of an inner occluding contour, where the depth
+    of neighbouring hits (depth (H, W), inf off the object) jumps more steeply than `slope`
+    (depth change per pixel footprint: 20 ~ 87 deg from the view). The outline against the
+    background is silhouette_mask's."""
+    if depth is None or slope <= 0 or width_px <= 0:
+        return np.zeros(camera.shape, bool)
+    hit = np.isfinite(depth)
+    # a pixel's footprint at its depth: depth / f for a pinhole, the pixel size orthographic
+    footprint = (np.full(camera.shape, camera.pixel_size, np.float32)
+                 if camera.model == "orthographic"
+                 else depth / np.float32(max(camera.fx, camera.fy)))
+    edge = np.zeros(camera.shape, bool)
+    for first, second in (((slice(0, -1), slice(None)), (slice(1, None), slice(None))),
+                          ((slice(None), slice(0, -1)), (slice(None), slice(1, None)))):
+        with np.errstate(invalid="ignore"):  # inf - inf off the object
+            jump = (hit[first] & hit[second]
+                    & (np.abs(depth[first] - depth[second])
+                       > slope * np.minimum(footprint[first], footprint[second])))
+        edge[first] |= jump
+        edge[second] |= jump
+    if not edge.any():
+        return edge
+    kernel = np.ones((2 * width_px - 1, 2 * width_px - 1), np.uint8)
+    return cv2.dilate(edge.view(np.uint8), kernel).astype(bool) & hit
 
 
 def _camera_normals(scene, camera, intersector):
@@ -208,6 +260,20 @@ class FlashSamples:
     timings: dict
     started: float
     normals_at: object = None
+    # the first photo's samples whole ({field: array}) when the pooled ones were subsampled
+    # (SampleStore); None otherwise, as the pooled arrays then hold them all
+    first_photo_samples: dict = None
+
+    def first_photo(self):
+        """(rho (M, 3), theta_h (M,), pixels (M,), censored (M,)) of every sample of the first
+        flash photo, as segmentation reads it."""
+        if self.first_photo_samples is not None:
+            part = self.first_photo_samples
+            return part["rho"], part["theta_h"], part["pixels"], part["censored"]
+        first = self.photo == 0
+        if first.all():
+            return self.rho, self.theta_h, self.pixels, self.censored
+        return self.rho[first], self.theta_h[first], self.pixels[first], self.censored[first]
 
     def no_sample_error(self):
         """The InputError (naming the flash photo, the geometry or the photos' tests) for
@@ -221,9 +287,78 @@ class FlashSamples:
         return FlashSamples(**{**self.__dict__, **pick})
 
 
+SAMPLE_FIELDS = ("theta_h", "theta_d", "rho", "censored", "pixels", "photo")
+
+
+class SampleStore:
+    """The pooled samples of many photos, bounded: once more than options.sample_budget are held,
+    every theta_h bin keeps a uniform random subset of at most options.max_samples_per_bin (each
+    sample carries a random key and a bin keeps its smallest keys, so the subset is uniform over
+    all the photos seen, whatever their order). Below the budget it keeps every sample, in
+    order, so a capture of a few photos gives the slice it always gave."""
+
+    def __init__(self, options, seed=0):
+        self.budget, self.cap = options.sample_budget, options.max_samples_per_bin
+        self.rng = np.random.default_rng(seed)
+        self.parts, self.count, self.subsampled = [], 0, False
+
+    def add(self, part):
+        """part: {field: array} of one photo's samples (SAMPLE_FIELDS)."""
+        if len(part["theta_h"]):
+            self.parts.append(part)
+            self.count += len(part["theta_h"])
+        if self.count > self.budget:
+            self._keep_per_bin()
+
+    def _keep_per_bin(self):
+        pooled = self._concatenated()
+        bins = merl_bin_index(pooled["theta_h"], 0.0, 0.0)[0]
+        keys = pooled.get("key")
+        if keys is None:
+            keys = self.rng.random(len(bins))
+        order = np.lexsort((keys, bins))
+        sorted_bins = bins[order]
+        first_of_bin = np.searchsorted(sorted_bins, np.arange(N_THETA_H))
+        rank = np.arange(len(order)) - first_of_bin[sorted_bins]
+        keep = np.zeros(len(bins), bool)
+        keep[order[rank < self.cap]] = True
+        self.parts = [{name: values[keep] for name, values in {**pooled, "key": keys}.items()}]
+        self.count = int(keep.sum())
+        self.subsampled = True
+
+    def add_keys(self, part):
+        """A part's random keys, once subsampling has started (later parts need them too)."""
+        return {**part, "key": self.rng.random(len(part["theta_h"]))}
+
+    def pooled(self):
+        """{field: array} of the samples kept (SAMPLE_FIELDS): all of them below the budget,
+        else each bin's subset."""
+        if self.subsampled:
+            self._keep_per_bin()
+        return {name: values for name, values in self._concatenated().items() if name != "key"}
+
+    def _concatenated(self):
+        if not self.parts:
+            return {"theta_h": np.zeros(0), "theta_d": np.zeros(0), "rho": np.zeros((0, 3)),
+                    "censored": np.zeros(0, bool), "pixels": np.zeros(0, int),
+                    "photo": np.zeros(0, int)}
+        names = [n for n in self.parts[0] if all(n in p for p in self.parts)]
+        return {n: (self.parts[0][n] if len(self.parts) == 1
+                    else np.concatenate([p[n] for p in self.parts])) for n in names}
+
+
+def _progress(items, what):
+    """A progress bar over photos on a terminal (and only for more than one photo)."""
+    from tqdm import tqdm
+    return tqdm(items, desc=what, unit="photo", file=sys.stderr,
+                disable=len(items) < 2 or not sys.stderr.isatty())
+
+
 def collect_samples(scene, options=None):
     """Trace the flash photos and compute every usable pixel's sample; returns FlashSamples.
 
+    Photos are read one at a time (capture.iter_flash_images) and each camera is traced once, so
+    memory holds one photo, one camera's traced surface and the pooled samples (SampleStore).
     scene: scene folder path or capture.Scene; options: ExtractOptions. InputError (exit 2) for
     bad input.
     """
@@ -232,67 +367,83 @@ def collect_samples(scene, options=None):
     if not isinstance(scene, capture.Scene):
         scene = capture.load_scene(scene)
     normal_map = scene.geometry.mesh is None
-    for photo in scene.photos_with_role("flash"):
+    flashes = scene.photos_with_role("flash")
+    for photo in flashes:
         if normal_map and photo.light.type == "point":
             raise InputError(f"{photo.where}.light.type", "a point light needs surface depth, "
                              "which normal-map geometry lacks: use a mesh or a directional light")
+    lights = [light_setup(photo) for photo in flashes]
     t = clock.add("load_scene", t0)
-    images = capture.load_flash_images(scene)
-    t = clock.add("load_photos", t)
     intersector = None if normal_map else capture.scene_intersector(scene)
     needs_shadows = options.shadow_rays and not normal_map and not all(
-        light_setup(img.photo).at_viewpoint for img in images)
+        light.at_viewpoint for light in lights)
     # convexity costs a face-adjacency pass: only ask when a shadow ray could be needed
     convex = needs_shadows and capture.is_convex(intersector)
     t = clock.add("load_mesh", t)
 
-    parts, per_photo, photo_of_part = [], [], []
-    first_mask, face_image, normals_at = None, None, None
-    groups = {}
-    for k, img in enumerate(images):
-        groups.setdefault(id(img.photo.camera), []).append(k)
-    for members in groups.values():
-        camera = images[members[0]].photo.camera
-        lights = {k: light_setup(images[k].photo) for k in members}
-        stats = {k: dict(photo=images[k].photo.stem, usable=int(images[k].usable.sum()),
-                         clipped=int(images[k].clipped.sum()), on_surface=0,
-                         **dict.fromkeys(REASONS, 0)) for k in members}
-        surfaces, object_mask = _trace(scene, camera, intersector, options.chunk_pixels)
-        if first_mask is None:
-            first_mask = object_mask
-            normals_at = _camera_normals(scene, camera, intersector)
-            if not normal_map:
-                face_image = np.full(camera.shape, -1, dtype=np.int64)
-                for surface in surfaces:
-                    face_image[surface.rows, surface.cols] = surface.face
-        edge = silhouette_mask(object_mask, options.silhouette_px)
+    store, per_photo, first = SampleStore(options), [], None
+    traced_camera, surfaces, object_mask, edge = None, None, None, None
+    images = capture.iter_flash_images(scene)
+    for k in _progress(range(len(flashes)), "extract"):
+        image = next(images)
+        t = clock.add("load_photos", t)
+        camera = image.photo.camera
+        if traced_camera is not camera:  # one trace per camera (photos sharing it reuse it)
+            surfaces = None  # let the previous camera's go before tracing the next
+            surfaces, object_mask, depth = _trace(scene, camera, intersector,
+                                                  options.chunk_pixels)
+            edge = silhouette_mask(object_mask, options.silhouette_px) | depth_edge_mask(
+                depth, camera, options.depth_edge_slope, options.silhouette_px)
+            del depth
+            traced_camera = camera
+        stats = dict(photo=image.photo.stem, usable=int(image.usable.sum()),
+                     clipped=int(image.clipped.sum()), on_surface=0, **dict.fromkeys(REASONS, 0))
         t = clock.add("trace", t)
+        skip = not needs_shadows or convex or lights[k].at_viewpoint
+        parts = []
         for surface in surfaces:
-            for k in members:
-                skip = not needs_shadows or convex or lights[k].at_viewpoint
-                shadow = None if skip else intersector
-                got = photo_samples(images[k].radiance, images[k].usable, surface, lights[k],
-                                    options, shadow, images[k].clipped, edge)
-                stats[k]["on_surface"] += got.n_usable
-                for reason, count in got.rejected.items():
-                    stats[k][reason] += count
-                parts.append(got)
-                photo_of_part.append(k)
-            t = clock.add("samples", t)
-        per_photo.extend(stats[k] for k in members)
+            got = photo_samples(image.radiance, image.usable, surface, lights[k], options,
+                                None if skip else intersector, image.clipped, edge)
+            stats["on_surface"] += got.n_usable
+            for reason, count in got.rejected.items():
+                stats[reason] += count
+            parts.append(got)
+        per_photo.append(stats)
+        part = {name: np.concatenate([getattr(p, name) for p in parts])
+                for name in SAMPLE_FIELDS[:-1]} if parts else None
+        if part is not None:
+            part["photo"] = np.full(len(part["theta_h"]), k)
+        if k == 0:  # segmentation reads the first photo whole, whatever the store keeps
+            first = _FirstPhoto(part, object_mask, image.radiance, surfaces, camera,
+                                normal_map, scene, intersector)
+        if part is not None:
+            store.add(store.add_keys(part) if store.subsampled else part)
+        del image, parts, part
+        t = clock.add("samples", t)
+    pooled = store.pooled()
+    _check_above_ambient(scene, pooled["rho"])
+    samples = FlashSamples(scene, options, pooled["theta_h"], pooled["theta_d"], pooled["rho"],
+                           pooled["censored"], pooled["pixels"], pooled["photo"],
+                           flashes[0].camera.shape, first.object_mask, first.face_image,
+                           first.radiance, per_photo, clock.t, start, first.normals_at,
+                           first.samples if store.subsampled else None)
+    return samples
 
-    def pooled(name, empty):
-        return np.concatenate([getattr(p, name) for p in parts]) if parts else empty
 
-    photo = (np.concatenate([np.full(len(p.theta_h), k) for p, k in zip(parts, photo_of_part)])
-             if parts else np.zeros(0, int))
-    rho = pooled("rho", np.zeros((0, 3)))
-    _check_above_ambient(scene, rho)
-    return FlashSamples(scene, options, pooled("theta_h", np.zeros(0)),
-                        pooled("theta_d", np.zeros(0)), rho,
-                        pooled("censored", np.zeros(0, bool)), pooled("pixels", np.zeros(0, int)),
-                        photo, images[0].photo.camera.shape, first_mask, face_image,
-                        images[0].radiance, per_photo, clock.t, start, normals_at)
+class _FirstPhoto:
+    """What segmentation needs of the first flash photo: all its samples, its object mask, face
+    image, radiance and a normals look-up."""
+
+    def __init__(self, part, object_mask, radiance, surfaces, camera, normal_map, scene,
+                 intersector):
+        self.samples = part
+        self.object_mask, self.radiance = object_mask, radiance
+        self.normals_at = _camera_normals(scene, camera, intersector)
+        self.face_image = None
+        if not normal_map:
+            self.face_image = np.full(camera.shape, -1, dtype=np.int64)
+            for surface in surfaces:
+                self.face_image[surface.rows, surface.cols] = surface.face
 
 
 def bin_samples(samples):

@@ -26,11 +26,10 @@ def segment_samples(samples, materials="auto", options=None):
 
 
 def _segment_samples(samples, materials, options):
-    first = (samples.photo == 0) & ~samples.censored & np.all(np.isfinite(samples.rho), axis=1)
-    if first.all():  # the usual case (one flash photo, nothing clipped): no 12-MP copies
-        rho, theta_h, pixels = samples.rho, samples.theta_h, samples.pixels
-    else:
-        rho, theta_h, pixels = samples.rho[first], samples.theta_h[first], samples.pixels[first]
+    rho, theta_h, pixels, censored = samples.first_photo()
+    first = ~censored & np.all(np.isfinite(rho), axis=1)
+    if not first.all():  # the usual case (one flash photo, nothing clipped) needs no copies
+        rho, theta_h, pixels = rho[first], theta_h[first], pixels[first]
     if not len(rho):  # nothing to segment: the error extracting a slice would give
         raise samples.no_sample_error()
     if materials == "auto":
@@ -51,7 +50,8 @@ def _segment_samples(samples, materials, options):
     cleaned = clean_label_image(image, samples.object_mask, options.min_area_fraction)
     criterion["chosen_k"] = int(cleaned.max())
     sample_labels = np.zeros(len(samples.pixels), int)
-    sample_labels[first] = np.take(cleaned.ravel(), pixels)
+    pooled = (samples.photo == 0) & ~samples.censored & np.all(np.isfinite(samples.rho), axis=1)
+    sample_labels[pooled] = np.take(cleaned.ravel(), samples.pixels[pooled])
     return Segmentation(cleaned, int(cleaned.max()), criterion, sample_labels)
 
 
