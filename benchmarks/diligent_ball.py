@@ -1,6 +1,6 @@
 """Real-photo validation on DiLiGenT's ball: infer from one near-axis light, predict 95 others.
 
-    python -m benchmarks.diligent_ball.py [--flash 52] [--model MODEL.npz]
+    python -m benchmarks.diligent_ball [--flash 52] [--model MODEL.npz]
         [--merl-dir /work/merl] [--methods dsgplvm,pca,noll,chandraker,ashikhmin] [--work DIR]
 
 Steps (all through the contract's command line): import-diligent (image --flash as the flash),

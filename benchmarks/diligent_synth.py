@@ -1,6 +1,6 @@
 """Synthetic DiLiGenT-format objects: non-convex shapes with a known BRDF, cast shadows, clipping.
 
-    python -m benchmarks.diligent_synth.py --out DIR [--cases dent_diffuse,...]
+    python -m benchmarks.diligent_synth --out DIR [--cases dent_diffuse,...]
         [--lights /work/shared/data/real/diligent-ball] [--width 612 --height 512] [--list]
 
 Each case is written as DIR/<case>/ exactly as DiLiGenT ships an object: 001.png ... 096.png

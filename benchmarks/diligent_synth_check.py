@@ -1,6 +1,6 @@
 """Run the contract on synthetic DiLiGenT objects (benchmarks/diligent_synth.py) and tabulate.
 
-    python -m benchmarks.diligent_synth_check.py --synth DIR --work WORK
+    python -m benchmarks.diligent_synth_check --synth DIR --work WORK
         [--cases a,b] [--flash 52] [--extra segment,extract,render]
 
 Per case: `flashbrdf import-diligent CASE --flash 52 --out WORK/CASE/scene`, then
@@ -158,10 +158,10 @@ def write_results(summary, command):
     """benchmarks/results/diligent_synth.{json,md}: one row per case of the summary."""
     results = ROOT / "benchmarks" / "results"
     (results / "diligent_synth.json").write_text(json.dumps(
-        {"command": "python -m benchmarks.diligent_synth_check.py " + command,
+        {"command": "python -m benchmarks.diligent_synth_check " + command,
          "cases": summary}, indent=1) + "\n")
     lines = ["# The contract on synthetic DiLiGenT-format objects", "",
-             f"Command: `python -m benchmarks.diligent_synth_check.py {command}` "
+             f"Command: `python -m benchmarks.diligent_synth_check {command}` "
              "(objects from `benchmarks/diligent_synth.py`: 612×512, the ball's 96 lights, a known "
              "BRDF, cast shadows). Per case: `import-diligent --flash 52`, then `run` with the "
              "default method. slice error: median relative error of the extracted slice against "

@@ -7,7 +7,7 @@ pixel of the photo, i.e. with no culling; and for the rays extraction actually t
 The target: extraction < 10 s on 2 cores and < 3x Embree's own time. Each time is the best of
 --repeats runs (wall and CPU separately), as the machine is shared with other jobs.
 
-Run: python -m benchmarks.extract_speed.py [--width 4000 --height 3000]
+Run: python -m benchmarks.extract_speed [--width 4000 --height 3000]
 """
 
 import argparse

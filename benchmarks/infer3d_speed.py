@@ -2,7 +2,7 @@
 read from their MERL (NBRDF proxy) files (valid bins only, memory-mapped, float32) and combined in
 feature space on worker threads.
 
-For 60 training materials (Table 1's size) and for the shipped model's 99: fit (60) or load (99),
+For 60 training materials (Table 1's size) and for a model of 99: fit (60) or load (99),
 then time predict(slice, "3d") for a held-out slice, cold (first call) and warm (median of the
 next --repeats), with 1 and 2 worker threads. Writes benchmarks/results/infer3d_speed.json.
 
@@ -56,7 +56,7 @@ def main(argv=None):
     result = {"command": "python -m benchmarks.infer3d_speed --merl-dir DIR",
               "machine": {"cpus": os.cpu_count(), "load_average_start": os.getloadavg()},
               "held_out": HELD_OUT, "fit_60_s (read + fit)": fit60, "runs": {}}
-    for label, method in (("60 training tables", m60), ("99 training tables (shipped model)", m99)):
+    for label, method in (("60 training tables", m60), ("99 training tables", m99)):
         for workers in (1, 2):
             result["runs"][f"{label}, {workers} thread(s)"] = _time_predict(
                 method, flash_slice, workers, args.repeats)

@@ -1,6 +1,6 @@
 """Real-photo validation on flash-planar-cards-blue: infer from one phone-flash view, predict 8 others.
 
-    python -m benchmarks.planar_cards.py [--flash-view 0] [--model MODEL.npz]
+    python -m benchmarks.planar_cards [--flash-view 0] [--model MODEL.npz]
         [--merl-dir /work/merl] [--methods dsgplvm,pca,noll,chandraker,ashikhmin] [--work DIR]
 
 The capture is written as 9 per-view scene folders (benchmarks/planar_scenes.py: exact pinhole cameras for

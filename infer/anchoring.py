@@ -14,7 +14,7 @@ ANCHOR_SMOOTHING_BINS = 2.0  # see anchor_to_slice; chosen in benchmarks, not on
 # how ln c continues past the observed θh range, in θh bins: it fades to 0 (the model's own
 # prediction) as exp(-d²/2s²) at d bins from the nearest observed bin; inf holds it constant.
 # Held: on held-out MERL/RGL (NBRDF proxy) slices cut to a 0-19°, 10-25° or 20-40° window, every
-# fade (8, 3, 0 bins) predicted the θd = 0 row past the window worse (benchmarks/sparse_slices.md)
+# fade (8, 3, 0 bins) predicted the θd = 0 row past the window worse (docs/results.md, one-off: sparse_slices)
 ANCHOR_FADE_BINS = np.inf
 
 

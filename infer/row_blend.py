@@ -18,7 +18,7 @@ with an unchanged distribution would be, not flat. Its φd-mean is 1 at θd = 0,
 θd = 20° and 16% at 30°, where w has fallen to 0.32, so the blend changes little on MERL (NBRDF
 proxy) 80/20 splits (LAB-log 5.071 flat, 5.070 with g) or RGL (NBRDF proxy) folds (9.70, 9.71); a
 render sees its φd structure: the DiLiGenT ball's ΔE-log went from 1.365 to 1.355
-(benchmarks/slice_fit.py).
+(docs/results.md, "One-off investigations": slice_fit).
 
 τ was chosen on MERL (NBRDF proxy) cross-validation, before looking at RGL (benchmarks/results/
 generalisation.md states the measurements).

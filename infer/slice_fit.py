@@ -24,7 +24,7 @@ from scipy.optimize import nnls
 
 # λ, the share of the weights that comes from the slice fit, chosen on MERL (NBRDF proxy): 3 seeded
 # 80/20 splits, 2D LAB-log mean 5.31 at 0, 5.11 at 0.25, 5.07 at 0.5, 5.17 at 0.75, 5.41 at 1
-# (benchmarks/results/slice_fit.md); the RGL (NBRDF proxy) folds were looked at after.
+# (docs/results.md, one-off: slice_fit); the RGL (NBRDF proxy) folds were looked at after.
 SLICE_FIT_WEIGHT = 0.5
 # past this novelty (infer.dsgplvm.DSGPLVM.novelty: the slice is farther from every training slice
 # than 99% of them are from their nearest neighbour, where infer warns) the weights come from the

@@ -45,7 +45,7 @@ def fill_slice(rho, offset=1e-3):
 # it out. Anchoring (infer.anchoring) carries the last observed bin's correction over every θh
 # past it, so that one bin would set the whole unobserved tail. 20 samples is the count below
 # which the issue's own checks call a bin incomparable; on the planar cards' view 00 any count
-# from 10 to 100 trims the same bins (benchmarks/results/sparse_tail.md). A small photo (or a
+# from 10 to 100 trims the same bins (docs/results.md, one-off: sparse_tail). A small photo (or a
 # small material region) has few samples in every bin: there "sparse" is relative, a quarter of
 # the fullest bin's count, so a 450-sample slice is not half thrown away.
 MIN_TAIL_SAMPLES = 20

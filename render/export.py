@@ -36,7 +36,7 @@ RENDER_SIZE, RENDER_SPP = 96, 64
 USED = 0.01  # a lobe weight below this is treated as unused (no glTF extension for it)
 MITSUBA_USAGE = ("Mitsuba 3: `pip install -e \".[mitsuba]\"`, then in Python "
                  "`import mitsuba as mi; mi.set_variant(\"llvm_ad_rgb\"); "
-                 "import render.mitsuba_bsdf as m; m.register(); "
+                 "import flashbrdf.render.mitsuba_bsdf as m; m.register(); "
                  "bsdf = mi.load_file(\"mitsuba_tabulated.xml\")` (llvm_ad_rgb needs "
                  "DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 on Debian 12); "
                  "mitsuba_principled.xml needs no plugin.")
@@ -140,7 +140,7 @@ def mitsuba_principled_xml(params):
 def mitsuba_tabulated_xml(table_path):
     """Mitsuba 3 scene fragment: the flashbrdf_tabulated plugin reading `table_path`."""
     path = quoteattr(os.path.abspath(os.fspath(table_path)))
-    return ("<!-- Needs the flashbrdf plugin: import render.mitsuba_bsdf as m; m.register() -->\n"
+    return ("<!-- Needs the flashbrdf plugin: import flashbrdf.render.mitsuba_bsdf as m; m.register() -->\n"
             '<bsdf type="flashbrdf_tabulated" id="flashbrdf_tabulated" version="3.0.0">\n'
             f'    <string name="filename" value={path}/>\n</bsdf>\n')
 

@@ -1,5 +1,5 @@
 """`segment --materials auto` keeps one material whole: shading, shadows, a glossy coloured
-lobe and photon noise must not split it (benchmarks/segment_margins.md has the margins).
+lobe and photon noise must not split it (docs/results.md, "One-off investigations", has the margins).
 
 The scene: a sphere (r = 7 cm) behind a torus that shadows and occludes it, one MERL (NBRDF
 proxy) material, gold-metallic-paint: a coloured, glossy lobe (its highlight is another colour

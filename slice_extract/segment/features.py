@@ -121,7 +121,7 @@ def material_features(rho, theta_h):
     # chromaticity, not channel differences over one global scale: differences grow with the
     # pixel's brightness, so a coloured metal's highlight (gold and teal foil on the planar
     # cards) became a material of its own (cards: 5 materials, 85% of pixels in the all-view
-    # colour cluster of their material; chromaticity: 3 and 94%, cards_diagnosis.md). A
+    # colour cluster of their material; chromaticity: 3 and 94%, docs/results.md, one-off: cards_diagnosis). A
     # dielectric's highlight, which fades chromaticity to grey, is the k-slice refinement's job.
     total = np.maximum(rho.sum(axis=1), floor)[:, None]
     chroma = np.maximum(rho[:, :2], 0) / total

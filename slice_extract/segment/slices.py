@@ -26,7 +26,7 @@ GREY_SPREAD = 0.1
 
 # the white term takes at most this share of a sample's weakest channel: all of it would leave
 # that channel at the log floor, where ln rho measures the floor, not the pixel (planar cards:
-# labels in their all-view cluster 96.2% with 1.0, 96.8% with 0.9; results/cards_labels.md)
+# labels in their all-view cluster 96.2% with 1.0, 96.8% with 0.9; docs/results.md, one-off: cards_labels)
 WHITE_CAP = 0.9
 
 
@@ -123,7 +123,7 @@ def assign_all(rho, theta_h, pick, labels, k):
     material on a tie). Why the white term here and not while the materials and slices are
     found: there each material's slice must come from pixels of its own colour, and allowing
     the term let highlight pixels of one material into another's slice (planar cards: 95.2% of
-    pixels in their all-view cluster against 96.8%, benchmarks/results/cards_labels.md).
+    pixels in their all-view cluster against 96.8%, benchmarks/docs/results.md, one-off: cards_labels).
 
     Why column by column in float32: this is the one pass over all (12 million) pixels, and
     numpy's reductions over a length-3 axis and (N, 3) gathers cost more than the arithmetic."""
