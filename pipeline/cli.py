@@ -9,6 +9,7 @@ import sys
 
 from flashbrdf.brdf.errors import InputError
 from flashbrdf.pipeline import commands
+from flashbrdf.pipeline.cmd_colmap import add_import_colmap_parser
 from flashbrdf.pipeline.dask_engine import add_engine_options
 from flashbrdf.pipeline.safety import Terminated, handle_signals, hold_native_stderr
 
@@ -167,6 +168,7 @@ def _parser():
     s.add_argument("--flash", required=True, type=int, metavar="INDEX")
     s.add_argument("--out", required=True, metavar="SCENE_DIR")
     s.add_argument("--force", action="store_true", help=FORCE_HELP)
+    add_import_colmap_parser(sub)
     return p
 
 

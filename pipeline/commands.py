@@ -12,7 +12,8 @@ import importlib
 COMMANDS = {"merl_slice": "cmd_brdf", "train": "cmd_infer", "infer": "cmd_infer",
             "evaluate": "cmd_infer", "extract": "cmd_extract", "segment": "cmd_segment",
             "render": "cmd_render", "compare": "cmd_render", "run": "cmd_run",
-            "export": "cmd_export", "batch": "batch", "import_diligent": "cmd_diligent"}
+            "export": "cmd_export", "batch": "batch", "import_diligent": "cmd_diligent",
+            "import_colmap": "cmd_colmap"}
 
 
 def __getattr__(name):

@@ -1,0 +1,52 @@
+"""`flashbrdf import-colmap MODEL_DIR --images DIR --mesh MESH --out SCENE_DIR
+[--flash-offset X,Y,Z] [--intensity R,G,B] [--force]` (contract command, "Your own capture")."""
+
+from flashbrdf.brdf.errors import InputError
+
+FORCE_HELP = "replace SCENE_DIR if an earlier flashbrdf command made it (never any other folder)"
+
+
+def add_import_colmap_parser(subparsers):
+    """Add the import-colmap sub-command to an argparse sub-parsers object."""
+    s = subparsers.add_parser(
+        "import-colmap", help="turn a COLMAP reconstruction of flash photos into a scene folder",
+        description="Each registered image of the COLMAP sparse model MODEL_DIR (text or binary) "
+                    "whose file stem matches a photo in --images becomes a flash photo with its "
+                    "own camera. scene.json refers to the photos and the mesh; nothing is "
+                    "copied.")
+    s.add_argument("model_dir", metavar="MODEL_DIR", help="COLMAP sparse model folder (sparse/0)")
+    s.add_argument("--images", required=True, metavar="DIR",
+                   help="the flash photos (RAW, EXR, ...), named as the model's images")
+    s.add_argument("--mesh", required=True, metavar="MESH",
+                   help="the object's mesh in the model's frame and units")
+    s.add_argument("--out", required=True, metavar="SCENE_DIR")
+    s.add_argument("--flash-offset", default="0,0,0", metavar="X,Y,Z",
+                   help="flash position in the camera frame (x right, y down, z forward), model "
+                        "units (default 0,0,0: at the lens)")
+    s.add_argument("--intensity", default="1,1,1", metavar="R,G,B",
+                   help="the flash's intensity_rgb (default 1,1,1: the level is relative)")
+    s.add_argument("--force", action="store_true", help=FORCE_HELP)
+    return s
+
+
+def _numbers(text, flag):
+    parts = text.split(",")
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3:
+        raise InputError(flag, f"expected three comma-separated numbers, got {text!r}")
+    return values
+
+
+def import_colmap(args):
+    """Write the scene folder and print the summary on stdout. Returns 0."""
+    from flashbrdf.capture.importers.colmap import import_colmap as write_scene
+    done = write_scene(args.model_dir, args.images, args.mesh, args.out,
+                       flash_offset=_numbers(args.flash_offset, "--flash-offset"),
+                       intensity=_numbers(args.intensity, "--intensity"),
+                       force=args.force)
+    for line in done.lines():
+        print(line)
+    return 0
