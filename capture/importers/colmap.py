@@ -204,9 +204,13 @@ def _inside(path, folder):
 
 
 def _relative(path, scene_folder):
-    """`path` relative to the (future) scene folder, through real paths: capture.load_scene
-    resolves the scene folder before joining, so `..` climbs from where the folder really is."""
-    return Path(os.path.relpath(os.path.realpath(path), scene_folder)).as_posix()
+    """`path` relative to the (future) scene folder `scene_folder` (a real path). The folders
+    are compared as real paths, as capture.load_scene resolves the scene folder before joining,
+    so `..` climbs from where it really is; the file name is kept as given, so a photo that is a
+    link stays the link (a folder of links picking some photos keeps working)."""
+    path = Path(os.path.abspath(path))
+    folder = os.path.relpath(os.path.realpath(path.parent), scene_folder)
+    return (Path(folder) / path.name).as_posix()
 
 
 def _dumps(scene):
