@@ -166,7 +166,8 @@ def _text_camera_diagnosis(files):
             if not row or row[0].startswith("#"):
                 continue
             next(text, None)   # as COLMAP reads it: the 2D points line follows, even if empty
-            if len(row) >= 10 and row[8] not in cameras:
+            if len(row) >= 10 and row[0].isdigit() and row[8].isdigit() and \
+                    row[8] not in cameras:
                 return (f"{files['images']}: image {row[0]} ({row[9]})",
                         f"camera id {row[8]} is not defined in {files['cameras'].name}")
     except (OSError, IndexError):
@@ -178,6 +179,8 @@ def _blame(files, fmt, message):
     """(where, problem) of a pycolmap read error: the model file it is about, by its words."""
     text = message.splitlines()[0] if message else "unknown error"
     text = re.sub(r"^\[[\w./]+:\d+\]\s*", "", text)        # drop pycolmap's [file.cc:123]
+    if "line_stream" in text:    # a C++ stream expression: say what it means
+        text = "a line has too few fields, or one that is not a number"
     problem = f"pycolmap cannot read this {fmt} model: {text}"
     if fmt == "text":
         found = _text_camera_diagnosis(files)
@@ -277,7 +280,9 @@ def contract_camera(camera, where, pose):
                                 f"got {len(params)}")
     if not np.all(np.isfinite(params)):
         raise InputError(where, f"parameters {_listed(params)} are not all finite")
-    width, height = int(camera.width), int(camera.height)
+    # COLMAP keeps sizes unsigned: a negative one in the file comes back as 2^64 minus it
+    width, height = (int(v) - (1 << 64) if int(v) >= 1 << 63 else int(v)
+                     for v in (camera.width, camera.height))
     if not (1 <= width <= MAX_IMAGE_SIDE and 1 <= height <= MAX_IMAGE_SIDE):
         raise InputError(where, f"size {width}x{height} is not a camera's (1..{MAX_IMAGE_SIDE})")
     p = dict(zip(names, params.tolist()))
