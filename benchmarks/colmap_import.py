@@ -110,7 +110,7 @@ def write_report(rows, args):
               "the truth scene's, bin for bin: the ratio is 1.000 at every level.",
               "- pose 1 px: the added error sits on the specular lobe (bins 5-45 gain 1-2% at "
               "480x360), not at the outline: a pixel off moves each pixel's surface point, so its "
-              "normal is off by 1 px / (f * curvature radius) (1.3-1.6 deg here at 480x360) and "
+              "normal turns by depth / (f * curvature radius) (0.6 m / (600 px * 3.5-4.5 cm) = 1.3-1.6 deg at 480x360) and "
               "the lobe is blurred. Dropping a wider outline ring (--silhouette-px 2, 3) makes it "
               "worse (0.38%, 0.46% against 0.32%). The blur shrinks with f: at 960x720 the same "
               "1 px costs half the angle and the ratio falls to 1.4-1.6x.",
