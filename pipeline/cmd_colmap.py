@@ -1,6 +1,8 @@
 """`flashbrdf import-colmap MODEL_DIR --images DIR --mesh MESH --out SCENE_DIR
 [--flash-offset X,Y,Z] [--intensity R,G,B] [--force]` (contract command, "Your own capture")."""
 
+import re
+
 from flashbrdf.brdf.errors import InputError
 
 FORCE_HELP = "replace SCENE_DIR if an earlier flashbrdf command made it (never any other folder)"
@@ -26,6 +28,10 @@ def add_import_colmap_parser(subparsers):
     s.add_argument("--intensity", default="1,1,1", metavar="R,G,B",
                    help="the flash's intensity_rgb (default 1,1,1: the level is relative)")
     s.add_argument("--force", action="store_true", help=FORCE_HELP)
+    # `--flash-offset -0.03,0,0`: before Python 3.13 argparse reads a value that starts with "-"
+    # and holds commas as an option; 3.13 reads any "-<digit>" as a number, as set here
+    if hasattr(s, "_negative_number_matcher"):
+        s._negative_number_matcher = re.compile(r"^-\.?\d")
     return s
 
 

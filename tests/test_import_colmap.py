@@ -251,3 +251,15 @@ def test_read_model_formats_agree(made):
             np.testing.assert_allclose(a.world_from_camera, b.world_from_camera, atol=1e-12)
     assert Path(models[0].files["frames"]).name == "frames.txt"
     assert "frames" not in models[2].files
+
+
+def test_negative_flash_offset_without_equals_sign(made, tmp_path):
+    """`--flash-offset -0.03,0,0` is a value, not an unknown option (before Python 3.13
+    argparse took it for one)."""
+    out = tmp_path / "s"
+    assert main(["import-colmap", str(made["sparse"]), "--images", str(made["images"]),
+                 "--mesh", str(made["mesh"]), "--out", str(out), "--flash-offset",
+                 "-0.03,0.02,0", "--intensity", "1e-2,1e-2,1e-2"]) == 0
+    light = json.loads((out / "scene.json").read_text())["photos"][0]["light"]
+    assert light == {"type": "point", "position": [-0.03, 0.02, 0.0],
+                     "intensity_rgb": [0.01, 0.01, 0.01]}
