@@ -72,8 +72,8 @@ class ColmapImport:
             sample = "" if f.points == m.reconstruction.num_points3D() else " sampled"
             out.append(f"3D points on the mesh: {100 * f.share_on_mesh:.1f}% ({f.on_mesh} of "
                        f"{f.points}{sample} points within {f.tolerance:.3g} model units); "
-                       f"sight lines the mesh hides: {f.hidden_observations} of "
-                       f"{f.observations}; cameras seeing it: {f.views_seeing} of {f.views}")
+                       f"hidden by it: {f.hidden}; cameras seeing it: {f.views_seeing} of "
+                       f"{f.views}")
         else:
             out.append(f"3D points on the mesh: n/a (the model has no 3D points); cameras "
                        f"seeing it: {f.views_seeing} of {f.views}")
@@ -294,7 +294,8 @@ def _provenance(model, images_dir, mesh, skipped, error, frame):
         "skipped_images": len(skipped), "skipped_names": skipped[:100],
         "mean_reprojection_error_px": error,
         "points_on_mesh": {"checked": frame.points, "on_mesh": frame.on_mesh,
-                           "tolerance": frame.tolerance,
-                           "hidden_sight_lines": frame.hidden_observations,
-                           "sight_lines": frame.observations},
+                           "hidden": frame.hidden, "tolerance": frame.tolerance,
+                           "sight_lines": frame.observations,
+                           "sight_lines_on_mesh": frame.on_observations,
+                           "sight_lines_hidden": frame.hidden_observations},
     }

@@ -98,7 +98,7 @@ class ColmapModel:
             return None
         return value if math.isfinite(value) else None
 
-    def sight_lines(self, max_points=50000, per_point=4, seed=0):
+    def sight_lines(self, max_points=50000, per_point=8, seed=0):
         """The model's 3D points and the cameras that saw them, for the mesh frame check.
 
         Returns points (P, 3), observed_point (M,) int and observer_centre (M, 3): at most
@@ -117,7 +117,9 @@ class ColmapModel:
             point = rec.points3D[point_id]
             points[k] = np.asarray(point.xyz, dtype=np.float64).ravel()
             seen = [centres[e.image_id] for e in point.track.elements if e.image_id in centres]
-            for centre in seen[:per_point]:
+            if len(seen) > per_point:    # spread over the track: its cameras, all around
+                seen = [seen[j] for j in np.linspace(0, len(seen) - 1, per_point).astype(int)]
+            for centre in seen:
                 observed.append(k)
                 observers.append(centre)
         if not np.all(np.isfinite(points)):
