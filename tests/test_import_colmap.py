@@ -1,7 +1,7 @@
-"""import-colmap on a synthetic multi-view flash capture with a known BRDF (tests/colmap_synthetic.py):
-cameras converted exactly, in both model formats, with and without the rigs and frames files;
-COLMAP's pixel convention checked against pycolmap's own projection; import -> extract gives the
-known slice; the summary; the mesh frame check's reach.
+"""import-colmap on a synthetic multi-view flash capture with a known BRDF
+(tests/colmap_synthetic.py): cameras converted exactly, in both model formats, with and without
+the rigs and frames files; COLMAP's pixel convention checked against pycolmap's own projection;
+import -> extract gives the known slice; the summary; the mesh frame check's reach.
 """
 
 import json
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from colmap_synthetic import CAMERAS, make_colmap_capture, true_slice
+from colmap_synthetic import make_colmap_capture, true_slice
 from flashbrdf import capture
 from flashbrdf.brdf.errors import InputError
 from flashbrdf.capture.importers import import_colmap, read_colmap_model

@@ -35,11 +35,11 @@ VERTICES_CHECKED = 4000
 @dataclass(frozen=True)
 class FrameCheck:
     """What the model says of the mesh. points: 3D points checked (sampled when many);
-    on_mesh: of them, those a camera saw on the mesh; hidden: those the mesh hides (see above); around: those within NEAR_FRACTION of the mesh's box,
-    on_around: of those, on the mesh; observations, on_observations, hidden_observations:
-    camera-point sight lines checked, those ending on the mesh, those it blocks; tolerance: model
-    units;
-    views, views_seeing: photos' cameras, and those with the mesh in front and in the image."""
+    on_mesh: of them, those a camera saw on the mesh; hidden: those the mesh hides (see above);
+    around: those within NEAR_FRACTION of the mesh's box, on_around: of those, on the mesh;
+    observations, on_observations, hidden_observations: camera-point sight lines checked, those
+    ending on the mesh, those it blocks; tolerance: model units; views, views_seeing: photos'
+    cameras, and those with the mesh in front and in the image."""
     points: int
     on_mesh: int
     hidden: int
