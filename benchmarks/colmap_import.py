@@ -7,7 +7,8 @@ error cost? (issue 35's numbers)
 A synthetic multi-view flash capture (tests/colmap_synthetic.py: a torus around a sphere, which
 shadow each other; two COLMAP cameras, OPENCV with distortion and SIMPLE_RADIAL, principal
 points off centre; each `--scale` times 240x180 pixels; a known GGX slice) is rendered by
-flashbrdf's renderer with shot noise (`--photons` per unit pixel value; each level is one capture). For each:
+flashbrdf's renderer with shot noise (`--photons` per unit pixel value; each level is one
+capture). For each:
 - truth: extract on the scene written by hand from the true cameras;
 - import: import-colmap of the text and of the binary model, then extract;
 - pose 1 px: the model with every image's rotation turned by 1/f radians about a random axis
@@ -111,8 +112,8 @@ def write_report(rows, args):
               "- pose 1 px: the added error sits on the specular lobe (bins 5-45 gain 1-2% at "
               "480x360), not at the outline: a pixel off moves each pixel's surface point, so its "
               "normal turns by depth / (f * curvature radius) (0.6 m / (600 px * 3.5-4.5 cm) = "
-              "1.3-1.6 deg at 480x360) and the lobe is blurred. Dropping a wider outline ring (--silhouette-px 2, 3) makes it "
-              "worse (0.38%, 0.46% against 0.32%). The blur shrinks with f: at 960x720 the same "
+              "1.3-1.6 deg at 480x360) and the lobe is blurred. Dropping a wider outline ring "
+              "(--silhouette-px 2, 3) makes it worse (0.38%, 0.46% against 0.32%). The blur shrinks with f: at 960x720 the same "
               "1 px costs half the angle and the ratio falls to 1.4-1.6x.",
               "- the truth's own error (0.10-0.12%) is the spread of theta_h inside a bin, not "
               "noise, which averages out over the thousands of pixels a bin holds."]
