@@ -114,7 +114,8 @@ def write_report(rows, args):
               "normal turns by depth / (f * curvature radius) (0.6 m / (600 px * 3.5-4.5 cm) = "
               "1.3-1.6 deg at 480x360) and the lobe is blurred. Dropping a wider outline ring "
               "(--silhouette-px 2, 3) makes it worse (0.38%, 0.46% against 0.32%). The blur "
-              "shrinks with f: at 960x720 the same 1 px costs half the angle and the ratio falls to 1.4-1.6x.",
+              "shrinks with f: at 960x720 the same 1 px costs half the angle and the ratio falls "
+              "to 1.4-1.6x.",
               "- the truth's own error (0.10-0.12%) is the spread of theta_h inside a bin, not "
               "noise, which averages out over the thousands of pixels a bin holds."]
     return "\n".join(lines) + "\n"
