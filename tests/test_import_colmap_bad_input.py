@@ -94,6 +94,17 @@ def binary_with_pose(w, tmp, quaternion_xyzw):
     return folder
 
 
+def binary_camera_id(camera_id):
+    """edit of images.bin: the first image's camera id (after the image count u64, its id u32,
+    quaternion 4 f64 and translation 3 f64: byte 68)."""
+    def edit(folder):
+        import struct
+        data = bytearray((folder / "images.bin").read_bytes())
+        struct.pack_into("<I", data, 68, camera_id)
+        (folder / "images.bin").write_bytes(bytes(data))
+    return edit
+
+
 def empty_model(folder):
     for path in folder.iterdir():
         path.write_text("# nothing reconstructed\n")
@@ -143,6 +154,16 @@ CASES = {
     "image camera id undefined (new text)": case(
         lambda w, t: argv(model_copy(w, t, edit=image_line({8: "7"})),
                           w["images"], w["mesh"], t / "s"), "images.txt: image 1"),
+    "image camera id undefined (new binary)": case(
+        lambda w, t: argv(model_copy(w, t, "sparse_bin", edit=binary_camera_id(9)),
+                          w["images"], w["mesh"], t / "s"), "images.bin"),
+    "image camera id undefined (old binary)": case(
+        lambda w, t: argv(model_copy(w, t, "sparse_bin", old=True, edit=binary_camera_id(9)),
+                          w["images"], w["mesh"], t / "s"), "images.bin"),
+    "frame refers to an undefined rig": case(
+        lambda w, t: argv(model_copy(w, t, edit=replace_line("frames.txt", "1 1 ", "1 7 0 0 0 1 "
+                                                              "0 0 0 1 CAMERA 1 1")),
+                          w["images"], w["mesh"], t / "s"), "frames.txt"),
     "non-finite quaternion (text)": case(
         lambda w, t: argv(model_copy(w, t, old=True, edit=image_line({1: "nan"})),
                           w["images"], w["mesh"], t / "s"), "images.txt"),

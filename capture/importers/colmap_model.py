@@ -12,6 +12,7 @@ a C++ library reading untrusted files: any exception it raises is bad input, nev
 """
 
 import math
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -202,14 +203,49 @@ def _blame(files, fmt, message):
     return files["images"].parent, problem
 
 
-def _reconstruction(folder, fmt, files):
+def _read(folder, fmt):
     import pycolmap  # 0.3 s to import, paid by import-colmap only
     rec = pycolmap.Reconstruction()
-    try:
-        (rec.read_binary if fmt == "binary" else rec.read_text)(str(folder))
-    except Exception as err:  # noqa: BLE001  pybind11 maps C++ errors to many types
-        raise InputError(*_blame(files, fmt, str(err))) from None
+    (rec.read_binary if fmt == "binary" else rec.read_text)(str(folder))
     return rec
+
+
+def _without_rigs(files, fmt):
+    """For a model with rigs and frames that pycolmap refused: read its cameras, images and
+    points alone (linked into a temporary folder), as COLMAP before 3.12 would. Returns the
+    error message of that read, or None when it succeeds (then rigs or frames are at fault)."""
+    import tempfile
+    with tempfile.TemporaryDirectory(prefix="flashbrdf-colmap-") as folder:
+        for key in ("cameras", "images", "points3D"):
+            os.symlink(os.path.abspath(files[key]), os.path.join(folder, files[key].name))
+        try:
+            _read(folder, fmt)
+        except Exception as err:  # noqa: BLE001  (see _reconstruction)
+            return str(err)
+    return None
+
+
+def _reconstruction(folder, fmt, files):
+    try:
+        return _read(folder, fmt)
+    except Exception as err:  # noqa: BLE001  pybind11 maps C++ errors to many types
+        message = str(err)
+    if "rigs" in files:
+        # an image's camera id that cameras.* lacks reads as "Image 1 does not exist in frame 1"
+        # with rigs and frames, and as a missing trivial rig without them: ask the second way
+        alone = _without_rigs(files, fmt)
+        if alone is None:
+            rig = re.search(r"Rig with ID (-?\d+) does not exist", message)
+            if rig:
+                raise InputError(files["frames"], f"a frame refers to rig {rig.group(1)}, which "
+                                                  f"{files['rigs'].name} does not define")
+            where, problem = _blame(files, fmt, message)
+            raise InputError(where if where in (files["rigs"], files["frames"])
+                             else files["frames"], problem)
+        if re.search(r"Rig with ID (-?\d+) does not exist", alone):
+            message = alone
+            files = {k: v for k, v in files.items() if k not in ("rigs", "frames")}
+    raise InputError(*_blame(files, fmt, message)) from None
 
 
 def _is_registered(image):
