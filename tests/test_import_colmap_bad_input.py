@@ -297,3 +297,22 @@ def test_valid_control_exits_0_and_keeps_inputs(world, tmp_path, capfd, name):
     assert sorted(p for p in after if p not in before) == sorted(
         [str(out), str(out / "scene.json"), str(out / ".flashbrdf-output")])
     assert "matched 4 images" in captured.out
+
+
+@pytest.mark.parametrize("name", ["points3D.bin", "frames.bin", "images.bin", "cameras.bin"])
+def test_truncated_binary_file_is_bad_input_not_a_hang(world, tmp_path, capfd, monkeypatch,
+                                                       name):
+    """pycolmap loops or allocates without end on some cut binary files (a cut points3D.bin
+    did): the child-process read gives up after READ_TIMEOUT_S (3 s here) and names the model."""
+    monkeypatch.setattr("flashbrdf.capture.importers.colmap_model.READ_TIMEOUT_S", 3.0)
+    folder = model_copy(world, tmp_path, "sparse_bin")
+    data = (folder / name).read_bytes()
+    (folder / name).write_bytes(data[:len(data) // 2])
+    roots = (world["out"], tmp_path)
+    before = snapshot(*roots)
+    capfd.readouterr()
+    status = main([str(a) for a in argv(folder, world["images"], world["mesh"], tmp_path / "s")])
+    lines = capfd.readouterr().err.strip().splitlines()
+    assert status == 2 and len(lines) == 1, lines
+    assert str(folder) in lines[0], lines[0]
+    assert snapshot(*roots) == before

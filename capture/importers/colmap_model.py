@@ -203,8 +203,59 @@ def _blame(files, fmt, message):
     return files["images"].parent, problem
 
 
+# pycolmap reads a binary model without checking its stream: a truncated frames.bin or
+# points3D.bin made it loop or allocate without end (tests/test_import_colmap_bad_input.py). So a
+# binary model is first read in a child process, with a time and memory limit; text parsing
+# checks every field and needs none of this.
+READ_TIMEOUT_S, READ_TIMEOUT_S_PER_GB = 20.0, 60.0
+READ_MEMORY_BYTES, READ_MEMORY_PER_FILE_BYTE = 8 << 30, 20
+_CHILD_READ = """
+import resource, sys
+resource.setrlimit(resource.RLIMIT_AS, (int(sys.argv[2]), int(sys.argv[2])))
+import pycolmap
+try:
+    pycolmap.Reconstruction().read_binary(sys.argv[1])
+except BaseException as err:
+    sys.stderr.write("\\nREAD-ERROR " + " ".join(str(err).split()) + "\\n")
+    sys.exit(3)
+"""
+
+
+class _Unreadable(Exception):
+    """pycolmap failed, crashed or did not finish reading a model (the message says which);
+    ended_badly: it crashed or did not finish (nothing more can be learnt by reading again)."""
+
+    def __init__(self, message, ended_badly=True):
+        super().__init__(message)
+        self.ended_badly = ended_badly
+
+
+def _read_in_child(folder):
+    """Read a binary model in a child process; _Unreadable when that fails or ends badly."""
+    import subprocess
+    import sys
+    size = sum(f.stat().st_size for f in Path(folder).iterdir() if f.is_file())
+    timeout = READ_TIMEOUT_S + READ_TIMEOUT_S_PER_GB * size / 1e9
+    memory = READ_MEMORY_BYTES + READ_MEMORY_PER_FILE_BYTE * size
+    try:
+        done = subprocess.run([sys.executable, "-c", _CHILD_READ, str(folder), str(memory)],
+                              capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        raise _Unreadable(f"reading it did not end within {timeout:.0f} s (a truncated or "
+                          "damaged file?)") from None
+    if done.returncode == 0:
+        return
+    marker = done.stderr.rfind("READ-ERROR ")
+    if marker >= 0:
+        raise _Unreadable(done.stderr[marker + len("READ-ERROR "):].splitlines()[0], False)
+    raise _Unreadable(f"pycolmap stopped (status {done.returncode}) reading it (a truncated or "
+                      "damaged file?)")
+
+
 def _read(folder, fmt):
     import pycolmap  # 0.3 s to import, paid by import-colmap only
+    if fmt == "binary":
+        _read_in_child(folder)
     rec = pycolmap.Reconstruction()
     (rec.read_binary if fmt == "binary" else rec.read_text)(str(folder))
     return rec
@@ -229,6 +280,8 @@ def _reconstruction(folder, fmt, files):
     try:
         return _read(folder, fmt)
     except Exception as err:  # noqa: BLE001  pybind11 maps C++ errors to many types
+        if getattr(err, "ended_badly", False):
+            raise InputError(folder, f"pycolmap cannot read this {fmt} model: {err}") from None
         message = str(err)
     if "rigs" in files:
         # an image's camera id that cameras.* lacks reads as "Image 1 does not exist in frame 1"
