@@ -164,3 +164,29 @@ def test_any_value_in_a_photos_camera(imported, tmp_path_factory, field, value, 
         return
     cam = scene.photos[photo].camera
     assert cam.width >= 1 and np.all(np.isfinite(cam.world_from_camera))
+
+
+@settings(deadline=None, max_examples=15,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(name=st.sampled_from(["cameras.bin", "images.bin", "points3D.bin", "rigs.bin",
+                             "frames.bin"]),
+       cut=st.floats(0.0, 0.999), flips=st.lists(st.tuples(st.floats(0.0, 0.999),
+                                                           st.integers(0, 255)), max_size=4))
+def test_any_cut_or_flipped_binary_model(world, tmp_path_factory, monkeypatch, name, cut, flips):
+    """Binary files cut or with bytes changed: a result or an InputError naming the model,
+    never a hang or a crash (the child-process read, with its limit at 3 s here)."""
+    monkeypatch.setattr("flashbrdf.capture.importers.colmap_model.READ_TIMEOUT_S", 3.0)
+    folder = tmp_path_factory.mktemp("b") / "model"
+    shutil.copytree(world["sparse_bin"], folder)
+    data = bytearray((folder / name).read_bytes())
+    for where, value in flips:
+        data[int(where * len(data))] = value
+    if not flips:
+        data = data[:int(cut * len(data))]
+    (folder / name).write_bytes(bytes(data))
+    try:
+        model = read_colmap_model(folder)
+    except InputError as err:
+        _one_line_naming(err, folder)
+        return
+    assert all(np.all(np.isfinite(im.world_from_camera)) for im in model.images)
