@@ -1,0 +1,301 @@
+"""A photogrammetry reconstruction of flash photos -> a scene folder (the contract's import-colmap).
+
+    import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0, 0, 0),
+                  intensity=(1, 1, 1), force=False) -> ColmapImport (.lines(): the summary)
+
+Each registered model image whose file stem matches a photo in `images_dir` becomes a `flash`
+photo with its own camera (several COLMAP cameras per model are kept apart), lit by a point
+light at `flash_offset` in its camera frame. SfM may have run on JPEGs while the flash photos are
+RAW or EXR files of the same names; a model image named sub/x.jpg is looked for in images_dir/sub
+when that folder exists, else in images_dir.
+
+Nothing is copied and nothing is written inside `images_dir`: scene.json refers to the photos and
+the mesh by paths relative to the scene folder (climbing out of it with `..` where needed, as the
+contract's "relative to the folder" allows), so moving the scene folder together with the photos
+keeps it working. The folder is built aside and renamed into place when complete.
+"""
+
+import json
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path, PurePosixPath
+
+import numpy as np
+
+from flashbrdf.files.errors import InputError
+from flashbrdf.capture.importers.colmap_model import camera_model_name, read_colmap_model
+from flashbrdf.capture.importers.mesh_frame import check_mesh_frame, require_mesh_in_frame
+from flashbrdf.capture.photo import CV_EXTENSIONS, FLOAT_EXTENSIONS, RAW_EXTENSIONS
+from flashbrdf.capture.scene import MAX_FACTOR, MIN_FACTOR
+from flashbrdf.files.outputs import check_outputs, staged_output_dir
+
+PHOTO_EXTENSIONS = FLOAT_EXTENSIONS + CV_EXTENSIONS + RAW_EXTENSIONS
+LISTED_NAMES = 8          # skipped images named on stdout; the rest are counted
+
+
+@dataclass(eq=False)
+class ColmapImport:
+    """What import_colmap did: out_dir, the ColmapModel, matched [(ModelImage, photo Path)],
+    skipped (registered images without a photo), cameras {camera_id: (COLMAP model name,
+    contract camera dict of its first photo, photos)}, mean reprojection error (px or None),
+    frame (mesh_frame.FrameCheck), the scene dict written."""
+    out_dir: Path
+    model: object
+    matched: list
+    skipped: list
+    cameras: dict
+    reprojection_error: float
+    frame: object
+    scene: dict = field(default_factory=dict)
+
+    def lines(self):
+        """The summary printed on stdout, one string per line."""
+        m = self.model
+        rigs = "with" if m.rigs_and_frames else "without"
+        out = [f"read {m.format} model {m.folder} ({rigs} rigs and frames): "
+               f"{len(m.reconstruction.cameras)} cameras, {len(m.images)} registered images"
+               + (f" ({len(m.unregistered)} unregistered)" if m.unregistered else "")
+               + f", {m.reconstruction.num_points3D()} 3D points"]
+        out.append(f"matched {len(self.matched)} images to photos; skipped {len(self.skipped)} "
+                   "with no photo" + _named(self.skipped))
+        for camera_id, (name, cam, count) in sorted(self.cameras.items()):
+            dist = f", distortion {_short(cam['distortion'])}" if "distortion" in cam else ""
+            out.append(f"camera {camera_id}: {name} {cam['width']}x{cam['height']}, fx "
+                       f"{cam['fx']:.6g} fy {cam['fy']:.6g} cx {cam['cx']:.6g} cy "
+                       f"{cam['cy']:.6g} (pixel centres at 0){dist}; {count} photos")
+        error = ("n/a (no 3D points)" if self.reprojection_error is None
+                 else f"{self.reprojection_error:.3g} px")
+        out.append(f"mean reprojection error: {error}")
+        f = self.frame
+        if f.points:
+            sample = "" if f.points == m.reconstruction.num_points3D() else " sampled"
+            out.append(f"3D points on the mesh: {100 * f.share_on_mesh:.1f}% ({f.on_mesh} of "
+                       f"{f.points}{sample} points within {f.tolerance:.3g} model units); "
+                       f"hidden by it: {f.hidden}; cameras seeing it: {f.views_seeing} of "
+                       f"{f.views}")
+        else:
+            out.append(f"3D points on the mesh: n/a (the model has no 3D points); cameras "
+                       f"seeing it: {f.views_seeing} of {f.views}")
+        light = self.scene["photos"][0]["light"]
+        out.append(f"wrote {self.out_dir}: {len(self.matched)} flash photos, point light at "
+                   f"{_short(light['position'])} (camera frame, model units), intensity "
+                   f"{_short(light['intensity_rgb'])}")
+        return out
+
+
+def _named(names):
+    if not names:
+        return ""
+    shown = ", ".join(names[:LISTED_NAMES])
+    more = f" and {len(names) - LISTED_NAMES} more" if len(names) > LISTED_NAMES else ""
+    return f": {shown}{more}"
+
+
+def _short(values):
+    return "[" + ", ".join(f"{v:.4g}" for v in values) + "]"
+
+
+def _triple(values, where, positive=False):
+    """Three finite numbers (list of floats); positive: each in MIN_FACTOR..MAX_FACTOR."""
+    try:
+        out = [float(v) for v in values]
+    except (TypeError, ValueError):
+        raise InputError(where, f"expected 3 numbers, got {values!r}") from None
+    if len(out) != 3 or not all(np.isfinite(out)):
+        raise InputError(where, f"expected 3 finite numbers, got {values!r}")
+    if positive and not all(MIN_FACTOR <= v <= MAX_FACTOR for v in out):
+        raise InputError(where, f"expected 3 positive numbers within {MIN_FACTOR:g}.."
+                                f"{MAX_FACTOR:g}, got {out}")
+    return out
+
+
+class _PhotoFolders:
+    """The photos of each folder under --images, by stem, read once per folder."""
+
+    def __init__(self, root):
+        self.root = Path(root)
+        self.listed = {}
+
+    def folder_for(self, name):
+        """The folder where model image `name` (COLMAP's relative name) has its photo."""
+        parts = PurePosixPath(name.replace("\\", "/")).parent.parts
+        if parts and ".." not in parts and not parts[0].startswith("/"):
+            sub = self.root.joinpath(*parts)
+            if sub.is_dir():
+                return sub
+        return self.root
+
+    def photos(self, folder, stem):
+        if folder not in self.listed:
+            found = {}
+            try:
+                names = sorted(e.name for e in os.scandir(folder) if e.is_file())
+            except OSError as err:
+                raise InputError(folder, f"cannot list the photos: {err}") from None
+            for name in names:
+                path = Path(name)
+                if path.suffix.lower() in PHOTO_EXTENSIONS:
+                    found.setdefault(path.stem, []).append(folder / name)
+            self.listed[folder] = found
+        return self.listed[folder].get(stem, [])
+
+
+def match_photos(model, images_dir):
+    """([(ModelImage, photo Path)], [names of registered images with no photo]) by file stem.
+
+    InputError naming the photo when two photos share the stem of a model image, or when one
+    photo would serve two model images."""
+    folders = _PhotoFolders(images_dir)
+    matched, skipped, claimed = [], [], {}
+    for image in model.images:
+        stem = PurePosixPath(image.name.replace("\\", "/")).stem
+        found = folders.photos(folders.folder_for(image.name), stem)
+        if not found:
+            skipped.append(image.name)
+            continue
+        if len(found) > 1:
+            raise InputError(found[1], f"{found[0].name} and {found[1].name} share the stem "
+                                       f"{stem!r} of model image {image.name}: keep one photo "
+                                       "per stem in --images (e.g. the flash RAW files in a "
+                                       "folder of their own)")
+        if found[0] in claimed:
+            raise InputError(found[0], f"is the photo of two model images, {claimed[found[0]]} "
+                                       f"and {image.name} (matched by stem): give each its own "
+                                       "photo, in subfolders named as in the model")
+        claimed[found[0]] = image.name
+        matched.append((image, found[0]))
+    return matched, skipped
+
+
+def photo_size(path):
+    """(width, height) of a photo as capture.load_photo decodes it, from its header only."""
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext in RAW_EXTENSIONS:
+        import rawpy
+        try:
+            with rawpy.imread(str(path)) as raw:
+                sizes = raw.sizes
+        except (rawpy.LibRawError, OSError, ValueError) as err:
+            raise InputError(path, f"cannot read RAW file: {err}") from None
+        turned = sizes.flip in (5, 6)   # LibRaw turns the image a quarter on output
+        return (sizes.height, sizes.width) if turned else (sizes.width, sizes.height)
+    if ext == ".pfm":
+        from flashbrdf.capture.photo import read_pfm
+        rgb = read_pfm(path)
+        return rgb.shape[1], rgb.shape[0]
+    import OpenImageIO as oiio
+    image = oiio.ImageInput.open(str(path))
+    if image is None:
+        raise InputError(path, f"cannot read image: {oiio.geterror() or 'unknown format'}")
+    try:
+        spec = image.spec()
+    finally:
+        image.close()
+    if ext in FLOAT_EXTENSIONS and spec.full_width > 0 and spec.full_height > 0:
+        return spec.full_width, spec.full_height   # capture places a data window in it
+    return spec.width, spec.height
+
+
+def _inside(path, folder):
+    path, folder = os.path.realpath(path), os.path.realpath(folder)
+    return path == folder or path.startswith(folder.rstrip(os.sep) + os.sep)
+
+
+def _relative(path, scene_folder):
+    """`path` relative to the (future) scene folder `scene_folder` (a real path). The folders
+    are compared as real paths, as capture.load_scene resolves the scene folder before joining,
+    so `..` climbs from where it really is; the file name is kept as given, so a photo that is a
+    link stays the link (a folder of links picking some photos keeps working)."""
+    path = Path(os.path.abspath(path))
+    folder = os.path.relpath(os.path.realpath(path.parent), scene_folder)
+    return (Path(folder) / path.name).as_posix()
+
+
+def _dumps(scene):
+    """JSON text with each innermost list of numbers on one line."""
+    text = json.dumps(scene, indent=1)
+    numbers = re.compile(r"\[\s*(-?[\d.eE+-]+(?:,\s*-?[\d.eE+-]+)*)\s*\]")
+    return numbers.sub(lambda m: "[" + re.sub(r"\s+", " ", m.group(1)) + "]", text) + "\n"
+
+
+def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 0.0),
+                  intensity=(1.0, 1.0, 1.0), force=False):
+    """Write the scene folder `out_dir` for a COLMAP sparse model, its flash photos in
+    `images_dir` and a mesh in the model's frame. Returns a ColmapImport.
+
+    flash_offset: the flash position in each camera's frame (model units); intensity: its
+    intensity_rgb; force: replace an out_dir that flashbrdf made. InputError (exit 2) naming
+    the file or field for bad input; then nothing is written.
+    """
+    from flashbrdf.capture.geometry import MeshIntersector, load_mesh
+    offset = _triple(flash_offset, "--flash-offset")
+    power = _triple(intensity, "--intensity", positive=True)
+    images_dir, mesh, out_dir = Path(images_dir), Path(mesh), Path(out_dir)
+    if not images_dir.is_dir():
+        raise InputError(images_dir, "not a folder (--images names the folder of the flash "
+                                     "photos)")
+    check_outputs(inputs=[model_dir, images_dir, mesh], outputs=[out_dir], folders=[out_dir])
+    if _inside(out_dir, images_dir):
+        raise InputError(out_dir, f"is inside --images {images_dir}: import-colmap writes "
+                                  "nothing there; give a folder beside it")
+    model = read_colmap_model(model_dir)
+    matched, skipped = match_photos(model, images_dir)
+    if not matched:
+        example = model.images[0].name
+        raise InputError(images_dir, f"holds no photo for any of the model's {len(model.images)} "
+                                     f"registered images (matched by file stem: {example} needs "
+                                     f"{PurePosixPath(example).stem}.exr, .dng, .jpg, ...)")
+    check_outputs(inputs=[p for _, p in matched], outputs=[out_dir], folders=[out_dir])
+    scene_folder = os.path.realpath(out_dir)
+    cameras, photos = {}, []
+    for image, photo in matched:
+        cam = model.contract_camera(image.camera_id, image.world_from_camera)
+        size = photo_size(photo)
+        if size != (cam["width"], cam["height"]):
+            raise InputError(photo, f"image is {size[0]}x{size[1]} but its camera "
+                                    f"{image.camera_id} in {model.files['cameras'].name} is "
+                                    f"{cam['width']}x{cam['height']} (photos must be the "
+                                    "images the model was made from, uncropped and unturned)")
+        kind, first, count = cameras.get(image.camera_id, (
+            camera_model_name(model.reconstruction.camera(image.camera_id)), cam, 0))
+        cameras[image.camera_id] = (kind, first, count + 1)
+        photos.append({"file": _relative(photo, scene_folder), "role": "flash", "camera": cam,
+                       "light": {"type": "point", "position": offset, "intensity_rgb": power},
+                       "source": {"model_image": image.name, "image_id": image.image_id,
+                                  "camera_id": image.camera_id}})
+    loaded, has_normals = load_mesh(mesh)
+    points, observed, observers = model.sight_lines()
+    frame = check_mesh_frame(MeshIntersector(loaded, has_normals), points, observed, observers,
+                             [p["camera"] for p in photos])
+    require_mesh_in_frame(frame, mesh)
+    error = model.mean_reprojection_error()
+    scene = {"camera": photos[0]["camera"], "geometry": {"mesh": _relative(mesh, scene_folder)},
+             "photos": photos,
+             "provenance": _provenance(model, images_dir, mesh, skipped, error, frame)}
+    with staged_output_dir(out_dir, force=force, command="import-colmap") as staged:
+        Path(staged, "scene.json").write_text(_dumps(scene), encoding="utf-8")
+    return ColmapImport(out_dir, model, matched, skipped, cameras, error, frame, scene)
+
+
+def _provenance(model, images_dir, mesh, skipped, error, frame):
+    import pycolmap
+    return {
+        "importer": "flashbrdf import-colmap",
+        "model": os.path.abspath(model.folder), "model_format": model.format,
+        "rigs_and_frames": model.rigs_and_frames,
+        "pycolmap": getattr(pycolmap, "__version__", "unknown"),
+        "images": os.path.abspath(images_dir), "mesh": os.path.abspath(mesh),
+        "conventions": "cx, cy = COLMAP's minus 0.5 (pixel centres at 0); world_from_camera = "
+                       "inverse of COLMAP's cam_from_world; distortion = OpenCV's [k1, k2, p1, "
+                       "p2, k3] (FULL_OPENCV: [k1, k2, p1, p2, k3, k4, k5, k6])",
+        "registered_images": len(model.images), "unregistered_images": len(model.unregistered),
+        "skipped_images": len(skipped), "skipped_names": skipped[:100],
+        "mean_reprojection_error_px": error,
+        "points_on_mesh": {"checked": frame.points, "on_mesh": frame.on_mesh,
+                           "hidden": frame.hidden, "tolerance": frame.tolerance,
+                           "sight_lines": frame.observations,
+                           "sight_lines_on_mesh": frame.on_observations,
+                           "sight_lines_hidden": frame.hidden_observations},
+    }

@@ -1,0 +1,148 @@
+"""Is a mesh in a photogrammetry model's frame? Judged from the model's 3D points and cameras.
+
+A camera saw each 3D point of the model, so in the model's frame the mesh must
+- carry the points: the ray from a camera that saw a point meets the mesh first at the point,
+  within a tolerance (a point "on the mesh");
+- not hide them: a point none of whose sight lines ends on the mesh and most of which meet it
+  well before the point (a "hidden" point) is one the cameras could not have seen through it;
+- stand in front of the cameras that photographed it.
+The tolerance is TOLERANCE_FRACTION of the mesh's bounding-box diagonal. The limits below refuse
+a mesh moved by 13% of its diagonal, scaled by 0.9 or 1.05 about its centre, turned 90 degrees,
+in millimetres or far away, and accept the true mesh with points scattered about it by up to 2%
+of its diagonal, or with tracks that list cameras which could not see the point
+(tests/test_import_colmap.py).
+A mesh in other units, moved, turned or from another reconstruction fails one of these. Points
+of the background (a table, a wall) are neither on the mesh nor hidden by it: they do not count
+against it, so a mesh cropped to the object passes.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from flashbrdf.files.errors import InputError
+
+TOLERANCE_FRACTION = 0.01      # "on the mesh": within 1% of its bounding-box diagonal
+NEAR_FRACTION = 0.1            # points within 10% of the diagonal of its box are "around" it
+MIN_SHARE_AROUND = 0.2         # of the points around the mesh, at least this share on it
+MIN_VIEW_SHARE = 0.5           # of the photos' cameras, at least this share must see the mesh
+# hidden points per point on the mesh: ~0 in frame (a point a little inside a smoothed surface),
+# 0.9 with points scattered by 2% of the diagonal, >= 1.4 for the wrong meshes above
+MAX_HIDDEN_PER_ON = 1.0
+VERTICES_CHECKED = 4000
+
+
+@dataclass(frozen=True)
+class FrameCheck:
+    """What the model says of the mesh. points: 3D points checked (sampled when many);
+    on_mesh: of them, those a camera saw on the mesh; hidden: those the mesh hides (see above);
+    around: those within NEAR_FRACTION of the mesh's box, on_around: of those, on the mesh;
+    observations, on_observations, hidden_observations: camera-point sight lines checked, those
+    ending on the mesh, those it blocks; tolerance: model units; views, views_seeing: photos'
+    cameras, and those with the mesh in front and in the image."""
+    points: int
+    on_mesh: int
+    hidden: int
+    around: int
+    on_around: int
+    observations: int
+    on_observations: int
+    hidden_observations: int
+    tolerance: float
+    views: int
+    views_seeing: int
+
+    @property
+    def share_on_mesh(self):
+        return self.on_mesh / self.points if self.points else None
+
+    def problem(self):
+        """Why the mesh is not in the model's frame, or None."""
+        if self.views and self.views_seeing < MIN_VIEW_SHARE * self.views:
+            return (f"only {self.views_seeing} of the {self.views} photos' cameras have it in "
+                    "front of them and in view")
+        if not self.points:
+            return None
+        if self.on_mesh == 0:
+            return (f"none of the model's {self.points} 3D points lies on it (within "
+                    f"{self.tolerance:.3g} model units)")
+        if self.hidden >= 10 and self.hidden > MAX_HIDDEN_PER_ON * self.on_mesh:
+            return (f"it hides {self.hidden} of the model's {self.points} 3D points from the "
+                    f"cameras that saw them (against {self.on_mesh} on it)")
+        if self.around >= 10 and self.on_around < MIN_SHARE_AROUND * self.around:
+            return (f"only {self.on_around} of the {self.around} 3D points around it lie on it "
+                    f"(within {self.tolerance:.3g} model units)")
+        return None
+
+
+def _views_seeing(vertices, cameras):
+    """How many of `cameras` (contract camera dicts) have >= 1% of `vertices` (N, 3) in front
+    and inside the image. The lens is taken as a pinhole: distortion moves points by pixels,
+    and far outside the field its polynomial folds them back in."""
+    seeing = 0
+    for cam in cameras:
+        pose = np.asarray(cam["world_from_camera"], dtype=np.float64)
+        local = (vertices - pose[:3, 3]) @ pose[:3, :3]
+        z = local[:, 2]
+        front = z > 0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = cam["fx"] * local[:, 0] / z + cam["cx"]
+            v = cam["fy"] * local[:, 1] / z + cam["cy"]
+        inside = front & (u >= -0.5) & (u <= cam["width"] - 0.5) & (v >= -0.5) & \
+            (v <= cam["height"] - 0.5)
+        seeing += int(np.count_nonzero(inside) >= max(1, 0.01 * len(vertices)))
+    return seeing
+
+
+def check_mesh_frame(intersector, points, observed_point, observer_centre, cameras):
+    """FrameCheck of a mesh against a model.
+
+    intersector: capture.MeshIntersector of the mesh; points (P, 3) 3D points of the model;
+    observed_point (M,) int index into points and observer_centre (M, 3): one camera-point
+    sight line per row; cameras: contract camera dicts of the photos.
+    """
+    from flashbrdf.capture.geometry import intersect
+    vertices = intersector.vertices
+    diagonal = float(np.linalg.norm(vertices.max(0) - vertices.min(0)))
+    tolerance = TOLERANCE_FRACTION * diagonal
+    rng = np.random.default_rng(0)
+    pick = rng.choice(len(vertices), size=min(VERTICES_CHECKED, len(vertices)), replace=False)
+    views_seeing = _views_seeing(vertices[pick], cameras)
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    observed_point = np.asarray(observed_point, dtype=np.int64)
+    on_point = np.zeros(len(points), dtype=bool)
+    hidden_point = np.zeros(len(points), dtype=bool)
+    on = hidden = 0
+    if len(observed_point):
+        sight = points[observed_point] - observer_centre
+        length = np.linalg.norm(sight, axis=1)
+        valid = length > 0
+        hits = intersect(intersector, observer_centre[valid], sight[valid] / length[valid, None])
+        gap = hits.distance - length[valid]           # inf where the line misses the mesh
+        on_line, hidden_line = np.abs(gap) <= tolerance, gap < -tolerance
+        lines_of = observed_point[valid]
+        count = np.bincount(lines_of, minlength=len(points))
+        on_point = np.bincount(lines_of, on_line, minlength=len(points)) > 0
+        # most of its sight lines blocked, none ending on it: one line alone may graze an edge
+        hidden_point = ~on_point & (2 * np.bincount(lines_of, hidden_line, minlength=len(points))
+                                    >= np.maximum(count, 1)) & (count > 0)
+        on = int(np.count_nonzero(on_line))
+        hidden = int(np.count_nonzero(hidden_line))
+    margin = NEAR_FRACTION * diagonal
+    around = np.all((points >= vertices.min(0) - margin) & (points <= vertices.max(0) + margin),
+                    axis=1)
+    return FrameCheck(points=len(points), on_mesh=int(on_point.sum()),
+                      hidden=int(hidden_point.sum()),
+                      around=int(around.sum()), on_around=int((on_point & around).sum()),
+                      observations=int(len(observed_point)), on_observations=on,
+                      hidden_observations=hidden, tolerance=tolerance, views=len(cameras),
+                      views_seeing=views_seeing)
+
+
+def require_mesh_in_frame(check, mesh_path):
+    """InputError naming the mesh file when FrameCheck `check` finds it out of the frame."""
+    problem = check.problem()
+    if problem is not None:
+        raise InputError(mesh_path, f"not in the model's frame: {problem}; the mesh must be in "
+                                    "the model's coordinates and units (e.g. meshed from the "
+                                    "same reconstruction)")

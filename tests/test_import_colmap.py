@@ -1,0 +1,296 @@
+"""import-colmap on a synthetic multi-view flash capture with a known BRDF
+(tests/colmap_synthetic.py): cameras converted exactly, in both model formats, with and without
+the rigs and frames files; COLMAP's pixel convention checked against pycolmap's own projection;
+import -> extract gives the known slice; the summary; the mesh frame check's reach.
+"""
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from colmap_synthetic import make_colmap_capture, true_slice
+from flashbrdf import capture
+from flashbrdf.files.errors import InputError
+from flashbrdf.capture.importers.colmap import import_colmap
+from flashbrdf.capture.importers.colmap_model import read_colmap_model
+from flashbrdf.capture.importers.colmap import match_photos, photo_size
+from flashbrdf.capture.importers.colmap_model import ModelImage, contract_camera
+from flashbrdf.cli.main import main
+from flashbrdf.slice_extract import extract_slice
+
+pycolmap = pytest.importorskip("pycolmap")
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory):
+    """6 views, two COLMAP cameras (OPENCV with distortion, SIMPLE_RADIAL), noise-free photos,
+    plus the pre-3.12 layouts (no rigs and frames files) of both formats."""
+    out = tmp_path_factory.mktemp("colmap")
+    made = make_colmap_capture(out, views=6)
+    for name in ("sparse", "sparse_bin"):
+        old = out / f"{name}_old"
+        shutil.copytree(out / name, old)
+        for f in old.iterdir():
+            if f.stem in ("rigs", "frames"):
+                f.unlink()
+    return made
+
+
+LAYOUTS = ["sparse", "sparse_bin", "sparse_old", "sparse_bin_old"]
+
+
+@pytest.mark.parametrize("layout", LAYOUTS)
+def test_cameras_and_poses_converted_exactly(made, tmp_path, layout):
+    """Text keeps 17 significant digits and binary is exact: the only error left is the
+    quaternion <-> matrix round trip, ~1e-16 per entry, so 1e-12 is far above it and far below
+    any real error (a 0.5 px shift is 1.7e-3 of fx)."""
+    done = import_colmap(made["out"] / layout, made["images"], made["mesh"], tmp_path / "s",
+                         flash_offset=(0.03, -0.02, 0))
+    assert done.model.format == ("binary" if "bin" in layout else "text")
+    assert done.model.rigs_and_frames == ("old" not in layout)
+    got = capture.load_scene(tmp_path / "s")
+    truth = capture.load_scene(made["truth"])
+    assert len(got.photos) == len(truth.photos) == 6
+    for a, b in zip(got.photos, truth.photos):
+        assert a.file == b.file                       # the photos, referenced, never copied
+        ca, cb = a.camera, b.camera
+        assert (ca.width, ca.height) == (cb.width, cb.height)
+        for key in ("fx", "fy", "cx", "cy"):
+            assert getattr(ca, key) == pytest.approx(getattr(cb, key), rel=1e-12, abs=1e-12)
+        np.testing.assert_allclose(ca.distortion, cb.distortion, atol=1e-15)
+        np.testing.assert_allclose(ca.world_from_camera, cb.world_from_camera, atol=1e-12)
+        np.testing.assert_array_equal(a.light.position, [0.03, -0.02, 0])
+    assert got.geometry.mesh == truth.geometry.mesh
+
+
+def test_pixel_centres_match_pycolmaps_projection(made, tmp_path):
+    """Independent of the importer's own arithmetic: pycolmap projects the model's 3D points in
+    COLMAP's convention (top-left pixel centre at (0.5, 0.5)), capture.project_points in the
+    contract's (at (0, 0)), lens distortion included; they must differ by exactly 0.5 px."""
+    import_colmap(made["sparse"], made["images"], made["mesh"], tmp_path / "s")
+    scene = capture.load_scene(tmp_path / "s")
+    rec = pycolmap.Reconstruction(str(made["sparse"]))
+    points = made["points"][:200]
+    for photo in scene.photos:
+        image = rec.image(json.loads((tmp_path / "s" / "scene.json").read_text())["photos"][
+            photo.index]["source"]["image_id"])
+        pose = image.cam_from_world()
+        local = points @ pose.rotation.matrix().T + pose.translation
+        expected = rec.camera(image.camera_id).img_from_cam(local) - 0.5
+        uv, z = capture.project_points(photo.camera, points)
+        assert np.all(z > 0)
+        np.testing.assert_allclose(uv, expected, atol=1e-6)
+
+
+def _median_error(result, truth, n_min=20):
+    ok = result.n >= n_min
+    return float(np.median(np.max(np.abs(result.rho[ok] / truth[ok] - 1), axis=1))), int(ok.sum())
+
+
+def test_round_trip_gives_the_known_slice(made, tmp_path):
+    """Noise-free photos rendered from the true cameras: the imported scene must give the slice
+    of the hand-written truth scene to float precision, and that slice is the BRDF's within the
+    spread of theta_h inside a bin (< 1% median; the flash 3.6 cm off the lens at 0.6 m puts
+    theta_d near 1.7 deg, where GGX without Fresnel is flat)."""
+    import_colmap(made["sparse_bin"], made["images"], made["mesh"], tmp_path / "s",
+                  flash_offset=(0.03, -0.02, 0))
+    got = extract_slice(tmp_path / "s")
+    want = extract_slice(made["truth"])
+    np.testing.assert_array_equal(got.n, want.n)
+    np.testing.assert_allclose(got.rho, want.rho, rtol=1e-6)
+    error, bins = _median_error(got, true_slice(made["brdf"]))
+    assert bins >= 60 and error < 0.01
+    assert len(got.report["photos"]) == 6 and all(p["on_surface"] > 0
+                                                  for p in got.report["photos"])
+
+
+def test_cli_summary(made, tmp_path, capsys):
+    """Two of the six photos missing: four matched, two skipped and named; both cameras listed
+    with their photo counts; reprojection error near the keypoints' 0.3 px noise (the mean
+    norm of a 2D Gaussian of sigma 0.3 is 0.38 px); the floor's points (20%) off the mesh."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for name in made["names"][:4]:
+        (photos / f"{name}.exr").symlink_to(made["images"] / f"{name}.exr")
+    out = tmp_path / "scene"
+    assert main(["import-colmap", str(made["sparse"]), "--images", str(photos), "--mesh",
+                 str(made["mesh"]), "--out", str(out), "--flash-offset=0.03,-0.02,0",
+                 "--intensity", "2,2,2"]) == 0
+    text = capsys.readouterr().out
+    assert "matched 4 images to photos; skipped 2 with no photo: view_04.jpg, view_05.jpg" \
+        in text
+    assert "camera 1: OPENCV 240x180, fx 300 fy 303 cx 125.8 cy 85.6" in text
+    assert "camera 2: SIMPLE_RADIAL 240x180, fx 330 fy 330 cx 116.3 cy 93.7" in text
+    assert text.count("; 2 photos") == 2
+    error = float(text.split("mean reprojection error: ")[1].split(" px")[0])
+    assert 0.3 < error < 0.46
+    share = float(text.split("3D points on the mesh: ")[1].split("%")[0])
+    assert 75 <= share <= 82       # 80% on the surface, less the few seen only at the rim
+    doc = json.loads((out / "scene.json").read_text())
+    assert [p["file"] for p in doc["photos"]] == [f"../photos/{n}.exr"
+                                                  for n in made["names"][:4]]
+    assert doc["photos"][0]["light"]["intensity_rgb"] == [2.0, 2.0, 2.0]
+    assert sorted(p.name for p in photos.iterdir()) == [f"{n}.exr" for n in made["names"][:4]]
+
+
+def test_mesh_frame_check_reach(made, tmp_path):
+    """The mesh_frame limits as its docstring states them: the true mesh passes, with exact
+    points, points scattered by 2% of the mesh's diagonal, or tracks listing every camera whose
+    image the point falls in (occlusion ignored, as a careless exporter might); a mesh moved by
+    13% of its diagonal, scaled 0.9 or 1.05 about its centre, or turned 90 degrees is refused."""
+    import trimesh
+    from flashbrdf.capture.geometry import MeshIntersector, load_mesh
+    from flashbrdf.capture.importers.mesh_frame import check_mesh_frame
+    done = import_colmap(made["sparse"], made["images"], made["mesh"], tmp_path / "ok")
+    assert done.frame.hidden == 0 and done.frame.problem() is None
+    model = done.model
+    points, observed, observers = model.sight_lines()
+    cams = [p["camera"] for p in done.scene["photos"]]
+    centres = np.array([im.centre for im in model.images])
+    careless = [(k, c) for k, p in enumerate(points) for cam, c in zip(cams, centres)
+                if _in_view(cam, p)]
+    mesh, _ = load_mesh(made["mesh"])
+    diagonal = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
+    scattered = points + np.random.default_rng(0).normal(0, 0.02 * diagonal, points.shape)
+    true_mesh = MeshIntersector(mesh, True)
+    for p, o, c in [(points, observed, observers), (scattered, observed, observers),
+                    (points, np.array([k for k, _ in careless]),
+                     np.array([c for _, c in careless]))]:
+        assert check_mesh_frame(true_mesh, p, o, c, cams).problem() is None
+    T = trimesh.transformations
+    centre = mesh.bounds.mean(axis=0)
+    for transform in [T.translation_matrix([0.13 * diagonal, 0, 0]), T.scale_matrix(0.9, centre),
+                      T.scale_matrix(1.05, centre), T.rotation_matrix(np.pi / 2, [1, 0, 0],
+                                                                       centre)]:
+        moved = mesh.copy()
+        moved.apply_transform(transform)
+        check = check_mesh_frame(MeshIntersector(moved, False), points, observed, observers,
+                                 cams)
+        assert check.problem() is not None
+    moved = mesh.copy()
+    moved.apply_transform(T.scale_matrix(1.05, centre))
+    moved.export(tmp_path / "moved.ply")
+    with pytest.raises(InputError, match="moved.ply: not in the model's frame: it hides"):
+        import_colmap(made["sparse"], made["images"], tmp_path / "moved.ply", tmp_path / "s")
+    assert not (tmp_path / "s").exists()
+
+
+def _in_view(cam, point):
+    pose = np.asarray(cam["world_from_camera"])
+    x, y, z = (point - pose[:3, 3]) @ pose[:3, :3]
+    return z > 0 and 0 <= cam["fx"] * x / z + cam["cx"] < cam["width"] and \
+        0 <= cam["fy"] * y / z + cam["cy"] < cam["height"]
+
+
+CAMERA_CASES = [
+    ("SIMPLE_PINHOLE", [400.0, 100.5, 80.5], None),
+    ("PINHOLE", [400.0, 410.0, 101.0, 79.0], None),
+    ("SIMPLE_RADIAL", [400.0, 100.5, 80.5, -0.1], [-0.1, 0, 0, 0, 0]),
+    ("RADIAL", [400.0, 100.5, 80.5, -0.1, 0.03], [-0.1, 0.03, 0, 0, 0]),
+    ("OPENCV", [400.0, 410.0, 101.0, 79.0, -0.1, 0.03, 0.002, -0.001],
+     [-0.1, 0.03, 0.002, -0.001, 0]),
+    ("FULL_OPENCV", [400.0, 410.0, 101.0, 79.0, -0.1, 0.03, 0.002, -0.001, 0.01, 0.0, 0.0, 0.0],
+     [-0.1, 0.03, 0.002, -0.001, 0.01]),
+    ("FULL_OPENCV", [400.0, 410.0, 101.0, 79.0, -0.1, 0.03, 0.002, -0.001, 0.01, 0.05, -0.02,
+                     0.004], [-0.1, 0.03, 0.002, -0.001, 0.01, 0.05, -0.02, 0.004]),
+]
+
+
+@pytest.mark.parametrize("name,params,distortion", CAMERA_CASES,
+                         ids=[f"{c[0]}-{len(c[1])}" for c in CAMERA_CASES])
+def test_every_camera_model_projects_as_pycolmap(name, params, distortion):
+    """Each supported model's contract camera (through capture.project_points, OpenCV) puts a
+    spread of points 0.5 px from where pycolmap puts them; FULL_OPENCV's k4..k6 become OpenCV's
+    rational model (8 coefficients), and drop to the contract's 5 when they are 0."""
+    cam = pycolmap.Camera.create_from_model_name(3, name, params[0], 200, 160)
+    cam.params = params
+    got = contract_camera(cam, "cameras.txt: camera 3", np.eye(4))
+    assert got.get("distortion") == distortion
+    rng = np.random.default_rng(1)
+    local = np.column_stack([rng.uniform(-0.2, 0.2, (300, 2)), rng.uniform(0.8, 1.2, 300)])
+    loaded = capture.Camera("pinhole", 200, 160, np.eye(4), fx=got["fx"], fy=got["fy"],
+                            cx=got["cx"], cy=got["cy"],
+                            distortion=None if distortion is None else np.array(distortion))
+    uv, _ = capture.project_points(loaded, local)
+    np.testing.assert_allclose(uv, cam.img_from_cam(local) - 0.5, atol=1e-7)
+
+
+def test_unsupported_camera_model_named():
+    cam = pycolmap.Camera.create_from_model_name(7, "OPENCV_FISHEYE", 300.0, 200, 160)
+    with pytest.raises(InputError, match="cameras.txt: camera 7: camera model OPENCV_FISHEYE"):
+        contract_camera(cam, "cameras.txt: camera 7", np.eye(4))
+
+
+class _Model:
+    def __init__(self, *names):
+        self.images = [ModelImage(k + 1, n, 1, np.eye(4)) for k, n in enumerate(names)]
+
+
+def _touch(folder, *names):
+    for name in names:
+        path = folder / name
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(b"")
+
+
+def test_photos_matched_by_stem_and_subfolder(tmp_path):
+    _touch(tmp_path, "a.dng", "b.EXR", "b.txt", "cam2/a.exr", "notes.xmp", "c.bmp")
+    matched, skipped = match_photos(_Model("a.jpg", "b.jpg", "cam2/a.jpg", "c.jpg", "d.jpg"),
+                                    tmp_path)
+    assert [(im.name, p.relative_to(tmp_path).as_posix()) for im, p in matched] == [
+        ("a.jpg", "a.dng"), ("b.jpg", "b.EXR"), ("cam2/a.jpg", "cam2/a.exr")]
+    assert skipped == ["c.jpg", "d.jpg"]     # .bmp is no photo format of the contract
+
+
+def test_two_photos_of_one_stem_refused(tmp_path):
+    _touch(tmp_path, "a.jpg", "a.dng")
+    with pytest.raises(InputError, match=r"a.jpg: a.dng and a.jpg share the stem 'a'"):
+        match_photos(_Model("a.jpg"), tmp_path)
+
+
+def test_one_photo_for_two_model_images_refused(tmp_path):
+    _touch(tmp_path, "0001.exr")
+    with pytest.raises(InputError, match="0001.exr: is the photo of two model images"):
+        match_photos(_Model("left/0001.jpg", "right/0001.jpg"), tmp_path)
+
+
+def test_photo_size_from_headers(made, tmp_path):
+    assert photo_size(made["images"] / "view_00.exr") == (240, 180)
+    import cv2
+    cv2.imwrite(str(tmp_path / "p.png"), np.zeros((7, 9, 3), np.uint16))
+    cv2.imwrite(str(tmp_path / "p.jpg"), np.zeros((5, 11, 3), np.uint8))
+    assert photo_size(tmp_path / "p.png") == (9, 7)
+    assert photo_size(tmp_path / "p.jpg") == (11, 5)
+
+
+def test_raw_photo_size_is_the_decoded_size():
+    """rawpy's sizes (and flip) without decoding: the size capture.load_photo gives."""
+    from conftest import shared_path
+    path = shared_path("data", "real", "raw", "colorchart.dng")
+    rgb, _ = capture.load_photo(path)
+    assert photo_size(path) == (rgb.shape[1], rgb.shape[0])
+
+
+def test_read_model_formats_agree(made):
+    models = [read_colmap_model(made["out"] / layout) for layout in LAYOUTS]
+    for m in models[1:]:
+        assert [im.name for im in m.images] == [im.name for im in models[0].images]
+        for a, b in zip(m.images, models[0].images):
+            np.testing.assert_allclose(a.world_from_camera, b.world_from_camera, atol=1e-12)
+    assert Path(models[0].files["frames"]).name == "frames.txt"
+    assert "frames" not in models[2].files
+
+
+def test_negative_flash_offset_without_equals_sign(made, tmp_path):
+    """`--flash-offset -0.03,0,0` is a value, not an unknown option (before Python 3.13
+    argparse took it for one)."""
+    out = tmp_path / "s"
+    assert main(["import-colmap", str(made["sparse"]), "--images", str(made["images"]),
+                 "--mesh", str(made["mesh"]), "--out", str(out), "--flash-offset",
+                 "-0.03,0.02,0", "--intensity", "1e-2,1e-2,1e-2"]) == 0
+    light = json.loads((out / "scene.json").read_text())["photos"][0]["light"]
+    assert light == {"type": "point", "position": [-0.03, 0.02, 0.0],
+                     "intensity_rgb": [0.01, 0.01, 0.01]}
