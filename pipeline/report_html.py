@@ -303,3 +303,15 @@ def summary_html(report, level_note=None, how_to_read=None):
                      f"{sum(stages.values()):.1f} s)</summary><table><thead><tr><th>stage</th>"
                      f"<th>seconds</th></tr></thead><tbody>{rows}</tbody></table></details>")
     return "\n".join(parts)
+
+
+def page_data(path):
+    """(metadata dict, {block id: base64 text}) of a written report.html: what the page's
+    scripts read (the tests check the page against it; report_data.decode_halfs decodes a
+    photo's block, in the order of its "arrays")."""
+    text = Path(path).read_text(encoding="utf-8")
+    meta = re.search(r'<script id="report-meta" type="application/json">(.*?)</script>', text,
+                     re.S)
+    blocks = dict(re.findall(r'<script type="application/octet-stream" id="([^"]+)">([^<]*)'
+                             r'</script>', text))
+    return json.loads(meta.group(1)), blocks

@@ -178,3 +178,12 @@ def _encode(arrays):
     scale = data.power_of_two_scale([a for _, ch, a in arrays if ch == 3])
     text, nbytes = data.encode_halfs([a / scale if ch == 3 else a for _, ch, a in arrays])
     return text, nbytes, scale
+
+
+def decode_photo(photo, text):
+    """{key: float32 (H, W, C)} of one photo's block as the page decodes it ("reference",
+    "render:<method>" with the scale applied, "de:<method>"): the inverse of encode_photos."""
+    h, w = photo["height"], photo["width"]
+    arrays = data.decode_halfs(text, [h * w * ch for _, ch in photo["arrays"]])
+    return {key: (a * np.float32(photo["scale"]) if ch == 3 else a).reshape(h, w, ch)
+            for (key, ch), a in zip(photo["arrays"], arrays)}
