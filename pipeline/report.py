@@ -322,8 +322,8 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
     })
     write_text(out_dir / "report.json", json.dumps(report, indent=1) + "\n")
     write_text(out_dir / "report.md", _markdown(report, n_photos, sections))
-    write_report_html(out_dir, report, references, observed, predictions,
-                      level_note=level_note(report["summary"]), how_to_read=HOW_TO_READ)
+    write_report_html(out_dir, report, references, observed, predictions, how_to_read=HOW_TO_READ,
+                      level_note=level_note(report["summary"]) if report["summary"] else None)
     return report
 
 
