@@ -45,6 +45,7 @@ from pathlib import Path
 from flashbrdf.brdf.atomic import write_text
 from flashbrdf.brdf.errors import InputError
 from flashbrdf.pipeline import dask_engine
+from flashbrdf.pipeline.report_index import INDEX_HEAD, INDEX_NAME, write_batch_index
 from flashbrdf.pipeline.safety import MARKER as RUN_MARKER
 from flashbrdf.pipeline.safety import check_writable_folder
 
@@ -55,13 +56,13 @@ LOG_DIR = "logs"
 SUMMARY_FIELDS = ("capture", "status", "reason", "seconds", "cpu_seconds", "worker")
 SUMMARY_LEAD, SUMMARY_TAIL = SUMMARY_FIELDS[:3], SUMMARY_FIELDS[3:]  # before / after the ΔE-log
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map", "export")
-OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md")  # what a batch writes in OUT_DIR itself
+OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md", INDEX_NAME)  # what a batch writes in OUT_DIR
 SUMMARY_TITLE = "# flashbrdf batch summary"
 # How a summary that a batch wrote starts: summary.csv without ΔE-log columns (or as batches
 # before the contract's column order wrote it), or with them.
 SUMMARY_HEADS = {"summary.csv": (",".join(SUMMARY_FIELDS).encode(),
                                  (",".join(SUMMARY_LEAD) + ",delta_e_log ").encode()),
-                 "summary.md": (SUMMARY_TITLE.encode(),)}
+                 "summary.md": (SUMMARY_TITLE.encode(),), INDEX_NAME: (INDEX_HEAD.encode(),)}
 
 
 def find_captures(captures_dir):
@@ -370,6 +371,7 @@ def write_summary(out_dir, rows, header_lines=(), methods=()):
         cells += [_cell(r["delta_e_log"].get(c)) for c in per_photo]
         lines.append("| " + " | ".join(cells) + " |")
     write_text(Path(out_dir) / "summary.md", "\n".join(lines) + "\n")
+    write_batch_index(out_dir, rows, per_method, header_lines)
 
 
 def capture_bytes(capture_dir):

@@ -251,7 +251,9 @@ def test_summary_columns_in_the_contract_order(tmp_path):
              if line.startswith("| capture")][0]
     assert [c.strip() for c in table.strip("|").split("|")][:5] == [
         "capture", "status", "reason", "ΔE-log dsgplvm", "seconds"]
-    # A batch recognises the summaries it wrote, in either order, and no one else's.
+    # A batch recognises the summaries (and index.html) it wrote, in either order, and no one
+    # else's.
+    assert (tmp_path / "index.html").is_file()
     _check_batch_folder(tmp_path)
     # every --methods column is there even when no capture succeeded
     write_summary(tmp_path, [failed_row("b", "bad scene.json")], methods=["dsgplvm", "pca"])

@@ -12,7 +12,8 @@ from flashbrdf.brdf.merl import write_merl
 from flashbrdf.brdf.views import table_3d_from_2d, write_slice_csv
 from flashbrdf.pipeline import report_data as data
 from flashbrdf.pipeline.report import write_report
-from flashbrdf.pipeline.report_html import inline_markdown, page_data, write_report_html
+from flashbrdf.pipeline.report_html import page_data, write_report_html
+from flashbrdf.pipeline.report_text import inline_markdown
 from flashbrdf.pipeline.report_photos import decode_photo, encode_photos, gather
 
 # float16 keeps 11 significant bits: a stored value is within 2^-11 of it, relatively.
@@ -221,3 +222,22 @@ def test_inline_markdown_escapes_and_links_figures():
     html = inline_markdown("**Level:** `x<y` ![map](figures/a.png)")
     assert html == ('<strong>Level:</strong> <code>x&lt;y</code> '
                     '<a href="figures/a.png">map (figure)</a>')
+
+
+def test_batch_index_links_each_report_and_is_known_to_the_next_batch(tmp_path):
+    from flashbrdf.pipeline.report_index import INDEX_HEAD, write_batch_index
+    (tmp_path / "cap a").mkdir()
+    (tmp_path / "cap a" / "report.html").write_text("<!doctype html>")
+    (tmp_path / "cap a" / ".batch_complete.json").write_text("{}")
+    rows = [{"capture": "cap a", "status": "ok", "reason": "", "seconds": 12.5,
+             "delta_e_log": {"dsgplvm": 1.5, "pca": 1.25, "pca/ref_1": 1.0}},
+            {"capture": "b<c>", "status": "failed", "reason": "InputError: x", "seconds": None,
+             "delta_e_log": {}}]
+    write_batch_index(tmp_path, rows, ["dsgplvm", "pca"], ["- 2 capture(s)"])
+    page = (tmp_path / "index.html").read_text()
+    assert page.startswith(INDEX_HEAD)
+    assert '<a href="cap%20a/report.html">cap a</a>' in page
+    assert "b&lt;c&gt;" in page and "b<c>" not in page        # no report: no link, escaped
+    assert "<td class=best>1.250</td>" in page and "pca/ref_1" not in page
+    # (test_batch.py's summary test checks that a second batch accepts the index: write_summary
+    # writes it, and the folder check knows it by INDEX_HEAD)
