@@ -66,12 +66,15 @@ class Page:
 
     def canvas(self, method=METHODS[0]):
         """The frame's canvas pixels as (H, W, 3) uint8."""
-        pixels = self.page.evaluate("""(method) => {
+        w, h, text = self.page.evaluate("""(method) => {
             const c = document.querySelector(`figure.frame[data-method="${method}"] canvas`);
-            const d = c.getContext("2d").getImageData(0, 0, c.width, c.height);
-            return [c.width, c.height, Array.from(d.data)]; }""", method)
-        w, h, values = pixels
-        return np.asarray(values, np.uint8).reshape(h, w, 4)[..., :3]
+            const d = c.getContext("2d").getImageData(0, 0, c.width, c.height).data;
+            let text = "";   // base64: far quicker to hand over than an array of numbers
+            for (let i = 0; i < d.length; i += 0x8000) {
+                text += String.fromCharCode.apply(null, d.subarray(i, i + 0x8000));
+            }
+            return [c.width, c.height, btoa(text)]; }""", method)
+        return np.frombuffer(base64.b64decode(text), np.uint8).reshape(h, w, 4)[..., :3]
 
     def stops(self):
         return float(self.page.eval_on_selector("#exposure", "e => e.value"))
@@ -127,14 +130,16 @@ def test_one_stop_more_doubles_the_linear_values_below_the_clip(page, embedded):
         page.page.keyboard.press("ArrowRight")
     after_stops, after = page.stops(), page.canvas()
     assert after_stops - before_stops == pytest.approx(1.0, abs=1e-9)
-    low, high = data.srgb8_to_linear(before), data.srgb8_to_linear(after)
-    # well lit and below the clip after the doubling; each read-back is off by half a code
+    # well lit and below the clip after the doubling
     usable = (before >= 40) & (after <= 250)
     assert usable.sum() > 1000
-    step = lambda c: (data.srgb8_to_linear(np.minimum(c.astype(int) + 1, 255))  # noqa: E731
-                      - data.srgb8_to_linear(np.maximum(c.astype(int) - 1, 0))) / 4
-    tolerance = (step(before) / low + step(after) / high)[usable]
-    ratio = high[usable] / low[usable]
+    before, after = before[usable].astype(int), after[usable].astype(int)
+    low, high = data.srgb8_to_linear(before), data.srgb8_to_linear(after)
+    # each read-back is off by at most half a code: a quarter of the span of codes c - 1..c + 1
+    step = lambda c: (data.srgb8_to_linear(np.minimum(c + 1, 255))  # noqa: E731
+                      - data.srgb8_to_linear(c - 1)) / 4
+    tolerance = step(before) / low + step(after) / high
+    ratio = high / low
     assert np.all(np.abs(ratio - 2.0) <= 2.0 * tolerance + 1e-12)
     assert np.median(ratio) == pytest.approx(2.0, rel=0.01)
     assert page.errors == []
@@ -193,14 +198,14 @@ def test_hover_shows_the_linear_values(page, embedded):
     page.page.mouse.move(mx, my)
     text = page.page.inner_text(f'figure.frame[data-method="{METHODS[0]}"] .readout')
     col, row = meta["photos"][0]["box"][2] + x, meta["photos"][0]["box"][0] + y
-    assert text.startswith(f"({col}, {row})")
-    lines = dict(line.split(None, 1) for line in text.splitlines()[1:])
-    photo = [float(v) for v in lines["photo"].split()]
-    render = [float(v) for v in lines["render"].split("ΔE")[0].split()]
-    delta_e = float(lines["render"].split("ΔE")[1])
-    # printed with 4 decimals
-    assert np.allclose(photo, reference[y, x], rtol=0, atol=5e-5)
-    assert np.allclose(render, arrays[f"render:{METHODS[0]}"][y, x], rtol=0, atol=5e-5)
+    first, photo_line, render_line = text.splitlines()
+    assert first.startswith(f"({col}, {row})")
+    delta_e = float(first.split("ΔE")[1])
+    photo = [float(v) for v in photo_line.removeprefix("photo").split()]
+    render = [float(v) for v in render_line.removeprefix("render").split()]
+    # printed with 4 decimals (or 4 significant digits below 1e-3)
+    assert np.allclose(photo, reference[y, x], rtol=5e-4, atol=5e-5)
+    assert np.allclose(render, arrays[f"render:{METHODS[0]}"][y, x], rtol=5e-4, atol=5e-5)
     assert delta_e == pytest.approx(arrays[f"de:{METHODS[0]}"][y, x, 0], abs=5e-3)
 
 

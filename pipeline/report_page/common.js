@@ -82,7 +82,7 @@ function fmt(x, digits = 3) {
 }
 
 function fmtRGB(values) {
-  return values.map((v) => fmt(v, 4).padStart(9)).join(" ");
+  return values.map((v) => fmt(v, 4).padStart(8)).join(" ");
 }
 
 function el(tag, attrs = {}, children = []) {

@@ -92,7 +92,9 @@ function drawFrame(frame) {
     !photo.renders[frame.method] ? "photo (no render)" :
     splitAt > 0 ? `${splitAt >= w ? other : other + " | " + shown}` : shown;
   const mean = photo.meta.delta_e[frame.method];
-  frame.caption.querySelector(".de").textContent = `ΔE log mean ${fmt(mean, 2)}`;
+  const label = frame.caption.querySelector(".de");
+  label.textContent = `ΔE ${fmt(mean, 2)}`;
+  label.title = "ΔE log mean of this render against this photo";
 }
 
 function drawAll() { R.frames.forEach(drawFrame); }
@@ -110,8 +112,8 @@ function hover(frame, event) {
   const where = p.factor > 1 ? `(${col}, ${row}) ${p.factor}×${p.factor} mean` : `(${col}, ${row})`;
   for (const f of R.frames) {
     const de = photo.des[f.method];
-    f.readout.textContent = `${where}\nphoto  ${rgb(photo.ref)}\nrender ${rgb(photo.renders[f.method])}` +
-      `   ΔE ${de ? fmt(de[i], 2) : "–"}`;
+    f.readout.textContent = `${where}   ΔE ${de ? fmt(de[i], 2) : "–"}\n` +
+      `photo  ${rgb(photo.ref)}\nrender ${rgb(photo.renders[f.method])}`;
   }
 }
 
