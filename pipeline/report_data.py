@@ -22,7 +22,7 @@ import numpy as np
 IMAGE_BUDGET_BYTES = 24 * 2**20
 MAX_SIDE = 1024          # longest side of an embedded image, whatever the budget
 CROP_MARGIN = 0.05       # of the object's larger side, around its bounding box
-DEFLATE_LEVEL = 6        # zlib: 1 is ~2x faster and ~8% larger on float16 planes
+DEFLATE_LEVEL = 1        # zlib: 2x faster than 6 on a DiLiGenT page's planes, 7% larger
 OVERLAY_ALPHA = 0.6      # weight of the ΔE colour over the image where ΔE is defined
 HALF_TOP = 2.0 ** 14     # a photo's largest value is scaled to at most this (float16 max 65504)
 
@@ -100,21 +100,27 @@ def object_box(measured, margin=CROP_MARGIN):
 
 
 def downsample(image, factor):
-    """Box-average `factor` x `factor` blocks of an (H, W[, C]) image, ignoring NaN (a block of
-    NaN only stays NaN); the last partial row/column of blocks averages what it has."""
+    """Box-average `factor` x `factor` blocks of an (H, W[, C]) image as float32, ignoring NaN
+    (a block of NaN only stays NaN); the last partial row/column of blocks averages what it has."""
     image = np.asarray(image, dtype=np.float32)
     if factor == 1:
         return image
     h, w = image.shape[:2]
     hp, wp = -(-h // factor) * factor, -(-w // factor) * factor
-    padded = np.full((hp, wp) + image.shape[2:], np.nan, dtype=np.float32)
-    padded[:h, :w] = image
-    blocks = padded.reshape(hp // factor, factor, wp // factor, factor, *image.shape[2:])
-    finite = np.isfinite(blocks)
-    total = np.where(finite, blocks, 0).sum(axis=(1, 3), dtype=np.float64)
-    count = finite.sum(axis=(1, 3))
+    if (hp, wp) != (h, w):
+        padded = np.full((hp, wp) + image.shape[2:], np.nan, dtype=np.float32)
+        padded[:h, :w] = image
+        image = padded
+    finite = np.isfinite(image)
+    values = np.where(finite, image, np.float32(0))
+
+    def block_sums(a):  # rows then columns: two contiguous reductions, ~2x one over (1, 3)
+        a = a.reshape(hp // factor, factor, wp, *a.shape[2:]).sum(axis=1, dtype=np.float32)
+        return a.reshape(hp // factor, wp // factor, factor, *a.shape[2:]).sum(
+            axis=2, dtype=np.float32)
+
     with np.errstate(invalid="ignore", divide="ignore"):
-        return (total / count).astype(np.float32)
+        return block_sums(values) / block_sums(finite.astype(np.float32))
 
 
 def downsample_factor(pixels, sides, bytes_per_pixel, budget=IMAGE_BUDGET_BYTES, ratio=1.0,

@@ -69,12 +69,13 @@ def gather(references):
             de = None
         entry = photos.setdefault(str(row["photo"]), {"reference": None, "renders": {},
                                                       "maps": {}, "masks": [], "means": {}})
-        if reference is not None:
-            entry["reference"] = np.asarray(reference, dtype=np.float32)
+        # kept as given: only the object's crop is made float32 (report_data.downsample)
+        if reference is not None and entry["reference"] is None:  # one photo for all methods
+            entry["reference"] = np.asarray(reference)
         if render is not None:
-            entry["renders"][row["method"]] = np.asarray(render, dtype=np.float32)
+            entry["renders"][row["method"]] = np.asarray(render)
         if de is not None:
-            entry["maps"][row["method"]] = np.asarray(de, dtype=np.float32)
+            entry["maps"][row["method"]] = np.asarray(de)
         if mask is not None:
             entry["masks"].append(_plane(mask) > 0)
         mean = row.get("delta_e_log_mean", (row.get("compare") or {}).get("delta_e_log_mean"))
@@ -129,14 +130,15 @@ def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
         if shape is None:
             continue
         entry["shape"] = shape
-        entry["box"] = data.object_box(_measured(entry, shape))
+        entry["measured"] = _measured(entry, shape)
+        entry["box"] = data.object_box(entry["measured"])
         usable[name] = entry
     if not usable:
         return [], {}, {"factor": 1, "bytes": 0, "raw_bytes": 0}
     sizes = [(e["box"][1] - e["box"][0]) * (e["box"][3] - e["box"][2]) for e in usable.values()]
     sides = [max(e["box"][1] - e["box"][0], e["box"][3] - e["box"][2]) for e in usable.values()]
-    per_pixel = [2 * sum(ch for _, ch, _ in _arrays(e, methods, (0, 1, 0, 1), 1))
-                 for e in usable.values()]
+    per_pixel = [2 * (3 * (e["reference"] is not None) + sum(
+        3 * (m in e["renders"]) + (m in e["maps"]) for m in methods)) for e in usable.values()]
     first = next(iter(usable.values()))
     first_arrays = _arrays(first, methods, first["box"], 1)
     first_encoded = _encode(first_arrays)
@@ -144,31 +146,31 @@ def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
     ratio = first_encoded[1] / raw_first if raw_first else 1.0
     factor = data.downsample_factor(sizes, sides, per_pixel, budget, ratio)
 
-    listed, blocks, total, raw = [], {}, 0, 0
+    listed, blocks, total, raw, maps = [], {}, 0, 0, []
     for index, (name, entry) in enumerate(usable.items()):
         if index == 0 and factor == 1:  # already encoded to measure the deflate ratio
             arrays, (text, nbytes, scale) = first_arrays, first_encoded
         else:
             arrays = _arrays(entry, methods, entry["box"], factor)
             text, nbytes, scale = _encode(arrays)
+        maps += [a for _, ch, a in arrays if ch == 1]   # the ΔE scale: of what is shown
         block = f"photo-{index}"
         blocks[block] = text
         total += nbytes
         raw += 2 * sum(a.size for _, _, a in arrays)
         h, w = arrays[0][2].shape[:2] if arrays else (0, 0)
-        reference = entry["reference"]
         r0, r1, c0, c1 = entry["box"]
-        lit = None if reference is None else reference[r0:r1, c0:c1][
-            _measured(entry, entry["shape"])[r0:r1, c0:c1]]
+        exposed = next((i for i in [entry["reference"], *entry["renders"].values()]
+                        if i is not None))          # the photo, else a render
+        lit = exposed[r0:r1, c0:c1][entry["measured"][r0:r1, c0:c1]]
         listed.append({
             "name": name, "block": block, "width": int(w), "height": int(h),
             "factor": factor, "box": [int(v) for v in entry["box"]],
             "full": [int(v) for v in entry["shape"]], "scale": scale,
             "arrays": [[key, ch] for key, ch, _ in arrays],
-            "delta_e": entry["means"], "auto_stops": data.auto_stops(lit) if lit is not None
-            else data.auto_stops(next(iter(entry["renders"].values()), np.zeros(1)))})
+            "delta_e": entry["means"], "auto_stops": data.auto_stops(lit)})
     info = {"factor": factor, "bytes": total, "raw_bytes": raw, "photos": len(listed),
-            "vmax": data.delta_e_vmax([m for e in usable.values() for m in e["maps"].values()])}
+            "vmax": data.delta_e_vmax(maps)}
     return listed, blocks, info
 
 
