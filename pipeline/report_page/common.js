@@ -149,7 +149,7 @@ class Axes {
     for (const t of yTicks) {
       const y = yFlip ? b.top + Axes.scale(this.y, t) * b.height : this.py(t);
       c.beginPath(); c.moveTo(b.left - 4, y); c.lineTo(b.left, y); c.stroke();
-      c.fillText(this.y.log ? `1e${Math.round(Math.log10(t))}` : String(t), b.left - 6, y);
+      c.fillText(tickLabel(t, this.y.log), b.left - 6, y);
     }
     c.textAlign = "center"; c.textBaseline = "bottom";
     c.fillText(xLabel, b.left + b.width / 2, this.cssHeight - 2);
@@ -166,10 +166,23 @@ class Axes {
   }
 }
 
+// Decades, and 2x and 5x between them when the range spans less than two decades.
 function logTicks(min, max) {
   const ticks = [];
-  for (let e = Math.ceil(Math.log10(min)); e <= Math.floor(Math.log10(max)); e++) ticks.push(10 ** e);
+  const steps = Math.log10(max / min) < 2 ? [1, 2, 5] : [1];
+  for (let e = Math.floor(Math.log10(min)); e <= Math.ceil(Math.log10(max)); e++) {
+    for (const s of steps) {
+      const t = s * 10 ** e;
+      if (t >= min && t <= max) ticks.push(t);
+    }
+  }
   return ticks;
+}
+
+function tickLabel(t, log) {
+  if (!log) return String(t);
+  const e = Math.round(Math.log10(t));
+  return Math.abs(t / 10 ** e - 1) < 1e-9 ? `1e${e}` : String(Number(t.toPrecision(2)));
 }
 
 // A legend drawn on the canvas; returns the boxes so that a click can toggle a series.
