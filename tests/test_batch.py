@@ -332,7 +332,8 @@ def test_failures_exit_1_killed_worker_retried_once(captures, scheduler, tmp_pat
     kills = [line for line in log.splitlines() if line.startswith("test: killing")]
     assert len(kills) == 2
     assert all("slice.csv" in k and "labels.png" in k and "report.json" not in k for k in kills)
-    assert sorted(p.name for p in out.iterdir()) == ["logs", "summary.csv", "summary.md"]
+    assert sorted(p.name for p in out.iterdir()) == ["index.html", "logs", "summary.csv",
+                                                     "summary.md"]
     err = capsys.readouterr().err
     assert "crash failed" in err and "broken failed" in err
 
