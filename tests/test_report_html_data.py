@@ -172,6 +172,11 @@ def test_write_report_writes_the_page_with_tables_slice_and_summary(tmp_path):
     assert whole["methods"]["dsgplvm"]["variance_constant"] == pytest.approx(0.2)
     assert whole["observed"]["n"] == list(range(90))
     page = (tmp_path / "report.html").read_text()
+    # the size: base64 of the deflated images (4/3), at most three 90 x 90 x 3 float32 arrays
+    # (two tables, a variance map; 4/3 again) and the template, scripts and colour maps (53 KB)
+    images = meta["images"]["bytes"]
+    tables = 3 * 90 * 90 * 3 * 4 * 4 / 3
+    assert len(page.encode()) <= 4 / 3 * images + tables + 100_000
     assert "<script>alert(1)</script>" not in page and "&lt;script&gt;" in page
     assert "http://" not in page and "https://" not in page       # nothing from the network
     # report.md and report.json are as before: the page is an addition
