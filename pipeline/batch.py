@@ -45,13 +45,14 @@ from flashbrdf.files.errors import InputError
 from flashbrdf.pipeline import dask_engine
 from flashbrdf.pipeline.batch_summary import (SUMMARY_HEADS, failed_row, row_from_report,
                                               write_summary)
+from flashbrdf.pipeline.report_index import INDEX_NAME
 from flashbrdf.files.outputs import MARKER as RUN_MARKER
 from flashbrdf.files.outputs import check_writable_folder
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map", "export")
-OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md")  # what a batch writes in OUT_DIR itself
+OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md", INDEX_NAME)  # what a batch writes in OUT_DIR
 
 
 def find_captures(captures_dir):

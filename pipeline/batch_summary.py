@@ -1,11 +1,13 @@
 """The batch's summary: OUT_DIR/summary.csv and summary.md, one row per capture (the contract's
-`capture`, `status`, `reason`, per-method ΔE-log, `seconds`; then ours), and the rows themselves."""
+`capture`, `status`, `reason`, per-method ΔE-log, `seconds`; then ours), index.html linking each
+capture's report.html (pipeline.report_index), and the rows themselves."""
 
 import csv
 import io
 from pathlib import Path
 
 from flashbrdf.files.atomic import write_text
+from flashbrdf.pipeline.report_index import INDEX_HEAD, INDEX_NAME, write_batch_index
 
 # The contract's column order: `capture`, `status`, `reason`, per-method ΔE-log, seconds, then
 # ours (cpu_seconds, worker).
@@ -16,7 +18,7 @@ SUMMARY_TITLE = "# flashbrdf batch summary"
 # before the contract's column order wrote it), or with them.
 SUMMARY_HEADS = {"summary.csv": (",".join(SUMMARY_FIELDS).encode(),
                                  (",".join(SUMMARY_LEAD) + ",delta_e_log ").encode()),
-                 "summary.md": (SUMMARY_TITLE.encode(),)}
+                 "summary.md": (SUMMARY_TITLE.encode(),), INDEX_NAME: (INDEX_HEAD.encode(),)}
 
 
 def row_from_report(name, report, seconds, cpu_seconds, worker):
@@ -87,3 +89,4 @@ def write_summary(out_dir, rows, header_lines=(), methods=()):
         cells += [_cell(r["delta_e_log"].get(c)) for c in per_photo]
         lines.append("| " + " | ".join(cells) + " |")
     write_text(Path(out_dir) / "summary.md", "\n".join(lines) + "\n")
+    write_batch_index(out_dir, rows, per_method, header_lines)

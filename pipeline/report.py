@@ -34,6 +34,7 @@ from flashbrdf.brdf.views import slice_coverage, table_2d_view
 from flashbrdf.render import images
 from flashbrdf.render.compare import compare_images
 from flashbrdf.pipeline import report_figures as figs
+from flashbrdf.pipeline.report_html import write_report_html
 
 HOW_TO_READ = """\
 **How to read the numbers.**
@@ -314,6 +315,8 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
     })
     write_text(out_dir / "report.json", json.dumps(report, indent=1) + "\n")
     write_text(out_dir / "report.md", _markdown(report, n_photos, sections))
+    write_report_html(out_dir, report, references, observed, predictions, how_to_read=HOW_TO_READ,
+                      level_note=level_note(report["summary"]) if report["summary"] else None)
     return report
 
 

@@ -252,7 +252,9 @@ def test_summary_columns_in_the_contract_order(tmp_path):
              if line.startswith("| capture")][0]
     assert [c.strip() for c in table.strip("|").split("|")][:5] == [
         "capture", "status", "reason", "ΔE-log dsgplvm", "seconds"]
-    # A batch recognises the summaries it wrote, in either order, and no one else's.
+    # A batch recognises the summaries (and index.html) it wrote, in either order, and no one
+    # else's.
+    assert (tmp_path / "index.html").is_file()
     check_batch_folder(tmp_path)
     # every --methods column is there even when no capture succeeded
     write_summary(tmp_path, [failed_row("b", "bad scene.json")], methods=["dsgplvm", "pca"])
@@ -331,7 +333,8 @@ def test_failures_exit_1_killed_worker_retried_once(captures, scheduler, tmp_pat
     kills = [line for line in log.splitlines() if line.startswith("test: killing")]
     assert len(kills) == 2
     assert all("slice.csv" in k and "labels.png" in k and "report.json" not in k for k in kills)
-    assert sorted(p.name for p in out.iterdir()) == ["logs", "summary.csv", "summary.md"]
+    assert sorted(p.name for p in out.iterdir()) == ["index.html", "logs", "summary.csv",
+                                                     "summary.md"]
     err = capsys.readouterr().err
     assert "crash failed" in err and "broken failed" in err
 

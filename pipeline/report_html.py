@@ -1,0 +1,222 @@
+"""OUT_DIR/report.html: one self-contained page to look at a `run` (no server, no network).
+
+The page (pipeline/report_page/: report.html, report.css and the .js parts, inlined in order)
+shows the summary table of report.md, each reference photo with every method's render (flip,
+split, ΔE overlay, one exposure control over the linear data, linear values on hover), the BRDFs
+(heat maps with uncertainty, the observed slice, the lobe in the plane of incidence, the
+Principled fit of `run --export`) and, with several materials, the label image and each
+material's slice and share.
+
+write_report_html takes values (pipeline/report.py:write_report calls it last); what `run` does
+not pass it (the label image, per-material slices and tables, export/principled.json) it reads
+from the files `run` wrote into OUT_DIR. The images are encoded by pipeline/report_photos.py.
+"""
+
+import html
+import json
+import re
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
+from flashbrdf.brdf.views import read_slice_csv
+from flashbrdf.pipeline import report_data as data
+from flashbrdf.pipeline import report_photos
+from flashbrdf.pipeline.report_text import PAGE_DIR, PAGE_NAME, finite, summary_html
+
+SCRIPTS = ("common.js", "renders.js", "brdf.js", "main.js")   # inlined in this order
+LABELS_MAX_SIDE = 512     # the label image is shown at most this large (nearest sampling)
+
+
+def write_report_html(out_dir, report, references=(), observed=None, predictions=None, *,
+                      level_note=None, how_to_read=None, budget=data.IMAGE_BUDGET_BYTES):
+    """Write OUT_DIR/report.html; return {"path", "bytes", "seconds", "image_factor",
+    "image_bytes"}.
+
+    report: the dict write_report wrote to report.json; references: its reference rows with
+    arrays (or image paths) "render", "reference", "delta_e_map", "mask"; observed: {"rho",
+    "n", "spread"} or None; predictions: {method: {"table", "variance", "variance_label"}} or
+    None; level_note, how_to_read: report.md's texts (markdown), shown in the summary."""
+    start = time.perf_counter()
+    out_dir = Path(out_dir)
+    rows = list(references or ())
+    methods = list(dict.fromkeys(str(r["method"]) for r in rows))
+    photos, blocks, image_info = report_photos.encode_photos(report_photos.gather(rows),
+                                                             methods, budget)
+    brdf = _brdf_datasets(out_dir, report, observed, predictions)
+    meta = {
+        "title": report.get("title", "flashbrdf report"),
+        "methods": methods,
+        "brdf_methods": list(dict.fromkeys(methods + [m for d in brdf for m in d["methods"]])),
+        "photos": photos,
+        "exposure": {"initial": float(np.median([p["auto_stops"] for p in photos]))
+                     if photos else 0.0},
+        "delta_e_vmax": image_info.get("vmax", 5.0),
+        "overlay_alpha": data.OVERLAY_ALPHA,
+        "luts": {name: data.uint8_b64(data.colour_lut(name))
+                 for name in ("inferno", "magma", "viridis")},
+        "brdf": brdf,
+        "principled": _principled(out_dir),
+        "materials": _materials(out_dir, report),
+        "images": image_info,
+    }
+    meta["exposure"]["initial"] = round(meta["exposure"]["initial"], 1)
+    title = html.escape(meta["title"])
+    blocks_html = "\n".join(f'<script type="application/octet-stream" id="{k}">{v}</script>'
+                            for k, v in blocks.items())
+    values = {
+        "TITLE": title,
+        "CSS": _read("report.css"),
+        "SUMMARY": summary_html(report, level_note, how_to_read),
+        "META": json.dumps(_jsonable(meta), allow_nan=False).replace("<", "\\u003c"),
+        "BLOCKS": blocks_html,
+        "JS": "\n".join(_read(name) for name in SCRIPTS),
+    }
+    template = _read("report.html")
+    size = len(template) + sum(len(v) for v in values.values())  # ASCII but for a few labels
+    factor = image_info.get("factor", 1)
+    info = (f"{size / 2**20:.1f} MB, written in {time.perf_counter() - start:.2f} s"
+            + (f"; images downsampled {factor}×" if factor > 1 else ""))
+    values["PAGE_INFO"] = html.escape(info)
+    values["FOOTER"] = html.escape(
+        f"flashbrdf report.html: {info}. Self-contained: nothing is loaded from outside this "
+        "file. Images are float16 linear data in the photos' pixel units, cropped to the object.")
+    page = _fill(template, values)
+    path = out_dir / PAGE_NAME
+    write_text(path, page)
+    return {"path": path, "bytes": path.stat().st_size,
+            "seconds": time.perf_counter() - start, "image_factor": factor,
+            "image_bytes": image_info.get("bytes", 0)}
+
+
+def _read(name):
+    return (PAGE_DIR / name).read_text(encoding="utf-8")
+
+
+def _fill(template, values):
+    """Replace every {{KEY}} of the template in one pass (what the values hold, braces
+    included, is inserted as it is)."""
+    pieces = re.split(r"\{\{([A-Z_]+)\}\}", template)
+    return "".join(values.get(p, "{{" + p + "}}") if k % 2 else p for k, p in enumerate(pieces))
+
+
+def _jsonable(value):
+    """A JSON-safe copy: numpy scalars -> Python, NaN/inf -> None (JSON has no NaN)."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+# ---- the BRDF and the materials, from the arguments or from OUT_DIR -------------------------
+
+def _brdf_datasets(out_dir, report, observed, predictions):
+    """[{"name", "material" (label or None), "observed", "methods": {method: brdf_entry}}]:
+    the whole object's (write_report's arguments) and, with several materials, each
+    material's (OUT_DIR/materials/material_<k>.csv and <method>/material_<k>/brdf.binary)."""
+    datasets = []
+    if predictions:
+        entries = {}
+        for method, p in predictions.items():
+            p = p if isinstance(p, dict) else {"table": p}
+            entries[str(method)] = data.brdf_entry(p["table"], p.get("variance"),
+                                                   p.get("variance_label", "uncertainty"))
+        datasets.append({"name": "the whole object", "material": None,
+                         "observed": _observed_entry(observed), "methods": entries})
+    materials = report.get("materials") or []
+    if len(materials) > 1:
+        for m in materials:
+            entries = {}
+            for method, file in (m.get("brdf") or {}).items():
+                path = out_dir / file
+                if path.is_file():
+                    entries[str(method)] = data.brdf_entry(
+                        data.merl_table_2d(path), variance_note=f"{method}: run keeps no "
+                        "per-material uncertainty in OUT_DIR (only each table).")
+            datasets.append({"name": f"material {m['label']}", "material": int(m["label"]),
+                             "observed": _slice_file(out_dir / m["slice"]),
+                             "methods": entries})
+    return [d for d in datasets if d["methods"]]
+
+
+def _observed_entry(observed):
+    if observed is None or observed.get("rho") is None:
+        return None
+    return data.slice_entry(observed["rho"], observed["n"], observed.get("spread"))
+
+
+def _slice_file(path):
+    try:
+        rho, n = read_slice_csv(path)
+    except InputError:
+        return None
+    return data.slice_entry(rho, n)
+
+
+def _materials(out_dir, report):
+    """The label image (nearest-sampled to LABELS_MAX_SIDE) and each material's share, or None
+    for one material."""
+    materials = report.get("materials") or []
+    labels = cv2.imread(str(out_dir / "labels.png"), cv2.IMREAD_UNCHANGED)
+    if len(materials) < 2 or labels is None or labels.ndim != 2:
+        return None
+    step = max(1, -(-max(labels.shape) // LABELS_MAX_SIDE))
+    shown = np.clip(labels[::step, ::step], 0, 255)
+    total = sum(int(m.get("pixels", 0)) for m in materials) or 1
+    entries = []
+    for m in materials:
+        observed = _slice_file(out_dir / m["slice"])
+        entries.append({"label": int(m["label"]), "pixels": int(m.get("pixels", 0)),
+                        "share": int(m.get("pixels", 0)) / total,
+                        "bins_filled": None if observed is None else
+                        int(np.count_nonzero(np.asarray(observed["n"]) > 0))})
+    reason = (report.get("segmentation") or {}).get("reason", "")
+    return {"labels": {"width": int(shown.shape[1]), "height": int(shown.shape[0]),
+                       "step": step, "data": data.uint8_b64(shown)},
+            "entries": entries,
+            "reason": f"Segmentation of the flash photo into {len(materials)} materials"
+                      + (f": {reason}" if reason else "") + "."}
+
+
+def _principled(out_dir):
+    """[{"name", "params", "fit"}] from OUT_DIR/export/principled.json and
+    export/material_<k>/principled.json (run --export), [] where export did not run."""
+    export = out_dir / "export"
+    files = [export / "principled.json"] + sorted(export.glob("material_*/principled.json"))
+    fits = []
+    for path in files:
+        try:
+            fit = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        params = {k: fit[k] for k in ("base_color", "roughness", "metallic", "specular",
+                                      "spec_tint", "sheen", "sheen_tint", "clearcoat",
+                                      "clearcoat_gloss") if k in fit}
+        numbers = {k: finite((fit.get("fit") or {}).get(k))
+                   for k in ("lab_log_2d", "render_delta_e_log")}
+        fits.append({"name": path.relative_to(out_dir).as_posix(), "params": params,
+                     "fit": numbers})
+    return fits
+
+
+def page_data(path):
+    """(metadata dict, {block id: base64 text}) of a written report.html: what the page's
+    scripts read (the tests check the page against it; report_data.decode_halfs decodes a
+    photo's block, in the order of its "arrays")."""
+    text = Path(path).read_text(encoding="utf-8")
+    meta = re.search(r'<script id="report-meta" type="application/json">(.*?)</script>', text,
+                     re.S)
+    blocks = dict(re.findall(r'<script type="application/octet-stream" id="([^"]+)">([^<]*)'
+                             r'</script>', text))
+    return json.loads(meta.group(1)), blocks

@@ -1,0 +1,191 @@
+"""report.html's renders: per reference photo, the photo, each method's render and ΔE map, cropped
+to the object, downsampled to the page's budget and encoded (pipeline/report_data.py).
+
+The photo is stored once per photo and shared by every method's frame; each photo's arrays are one
+base64 block, which the page inflates only when that photo is first shown.
+"""
+
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from flashbrdf.files.errors import InputError
+from flashbrdf.pipeline import report_data as data
+from flashbrdf.render import images
+from flashbrdf.render.compare import compare_images
+
+
+def read_image(source):
+    """An array passes through; a path is read (linear EXR/HDR/PFM, else as stored by OpenCV, RGB
+    order); None where missing or unreadable. As pipeline.report.read_image, which this module
+    cannot import: report.py calls into this package's writer."""
+    if source is None or isinstance(source, np.ndarray):
+        return source
+    path = Path(source)
+    if path.suffix.lower() in (".exr", ".hdr", ".pfm"):
+        try:
+            return images.read_image(path)
+        except InputError:
+            return None
+    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        return None
+    return image[..., 2::-1] if image.ndim == 3 else image
+
+
+def delta_e_map(render, reference, mask=None):
+    """(H, W) ΔE-log per pixel, NaN where not compared (render.compare.compare_images)."""
+    if mask is not None:
+        mask = _plane(mask) > 0
+    return compare_images(render, reference, mask)[1]
+
+
+def _plane(array):
+    """A (H, W) float array from a mask or ΔE map given as (H, W) or (H, W, C); None for none."""
+    if array is None:
+        return None
+    array = np.asarray(array)
+    return array if array.ndim == 2 else array.reshape(array.shape[0], array.shape[1], -1)[..., 0]
+
+
+def gather(references):
+    """{photo: {"reference", "renders": {method: (H,W,3)}, "maps": {method: (H,W) ΔE},
+    "masks": [(H,W) bool], "means": {method: ΔE-log mean}}} from write_report's reference rows.
+
+    Arrays pass through; paths are read (pipeline.report.read_image). A ΔE map given as a
+    false-colour PNG holds no ΔE values: it is recomputed from the render and the photo."""
+    photos = {}
+    for row in references:
+        render, reference = read_image(row.get("render")), read_image(row.get("reference"))
+        mask = read_image(row.get("mask"))
+        de = row.get("delta_e_map")
+        de = read_image(de) if isinstance(de, (str, os.PathLike)) else de
+        if (de is None or np.ndim(de) != 2 or np.asarray(de).dtype.kind != "f") and (
+                render is not None and reference is not None):
+            de = delta_e_map(render, reference, mask)
+        elif de is not None and (np.ndim(de) != 2 or np.asarray(de).dtype.kind != "f"):
+            de = None
+        entry = photos.setdefault(str(row["photo"]), {"reference": None, "renders": {},
+                                                      "maps": {}, "masks": [], "means": {}})
+        # kept as given: only the object's crop is made float32 (report_data.downsample)
+        if reference is not None and entry["reference"] is None:  # one photo for all methods
+            entry["reference"] = np.asarray(reference)
+        if render is not None:
+            entry["renders"][row["method"]] = np.asarray(render)
+        if de is not None:
+            entry["maps"][row["method"]] = np.asarray(de)
+        if mask is not None:
+            entry["masks"].append(_plane(mask) > 0)
+        mean = row.get("delta_e_log_mean", (row.get("compare") or {}).get("delta_e_log_mean"))
+        entry["means"][row["method"]] = None if mean is None or not np.isfinite(mean) else \
+            float(mean)
+    return photos
+
+
+def _shape(entry):
+    for image in [entry["reference"], *entry["renders"].values()]:
+        if image is not None:
+            return image.shape[:2]
+    return None
+
+
+def _measured(entry, shape):
+    """Where the object is: the renders' hit masks, else finite ΔE, else nonzero render/photo."""
+    masks = [m for m in entry["masks"] if m.shape == shape]
+    if masks:
+        return np.any(masks, axis=0)
+    maps = [m for m in entry["maps"].values() if m.shape == shape]
+    if maps:
+        return np.any([np.isfinite(m) for m in maps], axis=0)
+    images = [i for i in [entry["reference"], *entry["renders"].values()] if i is not None]
+    return np.any([np.nan_to_num(i).max(-1) > 0 for i in images], axis=0)
+
+
+def _arrays(entry, methods, box, factor):
+    """[(key, channels, array)] of one photo, cropped and downsampled, in the page's order."""
+    r0, r1, c0, c1 = box
+    out = []
+    if entry["reference"] is not None:
+        out.append(("reference", 3, entry["reference"]))
+    for method in methods:
+        if method in entry["renders"]:
+            out.append((f"render:{method}", 3, entry["renders"][method]))
+        if method in entry["maps"]:
+            out.append((f"de:{method}", 1, entry["maps"][method]))
+    return [(key, ch, data.downsample(np.asarray(a)[r0:r1, c0:c1], factor))
+            for key, ch, a in out if np.asarray(a).shape[:2] == entry["shape"]]
+
+
+def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
+    """(photo list for the page's metadata, {block id: base64 text}, info dict).
+
+    Every photo is cropped to the object's box; one downsampling factor for the page, the
+    smallest that keeps the deflated images within `budget` (its deflate ratio measured on the
+    first photo)."""
+    usable = {}
+    for name, entry in photos.items():
+        shape = _shape(entry)
+        if shape is None:
+            continue
+        entry["shape"] = shape
+        entry["measured"] = _measured(entry, shape)
+        entry["box"] = data.object_box(entry["measured"])
+        usable[name] = entry
+    if not usable:
+        return [], {}, {"factor": 1, "bytes": 0, "raw_bytes": 0}
+    sizes = [(e["box"][1] - e["box"][0]) * (e["box"][3] - e["box"][2]) for e in usable.values()]
+    sides = [max(e["box"][1] - e["box"][0], e["box"][3] - e["box"][2]) for e in usable.values()]
+    per_pixel = [2 * (3 * (e["reference"] is not None) + sum(
+        3 * (m in e["renders"]) + (m in e["maps"]) for m in methods)) for e in usable.values()]
+    first = next(iter(usable.values()))
+    first_arrays = _arrays(first, methods, first["box"], 1)
+    first_encoded = _encode(first_arrays)
+    raw_first = 2 * sum(a.size for _, _, a in first_arrays)
+    ratio = first_encoded[1] / raw_first if raw_first else 1.0
+    factor = data.downsample_factor(sizes, sides, per_pixel, budget, ratio)
+
+    listed, blocks, total, raw, maps = [], {}, 0, 0, []
+    for index, (name, entry) in enumerate(usable.items()):
+        if index == 0 and factor == 1:  # already encoded to measure the deflate ratio
+            arrays, (text, nbytes, scale) = first_arrays, first_encoded
+        else:
+            arrays = _arrays(entry, methods, entry["box"], factor)
+            text, nbytes, scale = _encode(arrays)
+        maps += [a for _, ch, a in arrays if ch == 1]   # the ΔE scale: of what is shown
+        block = f"photo-{index}"
+        blocks[block] = text
+        total += nbytes
+        raw += 2 * sum(a.size for _, _, a in arrays)
+        h, w = arrays[0][2].shape[:2] if arrays else (0, 0)
+        r0, r1, c0, c1 = entry["box"]
+        exposed = next((i for i in [entry["reference"], *entry["renders"].values()]
+                        if i is not None))          # the photo, else a render
+        lit = exposed[r0:r1, c0:c1][entry["measured"][r0:r1, c0:c1]]
+        listed.append({
+            "name": name, "block": block, "width": int(w), "height": int(h),
+            "factor": factor, "box": [int(v) for v in entry["box"]],
+            "full": [int(v) for v in entry["shape"]], "scale": scale,
+            "arrays": [[key, ch] for key, ch, _ in arrays],
+            "delta_e": entry["means"], "auto_stops": data.auto_stops(lit)})
+    info = {"factor": factor, "bytes": total, "raw_bytes": raw, "photos": len(listed),
+            "vmax": data.delta_e_vmax(maps)}
+    return listed, blocks, info
+
+
+def _encode(arrays):
+    """(base64, deflated bytes, scale): the colour arrays divided by a power of two that fits
+    them in float16 (ΔE maps are stored as they are)."""
+    scale = data.power_of_two_scale([a for _, ch, a in arrays if ch == 3])
+    text, nbytes = data.encode_halfs([a / scale if ch == 3 else a for _, ch, a in arrays])
+    return text, nbytes, scale
+
+
+def decode_photo(photo, text):
+    """{key: float32 (H, W, C)} of one photo's block as the page decodes it ("reference",
+    "render:<method>" with the scale applied, "de:<method>"): the inverse of encode_photos."""
+    h, w = photo["height"], photo["width"]
+    arrays = data.decode_halfs(text, [h * w * ch for _, ch in photo["arrays"]])
+    return {key: (a * np.float32(photo["scale"]) if ch == 3 else a).reshape(h, w, ch)
+            for (key, ch), a in zip(photo["arrays"], arrays)}
