@@ -56,7 +56,7 @@ def load_reference_entry(photo):
     return load_photo_entry(photo)
 
 
-def _same_camera(a, b):
+def same_view(a, b):
     """Whether two cameras are one view: the same pixel grid, intrinsics and pose."""
     def fields(c):
         return (c.model, c.shape, c.fx, c.fy, c.cx, c.cy, c.pixel_size,
@@ -72,10 +72,10 @@ def _ambient(scene, photo):
     ambients = scene.photos_with_role("ambient")
     if not ambients:
         return None, None, None
-    same_view = [a for a in ambients if _same_camera(a.camera, photo.camera)]
+    same_view = [a for a in ambients if same_view(a.camera, photo.camera)]
     if same_view:
         ambients = same_view
-    elif any(not _same_camera(a.camera, ambients[0].camera) for a in ambients):
+    elif any(not same_view(a.camera, ambients[0].camera) for a in ambients):
         raise InputError(photo.where, "no ambient photo was taken from this flash photo's "
                                       "camera; give one ambient photo per view, or none")
     total, usable = None, None
@@ -109,7 +109,7 @@ def iter_flash_images(scene):
     for photo in flashes:
         rgb, usable, clipped = load_photo_entry(photo, return_clipped=True)
         if scene.photos_with_role("ambient") and (
-                ambient_camera is None or not _same_camera(ambient_camera, photo.camera)):
+                ambient_camera is None or not same_view(ambient_camera, photo.camera)):
             ambient, ambient_camera = _ambient(scene, photo), photo.camera
         if ambient is not None:
             amb, amb_ok, amb_scale = ambient

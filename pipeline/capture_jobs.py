@@ -11,7 +11,8 @@ from flashbrdf import capture
 from flashbrdf.files.errors import InputError
 from flashbrdf.files.outputs import check_outputs, sidecar_json, staged_output_dir
 from flashbrdf.pipeline.albedo_files import albedo_sidecars, check_albedo_out
-from flashbrdf.pipeline.label_files import faces_path, read_labels, write_labels
+from flashbrdf.pipeline.label_files import (faces_path, read_face_labels, read_labels,
+                                            write_labels)
 from flashbrdf.pipeline.options import materials_option
 from flashbrdf.slice_extract import ExtractOptions, extract_slice
 from flashbrdf.slice_extract.extract import collect_samples, extract_material_slices
@@ -49,14 +50,16 @@ def extract_materials(scene_dir, labels_png, out, options=None, force=False):
     if out.suffix.lower() == ".csv" or (out.exists() and not out.is_dir()):
         raise InputError("--out", "with --labels, --out is a folder (material_<k>.csv go in it)")
     scene = capture.load_scene(scene_dir)
-    check_outputs(inputs=[scene_dir, labels_png, *scene.input_files()], outputs=[out],
+    check_outputs(inputs=[scene_dir, labels_png, faces_path(labels_png), *scene.input_files()],
+                  outputs=[out],
                   folders=[out])
     # a folder output, so built aside and renamed: never written into someone's folder, and
     # never half-written
     with staged_output_dir(out, force=force, command="extract") as staged:
         samples = collect_samples(scene, options)
         labels = read_labels(labels_png, samples.shape)
-        slices = extract_material_slices(samples, labels, labels_png)
+        faces = read_face_labels(labels_png, int(labels.max()), scene)
+        slices = extract_material_slices(samples, labels, labels_png, faces)
         write_material_slices(staged, scene_dir, slices, options, labels)
 
 

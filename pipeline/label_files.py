@@ -145,6 +145,28 @@ def read_labels(path, shape):
     return labels
 
 
+def read_face_labels(labels_png, count, scene):
+    """LABELS.faces.npy beside LABELS.png: (F,) int labels 1..count, one per mesh face, or None
+    when there is no such file. InputError when it is not that (or not the mesh's face count)."""
+    npy = faces_path(labels_png)
+    if not npy.is_file():
+        return None
+    try:
+        faces = np.load(npy, allow_pickle=False)
+    except DECODE_ERRORS as err:  # EOFError for an empty file
+        raise InputError(npy, f"cannot be read as a .npy array ({err})") from None
+    if not isinstance(faces, np.ndarray):  # np.load opened a .npz archive
+        raise InputError(npy, "is a .npz archive, not a .npy array")
+    if faces.ndim != 1 or faces.dtype.kind not in "iu" or (
+            len(faces) and (faces.min() < 1 or faces.max() > count)):
+        raise InputError(npy, f"must be one label 1..{count} per face (int)")
+    if scene.geometry.mesh is not None:
+        n_faces = len(load_mesh(scene.geometry.mesh)[0].faces)
+        if len(faces) != n_faces:
+            raise InputError(npy, f"has {len(faces)} labels but the mesh has {n_faces} faces")
+    return faces
+
+
 def material_map_inputs(scene, labels_png, count):
     """(labels (H, W), face labels (F,) or None, flash camera) for rendering `count` tables
     with LABELS.png (+ LABELS.faces.npy when present); InputError for a wrong size, an unused
@@ -152,20 +174,4 @@ def material_map_inputs(scene, labels_png, count):
     camera = flash_photo_camera(scene, "--labels")
     labels = read_labels(labels_png, camera.shape)
     check_labels(labels, camera.shape, labels_png, count)
-    faces = None
-    npy = faces_path(labels_png)
-    if npy.is_file():
-        try:
-            faces = np.load(npy, allow_pickle=False)
-        except DECODE_ERRORS as err:  # EOFError for an empty file
-            raise InputError(npy, f"cannot be read as a .npy array ({err})") from None
-        if not isinstance(faces, np.ndarray):  # np.load opened a .npz archive
-            raise InputError(npy, "is a .npz archive, not a .npy array")
-        if faces.ndim != 1 or faces.dtype.kind not in "iu" or (
-                len(faces) and (faces.min() < 1 or faces.max() > count)):
-            raise InputError(npy, f"must be one label 1..{count} per face (int)")
-        if scene.geometry.mesh is not None:
-            n_faces = len(load_mesh(scene.geometry.mesh)[0].faces)
-            if len(faces) != n_faces:
-                raise InputError(npy, f"has {len(faces)} labels but the mesh has {n_faces} faces")
-    return labels, faces, camera
+    return labels, read_face_labels(labels_png, count, scene), camera

@@ -59,7 +59,8 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
     the albedo map on a BRDF (run --albedo-map).
     """
     labels = segmentation.labels
-    slices = stages.run("extract materials", extract_material_slices, samples, labels, "labels")
+    slices = stages.run("extract materials", extract_material_slices, samples, labels, "labels",
+                        faces)
     write_labels(out / "labels.png", segmentation, faces)
     rhos = write_material_slices(out / "materials", settings.scene_dir, slices, ExtractOptions(),
                                  labels)

@@ -13,7 +13,8 @@ Public API:
               estimator="trimmed_mean") -> estimate (90, 3), n (90,), spread (90, 3), inlier (N,)
   collect_samples(scene, options=None) -> FlashSamples (every flash pixel's sample, pooled)
   bin_samples(samples) -> SliceResult   # extract_slice = bin_samples(collect_samples(...))
-  extract_material_slices(samples, labels (H, W)) -> {k: SliceResult or None}
+  extract_material_slices(samples, labels (H, W), where, face_labels (F,) or None)
+      -> {k: SliceResult or None}   # other views' samples labelled through their mesh faces
   slice_extract.segment.segment_samples(samples, materials="auto"|K) -> Segmentation(labels
       (H, W) uint16, k, criterion, sample_labels); face_labels(labels, face_image, centroids)
   half_diff_thetas(wi, wo, normal) -> theta_h, theta_d

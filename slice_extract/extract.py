@@ -263,6 +263,7 @@ class FlashSamples:
     # the first photo's samples whole ({field: array}) when the pooled ones were subsampled
     # (SampleStore); None otherwise, as the pooled arrays then hold them all
     first_photo_samples: dict = None
+    face: np.ndarray = None  # (N,) int32 mesh face of each sample, -1 for normal-map geometry
 
     def first_photo(self):
         """(rho (M, 3), theta_h (M,), pixels (M,), censored (M,)) of every sample of the first
@@ -283,11 +284,12 @@ class FlashSamples:
     def subset(self, keep):
         """The same samples restricted to keep (N,) bool (e.g. one material)."""
         pick = {k: getattr(self, k)[keep] for k in ("theta_h", "theta_d", "rho", "censored",
-                                                     "pixels", "photo")}
+                                                     "pixels", "photo", "face")
+                if getattr(self, k) is not None}
         return FlashSamples(**{**self.__dict__, **pick})
 
 
-SAMPLE_FIELDS = ("theta_h", "theta_d", "rho", "censored", "pixels", "photo")
+SAMPLE_FIELDS = ("theta_h", "theta_d", "rho", "censored", "pixels", "face", "photo")
 
 
 class SampleStore:
@@ -341,7 +343,7 @@ class SampleStore:
         if not self.parts:
             return {"theta_h": np.zeros(0), "theta_d": np.zeros(0), "rho": np.zeros((0, 3)),
                     "censored": np.zeros(0, bool), "pixels": np.zeros(0, int),
-                    "photo": np.zeros(0, int)}
+                    "face": np.zeros(0, np.int32), "photo": np.zeros(0, int)}
         names = [n for n in self.parts[0] if all(n in p for p in self.parts)]
         return {n: (self.parts[0][n] if len(self.parts) == 1
                     else np.concatenate([p[n] for p in self.parts])) for n in names}
@@ -410,7 +412,10 @@ def collect_samples(scene, options=None):
             parts.append(got)
         per_photo.append(stats)
         part = {name: np.concatenate([getattr(p, name) for p in parts])
-                for name in SAMPLE_FIELDS[:-1]} if parts else None
+                for name in SAMPLE_FIELDS[:-2]} if parts else None
+        if part is not None:
+            part["face"] = (np.concatenate([p.face for p in parts]) if parts[0].face is not None
+                            else np.full(len(part["theta_h"]), -1, np.int32))
         if part is not None:
             part["photo"] = np.full(len(part["theta_h"]), k)
         if k == 0:  # segmentation reads the first photo whole, whatever the store keeps
@@ -426,7 +431,7 @@ def collect_samples(scene, options=None):
                            pooled["censored"], pooled["pixels"], pooled["photo"],
                            flashes[0].camera.shape, first.object_mask, first.face_image,
                            first.radiance, per_photo, clock.t, start, first.normals_at,
-                           first.samples if store.subsampled else None)
+                           first.samples if store.subsampled else None, pooled["face"])
     return samples
 
 
@@ -491,26 +496,40 @@ def extract_slice(scene, options=None):
     return bin_samples(collect_samples(scene, options))
 
 
-def extract_material_slices(samples, labels, where="--labels"):
+def extract_material_slices(samples, labels, where="--labels", face_labels=None):
     """One SliceResult per material: {k: SliceResult} for k = 1..labels.max().
 
     samples: FlashSamples; labels (H, W) int in the first flash photo's pixel grid (0 = not the
-    object). Every flash photo must share that grid. A material's slice leaves out its samples
-    within segment.border_width_px of another material (label borders are the least sure),
-    except in theta_h bins the interior alone would leave with < BORDER_MIN_BIN samples. A material whose pixels give no usable
-    sample gets None (the caller reports it). InputError for a wrong-sized label image or a
-    label in 1..K with no pixel.
+    object); face_labels (F,) int 1..K, a label per mesh face (LABELS.faces.npy), for the
+    samples of flash photos taken from other views (a multi-view capture), or None. A
+    material's slice leaves out its samples within segment.border_width_px of another material
+    (label borders are the least sure), in other views those on a face next to another
+    material's, except in theta_h bins the interior alone would leave with < BORDER_MIN_BIN
+    samples. A material whose pixels give no usable sample gets None (the caller reports it).
+    InputError for a wrong-sized label image, a label in 1..K with no pixel, or other views
+    without face labels.
     """
     labels = np.asarray(labels)
     check_labels(labels, samples.shape, where)
     flash = samples.scene.photos_with_role("flash")
-    if any(p.camera.shape != tuple(samples.shape) for p in flash):
-        raise InputError(where, "the flash photos have different pixel grids: one label image "
-                                "cannot cover them")
+    in_first_view = np.array([capture.same_view(p.camera, flash[0].camera) for p in flash])
+    by_pixel = in_first_view[samples.photo]
     count = int(labels.max())
-    of_sample = np.take(labels.ravel(), samples.pixels)
     width = border_width_px(np.count_nonzero(labels))
-    interior = np.take(material_interior(labels, width).ravel(), samples.pixels)
+    of_sample = np.zeros(len(samples.photo), np.int64)
+    interior = np.ones(len(samples.photo), bool)
+    of_sample[by_pixel] = np.take(labels.ravel(), samples.pixels[by_pixel])
+    interior[by_pixel] = np.take(material_interior(labels, width).ravel(),
+                                 samples.pixels[by_pixel])
+    if not by_pixel.all():
+        if face_labels is None or samples.face is None or np.any(samples.face[~by_pixel] < 0):
+            raise InputError(where, "the flash photos come from several views: the other views' "
+                                    "pixels take their material from the mesh faces "
+                                    "(LABELS.faces.npy beside the label image), which is missing")
+        face_labels = np.asarray(face_labels)
+        faces = samples.face[~by_pixel]
+        of_sample[~by_pixel] = face_labels[faces]
+        interior[~by_pixel] = ~_border_faces(samples.scene, face_labels)[faces]
     bins = merl_bin_index(samples.theta_h, 0.0, 0.0)[0]
     slices = {}
     for k in range(1, count + 1):
@@ -527,6 +546,19 @@ def extract_material_slices(samples, labels, where="--labels"):
             "width_px": width, "samples": int(mine.sum()),
             "border_samples_dropped": int(np.count_nonzero(mine & ~keep))}
     return slices
+
+
+def _border_faces(scene, face_labels):
+    """(F,) bool: mesh faces that share an edge with a face of another material."""
+    mesh, _ = capture.load_mesh(scene.geometry.mesh)
+    if len(face_labels) != len(mesh.faces):
+        raise InputError("LABELS.faces.npy", f"has {len(face_labels)} labels but the mesh has "
+                                             f"{len(mesh.faces)} faces")
+    pairs = mesh.face_adjacency
+    differ = face_labels[pairs[:, 0]] != face_labels[pairs[:, 1]]
+    border = np.zeros(len(mesh.faces), bool)
+    border[pairs[differ].ravel()] = True
+    return border
 
 
 def _interior_samples(mine, interior, bins, min_bin=BORDER_MIN_BIN):

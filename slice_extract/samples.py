@@ -82,6 +82,7 @@ class PhotoSamples:
     rejected: dict
     n_usable: int
     pixels: np.ndarray = None  # (M,) flat pixel index (row * width + col) of each sample
+    face: np.ndarray = None    # (M,) mesh face of each sample, or None (normal-map geometry)
 
 
 def photo_samples(radiance, usable, surface, light, options, intersector=None, clipped=None,
@@ -107,9 +108,10 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
         on_edge = np.take(edge.ravel(), flat)
         silhouette = int(np.count_nonzero(valid & on_edge))
         keep &= ~on_edge
-    normals, wo, points = surface.normals, surface.view_dirs, surface.points
+    normals, wo, points, face = surface.normals, surface.view_dirs, surface.points, surface.face
     if not keep.all():  # (usually all are: the surface was traced for these pixels)
         flat, cens = np.compress(keep, flat), np.compress(keep, cens)
+        face = None if face is None else np.compress(keep, face)
         normals, wo = np.compress(keep, normals, axis=0), np.compress(keep, wo, axis=0)
         points = None if points is None else np.compress(keep, points, axis=0)
     f32 = np.float32
@@ -154,9 +156,10 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
         idx, theta_h, theta_d = idx[~blocked], theta_h[~blocked], theta_d[~blocked]
         cens_now = cens_now[~blocked]
     pixels = np.take(flat, idx)
+    face = None if face is None else np.take(face, idx).astype(np.int32)
     pixel = np.take(radiance.reshape(-1, 3), pixels, axis=0).astype(np.float64)
     cos_i = np.take(cos_i, idx)
     factor = 1.0 / cos_i if r2 is None else np.take(r2, idx) / cos_i
     rho = pixel * (factor[:, None] / light.power)
     rho[cens_now] = np.inf
-    return PhotoSamples(theta_h, theta_d, rho, cens_now, rejected, n_usable, pixels)
+    return PhotoSamples(theta_h, theta_d, rho, cens_now, rejected, n_usable, pixels, face)
