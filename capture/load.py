@@ -72,9 +72,9 @@ def _ambient(scene, photo):
     ambients = scene.photos_with_role("ambient")
     if not ambients:
         return None, None, None
-    same_view = [a for a in ambients if same_view(a.camera, photo.camera)]
-    if same_view:
-        ambients = same_view
+    from_view = [a for a in ambients if same_view(a.camera, photo.camera)]
+    if from_view:
+        ambients = from_view
     elif any(not same_view(a.camera, ambients[0].camera) for a in ambients):
         raise InputError(photo.where, "no ambient photo was taken from this flash photo's "
                                       "camera; give one ambient photo per view, or none")

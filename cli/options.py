@@ -48,6 +48,10 @@ def add_run_options(parser):
                         help="estimate a per-pixel diffuse albedo map (OUT_DIR/albedo.exr) and "
                              "render with it (textured materials)")
     parser.add_argument("--no-anchor", action="store_true", help=ANCHOR_HELP)
+    parser.add_argument("--envmap", metavar="FILE",
+                        help="a lat-long map to render the object and a sphere of each material "
+                             "under (OUT_DIR/<method>/preview_*); without reference photos they "
+                             "are rendered anyway, under a studio map made in code")
     parser.add_argument("--export", action="store_true",
                         help="also export the default method's BRDF (flashbrdf export) into "
                              "OUT_DIR/export and render its Principled fit beside the tabulated "
@@ -58,7 +62,7 @@ def run_options(args):
     """run's options as values (pipeline.run.run_capture's keywords)."""
     return {"model": args.model, "methods": args.methods, "spp": args.spp,
             "materials": args.materials, "albedo_map": args.albedo_map,
-            "anchor": not args.no_anchor, "export": args.export}
+            "anchor": not args.no_anchor, "export": args.export, "envmap": args.envmap}
 
 
 def add_engine_options(parser, what, default):

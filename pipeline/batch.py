@@ -51,7 +51,8 @@ from flashbrdf.files.outputs import check_writable_folder
 
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
-RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map", "export")
+RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map", "export",
+               "envmap")
 OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md", INDEX_NAME)  # what a batch writes in OUT_DIR
 
 
@@ -180,6 +181,9 @@ def check_run_options(options, as_text=False):
             check_model_file(model)
         samples_per_pixel(options["spp"])
         materials_option(options["materials"])
+        if options.get("envmap") is not None:
+            from flashbrdf.render.envmap import read_envmap_pixels
+            read_envmap_pixels(options["envmap"])
     except InputError as err:
         if as_text:
             return err.where, err.problem
@@ -191,7 +195,7 @@ def run_capture(scene_dir, out_dir, options):
     """The Dask task: `run` one capture into OUT_DIR/<name>/, all or nothing. -> summary row dict.
 
     options: the run options (RUN_OPTIONS: model, methods, spp, no_anchor, materials,
-    albedo_map, export). Raises on unexpected errors (Dask
+    albedo_map, export, envmap). Raises on unexpected errors (Dask
     retries once); bad input in the capture is returned as a failed row.
     """
     from flashbrdf.pipeline.run import run_capture as run
@@ -212,7 +216,8 @@ def run_capture(scene_dir, out_dir, options):
             run(str(scene_dir), str(staging), model=options["model"],
                 methods=options["methods"], spp=options["spp"], materials=options["materials"],
                 albedo_map=options["albedo_map"], anchor=not options["no_anchor"],
-                export=options["export"], final_out=str(out_dir / name),
+                export=options["export"], envmap=options.get("envmap"),
+                final_out=str(out_dir / name),
                 read_methods=cached_load_methods)
             seconds = time.perf_counter() - start
             report = json.loads((staging / "report.json").read_text())
@@ -392,7 +397,7 @@ def _prepare(out, captures):
 
 def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model=None,
           methods="dsgplvm", spp=64, anchor=True, materials="auto", albedo_map=False,
-          export=False):
+          export=False, envmap=None):
     """`flashbrdf batch`: `run` on every capture of captures_dir into out/<capture>/, and the
     summary. Returns the exit status: 0 all ok, 1 any failed."""
     captures = find_captures(captures_dir)
@@ -405,7 +410,8 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
     # same shared filesystem, not our working directory.
     options = {"model": None if model is None else str(Path(model).absolute()),
                "methods": methods, "spp": spp, "no_anchor": not anchor, "materials": materials,
-               "albedo_map": bool(albedo_map), "export": bool(export)}
+               "albedo_map": bool(albedo_map), "export": bool(export),
+               "envmap": None if envmap is None else str(Path(envmap).absolute())}
     requested = dict(options)  # what a capture's output depends on, as asked
     rows, todo = {}, []
     for c in captures:

@@ -25,12 +25,14 @@ from flashbrdf.infer.model_file import check_model_file
 from flashbrdf.pipeline.label_files import write_labels
 from flashbrdf.pipeline.options import (materials_option, method_names, model_path,
                                         samples_per_pixel)
+from flashbrdf.pipeline.previews import previews_under_envmap
 from flashbrdf.pipeline.report import write_report
 from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
 from flashbrdf.pipeline.run_materials import (label_section, material_entries, run_albedo_map,
                                               run_materials)
 from flashbrdf.pipeline.run_steps import (StageTimer, check_references, infer_method,
                                           load_methods, reference_outputs, render_and_compare)
+from flashbrdf.render.envmap import read_envmap_pixels
 from flashbrdf.render.scene_render import SceneGeometry
 from flashbrdf.slice_extract import ExtractOptions
 from flashbrdf.slice_extract.extract import bin_samples, collect_samples
@@ -52,6 +54,7 @@ class RunSettings:
     anchor: bool
     export: bool
     final_out: Path
+    envmap: object = None  # a lat-long map to render the previews under (pipeline.previews)
 
     @property
     def title(self):
@@ -60,19 +63,24 @@ class RunSettings:
 
 def run_capture(scene_dir, out, *, model=None, methods="dsgplvm", spp=64, materials="auto",
                 albedo_map=False, anchor=True, export=False, force=False, final_out=None,
-                read_methods=None):
+                read_methods=None, envmap=None):
     """`flashbrdf run` into the folder `out` (built aside, renamed on success). methods: "a,b" or
     a list; model: a model file or None (the default model, when a method needs one). final_out:
     where `out` ends up when the caller renames it again (batch). read_methods(names,
     model_path, anchor) -> {name: fitted method} replaces the model read (batch passes its
-    per-worker cache). Returns the report dict."""
+    per-worker cache). envmap: a lat-long map to render the object and a sphere of each
+    material under (pipeline.previews); without reference photos they are rendered anyway, under
+    the project's own studio map. Returns the report dict."""
     names = method_names(methods)
     settings = RunSettings(str(scene_dir), tuple(names), model_path(model, names),
                            samples_per_pixel(spp), materials_option(materials), bool(albedo_map),
-                           bool(anchor), bool(export), Path(final_out or out))
+                           bool(anchor), bool(export), Path(final_out or out),
+                           None if envmap is None else str(envmap))
     scene = capture.load_scene(scene_dir)
-    check_outputs(inputs=[scene_dir, *scene.input_files(), settings.model_path],
+    check_outputs(inputs=[scene_dir, *scene.input_files(), settings.model_path, envmap],
                   outputs=[out], folders=[out])
+    if envmap is not None:
+        read_envmap_pixels(envmap)  # a missing or malformed map is bad input before any work
     if settings.model_path is not None:
         check_model_file(settings.model_path)
     references = scene.references(reference_outputs)
@@ -86,7 +94,7 @@ def run_capture(scene_dir, out, *, model=None, methods="dsgplvm", spp=64, materi
 
 def _run_stages(settings, scene, references, loaded, out, read_methods):
     """The slow part of `run`, into the staged folder `out`: returns (stages, report dict)."""
-    stages = StageTimer(total=6 + 2 * len(settings.methods) + 2 * settings.export
+    stages = StageTimer(total=7 + 2 * len(settings.methods) + 2 * settings.export
                         + settings.albedo_map)
     notes = []
     fitted = stages.run("load model", read_methods, list(settings.methods), settings.model_path,
@@ -130,9 +138,9 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     if two_d:
         notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "
                      "3D data); no 3D table was loaded, and renders look the 2D tables up directly.")
-    rows = []
+    rows, geometry = [], None
     if not references:
-        notes.append("The scene has no reference photo: nothing was rendered or compared.")
+        notes.append("The scene has no reference photo: nothing was compared.")
     else:
         geometry = stages.run("ray cast", SceneGeometry, scene)
         if scene.geometry.mesh is None:
@@ -156,6 +164,14 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     extra = {"materials": material_entries(segmentation.labels, {1: "slice.csv"},
                                            {m: {1: p["file"]} for m, p in predictions.items()}),
              "segmentation": segmentation.criterion}
+    if not references or settings.envmap is not None:
+        brdfs = {name: TabulatedBRDF(p["table"]) for name, p in predictions.items()}
+        if with_albedo is not None:
+            brdfs = {name: with_albedo(brdf) for name, brdf in brdfs.items()}
+        extra["previews"], lines = stages.run(
+            "previews", previews_under_envmap, settings, scene, geometry, brdfs,
+            {name: {1: p["table"]} for name, p in predictions.items()}, out)
+        sections += lines
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                         observed=observed, predictions=predictions, notes=notes,
                         title=settings.title, warnings=ood_warnings, extra=extra,

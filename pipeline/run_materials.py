@@ -19,6 +19,7 @@ from flashbrdf.brdf.views import table_2d_view
 from flashbrdf.pipeline import report_figures as figs
 from flashbrdf.pipeline.albedo_files import albedo_for_scene, write_albedo
 from flashbrdf.pipeline.label_files import write_labels
+from flashbrdf.pipeline.previews import previews_under_envmap
 from flashbrdf.pipeline.report import variance_2d, write_report
 from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
 from flashbrdf.pipeline.run_steps import infer_method, render_and_compare
@@ -114,7 +115,7 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
                                geometry, label, fits, settings.spp, out / label, references,
                                loaded, level=False)
     else:
-        notes.append("The scene has no reference photo: nothing was rendered or compared.")
+        notes.append("The scene has no reference photo: nothing was compared.")
     fig_dir = out / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
     sections = label_section(labels, fig_dir, segmentation.criterion)
@@ -145,6 +146,16 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
     extra = {"materials": material_entries(labels, {k: f"materials/material_{k}.csv"
                                                     for k in rhos}, brdf_files),
              "segmentation": segmentation.criterion}
+    if not references or settings.envmap is not None:
+        camera = scene.photos_with_role("flash")[0].camera
+        brdfs = {m: MaterialMap([TabulatedBRDF(tables[m][k].table) for k in sorted(rhos)],
+                                labels, camera, faces) for m in settings.methods}
+        if with_albedo is not None:
+            brdfs = {m: with_albedo(brdf) for m, brdf in brdfs.items()}
+        extra["previews"], lines = stages.run(
+            "previews", previews_under_envmap, settings, scene, None, brdfs,
+            {m: {k: tables[m][k].table for k in sorted(rhos)} for m in settings.methods}, out)
+        sections += lines
     return stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                       warnings=warnings, notes=notes, title=settings.title, extra=extra,
                       sections=sections)
