@@ -89,7 +89,8 @@ def test_unknown_method_or_missing_model_exit_2_and_write_nothing(sphere_scene, 
     assert "--spp" in capsys.readouterr().err and not out.exists()
 
 
-def test_a_scene_without_references_renders_nothing(sphere_scene, tmp_path):
+def test_a_scene_without_references_compares_nothing_and_renders_previews(sphere_scene,
+                                                                           tmp_path):
     scene = tmp_path / "scene"
     scene.mkdir()
     doc = json.loads((sphere_scene / "scene.json").read_text())
@@ -102,7 +103,9 @@ def test_a_scene_without_references_renders_nothing(sphere_scene, tmp_path):
     report = json.loads((out / "report.json").read_text())
     assert report["references"] == [] and "render+compare chandraker" not in report["stages"]
     assert any("no reference photo" in note for note in report["notes"])
-    assert not list((out / "chandraker").glob("*.exr"))
+    # only the previews under the studio map (tests/test_run_previews.py), no reference render
+    assert sorted(p.name for p in (out / "chandraker").glob("*.exr")) == [
+        "preview_object.exr", "preview_sphere.exr"]
 
 
 def test_run_export_puts_the_export_and_the_principled_render_beside_the_report(sphere_scene,
