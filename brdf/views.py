@@ -120,6 +120,27 @@ def _half_last_digit(text):
     return 0.5 * 10.0 ** -decimals
 
 
+LEVEL_COMMENT = "level: "  # a slice.csv comment flashbrdf writes: how its absolute level is known
+
+
+def slice_level(path):
+    """BRDF.json's "level" from a slice.csv's "# level: ..." comment (extract and merl-slice
+    write one): {"absolute": True | False | None, "note": text}; absolute None when the file
+    states none (a slice made elsewhere). Reads comments only: read_slice_csv checks the file."""
+    try:
+        with open(os.fspath(path), encoding="utf-8-sig") as f:
+            for line in f:
+                text = line.strip().lstrip("#").strip()
+                if line.lstrip().startswith("#") and text.startswith(LEVEL_COMMENT):
+                    note = text[len(LEVEL_COMMENT):]
+                    absolute = (True if note.startswith("absolute") else
+                                False if note.startswith("relative") else None)
+                    return {"absolute": absolute, "note": note}
+    except (OSError, UnicodeDecodeError):
+        pass
+    return {"absolute": None, "note": "the slice file states no level"}
+
+
 def read_slice_csv(path):
     """Read a contract slice.csv: (rho (90, 3) in 1/sr with NaN where empty, n (90,) int).
 

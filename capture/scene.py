@@ -137,12 +137,25 @@ class Geometry:
 
 
 @dataclass(frozen=True, eq=False)
+class Level:
+    """How the flash's absolute level is known (scene.json "level", our extension). target_mesh:
+    a diffuse target of known reflectance (a grey card, a Spectralon patch), its own mesh in the
+    scene's frame and units, seen in some flash photos; reflectance (3,) in (0, 1]. calibrated:
+    the flash's intensity_rgb was measured before, in the scene's units. Neither (no "level"):
+    rho is known up to one factor (the flash's intensity and the scene's scale)."""
+    target_mesh: Path = None
+    reflectance: np.ndarray = None
+    calibrated: bool = False
+
+
+@dataclass(frozen=True, eq=False)
 class Scene:
     folder: Path
     camera: Camera
     geometry: Geometry
     photos: list = field(default_factory=list)
     json_path: Path = None
+    level: Level = None
 
     def photos_with_role(self, role):
         """The photos whose role is `role`, in file order."""
@@ -174,7 +187,8 @@ class Scene:
     def input_files(self):
         """Every file this scene reads (resolved Paths): scene.json, geometry, photos, brackets and
         environment maps, in that order without repeats. Outputs must never replace one."""
-        files = [self.json_path, self.geometry.mesh, self.geometry.normal_map, self.geometry.mask]
+        files = [self.json_path, self.geometry.mesh, self.geometry.normal_map, self.geometry.mask,
+                 None if self.level is None else self.level.target_mesh]
         for photo in self.photos:
             files.append(photo.file)
             files += [path for path, _ in photo.brackets or ()]
@@ -453,5 +467,29 @@ def load_scene(scene_dir):
         root.fail("photos", "expected a non-empty list")
     photos = [_photo(_Fields(str(json_path), f"photos[{i}]", p), i, folder, camera)
               for i, p in enumerate(items)]
+    level = _level(root.sub("level"), folder, geometry) if root.has("level") else None
     return Scene(folder=folder, camera=camera, geometry=geometry, photos=photos,
-                 json_path=json_path.resolve())
+                 json_path=json_path.resolve(), level=level)
+
+
+def _level(f, folder, geometry):
+    """scene.json "level": {"target": {"mesh": FILE, "reflectance": r | [r, g, b]}} or
+    {"calibrated": true}."""
+    if f.has("target") == f.has("calibrated"):
+        f.fail("", "give either 'target' (a diffuse target of known reflectance) or "
+                   "'calibrated': true (a flash measured before)")
+    if f.has("calibrated"):
+        if f.get("calibrated") is not True:
+            f.fail("calibrated", "expected true (leave \"level\" out for a relative level)")
+        return Level(calibrated=True)
+    t = f.sub("target")
+    if geometry.mesh is None:
+        t.fail("", "a target needs mesh geometry (a normal map has no depth to place it)")
+    value = t.get("reflectance")
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        reflectance = np.full(3, float(value))
+    else:
+        reflectance = t.array("reflectance", (3,))
+    if not np.all((reflectance > 0) & (reflectance <= 1)):
+        t.fail("reflectance", f"expected values in (0, 1], got {np.round(reflectance, 6).tolist()}")
+    return Level(target_mesh=t.path("mesh", folder), reflectance=reflectance)

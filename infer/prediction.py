@@ -78,10 +78,12 @@ def uncertainty_summary(variance, feature_label):
             "mean_std": float(np.sqrt(v).mean())}
 
 
-def brdf_record(prediction, method, method_name, model_path):
-    """The BRDF.json fields every prediction carries."""
+def brdf_record(prediction, method, method_name, model_path, level=None):
+    """The BRDF.json fields every prediction carries; level: the slice's (absolute or relative,
+    slice_extract.level), when known."""
     novelty = prediction.novelty
     return {"method": method_name, "model": None if model_path is None else str(model_path),
+            "level": level,
             "view": prediction.view,
             "predicted": "3D table" if prediction.view == "3d" else "2D table copied across phi_d",
             "predict_seconds": prediction.seconds,

@@ -34,7 +34,8 @@ def merl_slice(brdf_path, out):
     views.check_flash_slice(rho, brdf_path)  # a slice of 90 empty bins, which infer refuses
     views.write_slice_csv(out, rho, n, comments=[
         f"flashbrdf merl-slice {os.path.basename(brdf_path)}",
-        "theta_d = 0 slice: mean over the valid phi_d bins of theta_d bin 0; n = phi_d bins used"])
+        "theta_d = 0 slice: mean over the valid phi_d bins of theta_d bin 0; n = phi_d bins used",
+        views.LEVEL_COMMENT + "absolute: a measured table's own values"])
 
 
 def train(merl_dirs, out, views_text="1d,2d", feature_space="auto", seed=0):
@@ -94,7 +95,7 @@ def infer(model, slice_path, out, method_name="dsgplvm", merl_dirs=None, anchor=
         print(prediction.warning, file=sys.stderr)
     t2 = time.perf_counter()
     record = brdf_record(prediction, method, method_name, model)
-    record.update(slice=str(slice_path),
+    record.update(slice=str(slice_path), level=views.slice_level(slice_path),
                   observed_theta_h_bins=prediction.observed_bins,
                   training_tables_2d_only=missing, params=method.fitted_params())
 

@@ -115,7 +115,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     predictions, two_d, ood_warnings = {}, [], []
     for name in settings.methods:
         prediction = stages.run(f"infer {name}", infer_method, fitted[name], name,
-                                settings.model_path, rho, result.n, out / name)
+                                settings.model_path, rho, result.n, out / name, samples.level)
         note = prediction.tail_note
         if note and note.removeprefix("note: ") not in notes:  # the same for every method
             print(note, file=sys.stderr)
@@ -138,6 +138,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     if two_d:
         notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "
                      "3D data); no 3D table was loaded, and renders look the 2D tables up directly.")
+    notes.append("Level: " + samples.level["note"] + ".")
     rows, geometry = [], None
     if not references:
         notes.append("The scene has no reference photo: nothing was compared.")
@@ -163,7 +164,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     sections = label_section(segmentation.labels, out / "figures", segmentation.criterion)
     extra = {"materials": material_entries(segmentation.labels, {1: "slice.csv"},
                                            {m: {1: p["file"]} for m, p in predictions.items()}),
-             "segmentation": segmentation.criterion}
+             "segmentation": segmentation.criterion, "level": samples.level}
     if not references or settings.envmap is not None:
         brdfs = {name: TabulatedBRDF(p["table"]) for name, p in predictions.items()}
         if with_albedo is not None:

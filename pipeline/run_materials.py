@@ -82,7 +82,8 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
             folder = out / name / f"material_{k}"
             counts = (whole if slices[k] is None else slices[k]).n
             tables[name][k] = stages.run(f"infer {name}", infer_method, fitted[name], name,
-                                         settings.model_path, rho, counts, folder)
+                                         settings.model_path, rho, counts, folder,
+                                         samples.level)
             tail_note = tables[name][k].tail_note
             tail_warning = tail_note and f"material {k}: {tail_note.removeprefix('note: ')}"
             if tail_warning and tail_warning not in warnings:  # the same for every method
@@ -97,6 +98,7 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
                                                   scene_envmap(references),
                                                   settings.final_out, k)
             notes.append(note)
+    notes.append("Level: " + samples.level["note"] + ".")
     rows = []
     if references:
         geometry = stages.run("ray cast", SceneGeometry, scene)
@@ -145,7 +147,7 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
         sections += [""]
     extra = {"materials": material_entries(labels, {k: f"materials/material_{k}.csv"
                                                     for k in rhos}, brdf_files),
-             "segmentation": segmentation.criterion}
+             "segmentation": segmentation.criterion, "level": samples.level}
     if not references or settings.envmap is not None:
         camera = scene.photos_with_role("flash")[0].camera
         brdfs = {m: MaterialMap([TabulatedBRDF(tables[m][k].table) for k in sorted(rhos)],

@@ -58,13 +58,13 @@ def load_methods(names, model_path, anchor):
     return read_methods(model_path, names, overrides={"dsgplvm": {"anchor": anchor}})
 
 
-def infer_method(method, name, model, rho, n, out_dir):
+def infer_method(method, name, model, rho, n, out_dir, level=None):
     """One method's prediction from the slice, written to out_dir/brdf.binary + brdf.json; the
     prediction (infer.prediction.Prediction). 3D where the model stores 3D data, else 2D."""
     view = "3d" if method.training_3d() == "stored" else "2d"
     prediction = predict_slice(method, rho, n, view, source=name)
     write_prediction(out_dir / "brdf.binary", prediction,
-                     brdf_record(prediction, method, name, model))
+                     brdf_record(prediction, method, name, model, level))
     return prediction
 
 

@@ -23,8 +23,9 @@ Public API:
 
 from flashbrdf.slice_extract.binning import robust_bins
 from flashbrdf.slice_extract.extract import (ExtractOptions, FlashSamples, SliceResult, bin_samples,
-                                   collect_samples, extract_material_slices, extract_slice,
-                                   silhouette_mask)
+                                             collect_samples, extract_material_slices,
+                                             extract_slice)
+from flashbrdf.slice_extract.visibility import silhouette_mask
 from flashbrdf.slice_extract.samples import half_diff_thetas
 
 __all__ = ["ExtractOptions", "FlashSamples", "SliceResult", "bin_samples", "collect_samples",

@@ -18,9 +18,8 @@ Default thresholds:
 
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
-import cv2
 import numpy as np
 
 from flashbrdf import capture
@@ -29,6 +28,11 @@ from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import N_THETA_H
 from flashbrdf.brdf.views import MAX_SLICE_VALUE, slice_coverage
 from flashbrdf.slice_extract.binning import robust_bins
+from flashbrdf.slice_extract.sample_store import SAMPLE_FIELDS, SampleStore
+from flashbrdf.slice_extract.visibility import (camera_normals, depth_edge_mask, silhouette_mask,
+                                               trace_camera)
+from flashbrdf.slice_extract.level import (TARGET_MIN_COS, calibrated_record, relative_record,
+                                          target_level, trace_target)
 from flashbrdf.slice_extract.samples import REASONS, light_setup, photo_samples
 from flashbrdf.slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
                                    material_interior)
@@ -99,103 +103,6 @@ class _Clock:
         return time.perf_counter()
 
 
-def _trace(scene, camera, intersector, chunk):
-    """capture.Surface batches of the pixels of `camera` that see the object (every pixel that
-    can: usability is each photo's business), the object mask (H, W) bool, and the depth of each
-    hit (H, W) float32 (inf off the object; None for normal-map geometry)."""
-    mask = np.zeros(camera.shape, dtype=bool)
-    if intersector is None:
-        surfaces = [capture.surface_from_normal_map(scene.geometry, camera)]
-    else:
-        r0, r1, c0, c1 = capture.pixel_box(camera, intersector.mesh.bounds)
-        rows, cols = (a.ravel() for a in np.indices((r1 - r0, c1 - c0)))
-        rows += r0
-        cols += c0
-        surfaces = [capture.surface_at_pixels(intersector, camera, rows[s:s + chunk],
-                                              cols[s:s + chunk], dtype=np.float32)
-                    for s in range(0, len(rows), chunk)]
-    depth = None if intersector is None else np.full(camera.shape, np.inf, np.float32)
-    for surface in surfaces:
-        flat = surface.rows * camera.width + surface.cols
-        mask.ravel()[flat] = True
-        if depth is not None:
-            depth.ravel()[flat] = _depth(camera, surface.points)
-    return surfaces, mask, depth
-
-
-def _depth(camera, points):
-    """Distance (N,) float32 of world points from a pinhole camera's centre, or along an
-    orthographic camera's forward axis."""
-    offset = points - camera.centre_world
-    if camera.model == "orthographic":
-        return (offset @ camera.forward).astype(np.float32)
-    return np.sqrt(np.einsum("ij,ij->i", offset, offset)).astype(np.float32)
-
-
-def depth_edge_mask(depth, camera, slope, width_px):
-    """(H, W) bool: object pixels within width_px of an inner occluding contour, where the depth
-    of neighbouring hits (depth (H, W), inf off the object) jumps more steeply than `slope`
-    (depth change per pixel footprint: 20 ~ 87 deg from the view). The outline against the
-    background is silhouette_mask's."""
-    if depth is None or slope <= 0 or width_px <= 0:
-        return np.zeros(camera.shape, bool)
-    hit = np.isfinite(depth)
-    # a pixel's footprint at its depth: depth / f for a pinhole, the pixel size orthographic
-    footprint = (np.full(camera.shape, camera.pixel_size, np.float32)
-                 if camera.model == "orthographic"
-                 else depth / np.float32(max(camera.fx, camera.fy)))
-    edge = np.zeros(camera.shape, bool)
-    for first, second in (((slice(0, -1), slice(None)), (slice(1, None), slice(None))),
-                          ((slice(None), slice(0, -1)), (slice(None), slice(1, None)))):
-        with np.errstate(invalid="ignore"):  # inf - inf off the object
-            jump = (hit[first] & hit[second]
-                    & (np.abs(depth[first] - depth[second])
-                       > slope * np.minimum(footprint[first], footprint[second])))
-        edge[first] |= jump
-        edge[second] |= jump
-    if not edge.any():
-        return edge
-    kernel = np.ones((2 * width_px - 1, 2 * width_px - 1), np.uint8)
-    return cv2.dilate(edge.view(np.uint8), kernel).astype(bool) & hit
-
-
-def _camera_normals(scene, camera, intersector):
-    """normals_at(pixels (M,) flat indices) -> (M, 3) float32 shading normals in `camera`'s frame,
-    0 where the pixel's ray misses the object. Segmentation asks where the surface can see itself
-    (slice_extract.segment.nonconvex_mask) at a subsample of pixels: tracing those again costs
-    milliseconds, where a 12-MP normal image kept from the trace cost ~0.7 s and 144 MB on every
-    extraction."""
-    def normals_at(pixels):
-        pixels = np.asarray(pixels, np.int64)
-        if intersector is None:
-            surface = capture.surface_from_normal_map(scene.geometry, camera)
-            image = np.zeros((camera.height * camera.width, 3), np.float32)
-            image[surface.rows * camera.width + surface.cols] = surface.normals @ camera.rotation
-            return image[pixels]
-        unique, back = np.unique(pixels, return_inverse=True)
-        rows, cols = np.divmod(unique, camera.width)
-        surface = capture.surface_at_pixels(intersector, camera, rows, cols, dtype=np.float32)
-        found = np.zeros((len(unique), 3), np.float32)
-        found[np.searchsorted(unique, surface.rows * camera.width + surface.cols)] = \
-            surface.normals @ camera.rotation
-        return found[back]
-    return normals_at
-
-
-def silhouette_mask(object_mask, width_px):
-    """(H, W) bool: object pixels within width_px (Chebyshev) of a pixel that sees no object.
-
-    Such pixels mix object and background in any real or filtered image (optics, demosaicing,
-    a renderer's reconstruction filter: Mitsuba's default Gaussian puts ~13% of a neighbour's
-    light into a pixel, and < 0.1% from two pixels away). The image frame is not an edge.
-    """
-    if width_px <= 0:
-        return np.zeros_like(object_mask)
-    kernel = np.ones((2 * width_px + 1, 2 * width_px + 1), np.uint8)
-    inner = cv2.erode(object_mask.astype(np.uint8), kernel, borderType=cv2.BORDER_REPLICATE)
-    return object_mask & ~inner.astype(bool)
-
-
 def _no_sample_error(scene, per_photo):
     totals = {k: sum(p[k] for p in per_photo) for k in per_photo[0] if k != "photo"}
     photo = scene.photos_with_role("flash")[0]
@@ -264,6 +171,7 @@ class FlashSamples:
     # (SampleStore); None otherwise, as the pooled arrays then hold them all
     first_photo_samples: dict = None
     face: np.ndarray = None  # (N,) int32 mesh face of each sample, -1 for normal-map geometry
+    level: dict = None       # slice.json's "level": absolute (target, calibrated) or relative
 
     def first_photo(self):
         """(rho (M, 3), theta_h (M,), pixels (M,), censored (M,)) of every sample of the first
@@ -287,66 +195,6 @@ class FlashSamples:
                                                      "pixels", "photo", "face")
                 if getattr(self, k) is not None}
         return FlashSamples(**{**self.__dict__, **pick})
-
-
-SAMPLE_FIELDS = ("theta_h", "theta_d", "rho", "censored", "pixels", "face", "photo")
-
-
-class SampleStore:
-    """The pooled samples of many photos, bounded: once more than options.sample_budget are held,
-    every theta_h bin keeps a uniform random subset of at most options.max_samples_per_bin (each
-    sample carries a random key and a bin keeps its smallest keys, so the subset is uniform over
-    all the photos seen, whatever their order). Below the budget it keeps every sample, in
-    order, so a capture of a few photos gives the slice it always gave."""
-
-    def __init__(self, options, seed=0):
-        self.budget, self.cap = options.sample_budget, options.max_samples_per_bin
-        self.rng = np.random.default_rng(seed)
-        self.parts, self.count, self.subsampled = [], 0, False
-
-    def add(self, part):
-        """part: {field: array} of one photo's samples (SAMPLE_FIELDS)."""
-        if len(part["theta_h"]):
-            self.parts.append(part)
-            self.count += len(part["theta_h"])
-        if self.count > self.budget:
-            self._keep_per_bin()
-
-    def _keep_per_bin(self):
-        pooled = self._concatenated()
-        bins = merl_bin_index(pooled["theta_h"], 0.0, 0.0)[0]
-        keys = pooled.get("key")
-        if keys is None:
-            keys = self.rng.random(len(bins))
-        order = np.lexsort((keys, bins))
-        sorted_bins = bins[order]
-        first_of_bin = np.searchsorted(sorted_bins, np.arange(N_THETA_H))
-        rank = np.arange(len(order)) - first_of_bin[sorted_bins]
-        keep = np.zeros(len(bins), bool)
-        keep[order[rank < self.cap]] = True
-        self.parts = [{name: values[keep] for name, values in {**pooled, "key": keys}.items()}]
-        self.count = int(keep.sum())
-        self.subsampled = True
-
-    def add_keys(self, part):
-        """A part's random keys, once subsampling has started (later parts need them too)."""
-        return {**part, "key": self.rng.random(len(part["theta_h"]))}
-
-    def pooled(self):
-        """{field: array} of the samples kept (SAMPLE_FIELDS): all of them below the budget,
-        else each bin's subset."""
-        if self.subsampled:
-            self._keep_per_bin()
-        return {name: values for name, values in self._concatenated().items() if name != "key"}
-
-    def _concatenated(self):
-        if not self.parts:
-            return {"theta_h": np.zeros(0), "theta_d": np.zeros(0), "rho": np.zeros((0, 3)),
-                    "censored": np.zeros(0, bool), "pixels": np.zeros(0, int),
-                    "face": np.zeros(0, np.int32), "photo": np.zeros(0, int)}
-        names = [n for n in self.parts[0] if all(n in p for p in self.parts)]
-        return {n: (self.parts[0][n] if len(self.parts) == 1
-                    else np.concatenate([p[n] for p in self.parts])) for n in names}
 
 
 def _progress(items, what):
@@ -377,6 +225,13 @@ def collect_samples(scene, options=None):
     lights = [light_setup(photo) for photo in flashes]
     t = clock.add("load_scene", t0)
     intersector = None if normal_map else capture.scene_intersector(scene)
+    level = scene.level
+    target = None
+    if level is not None and level.target_mesh is not None:
+        target_mesh, has_normals = capture.load_mesh(level.target_mesh)
+        target = capture.MeshIntersector(target_mesh, use_vertex_normals=has_normals)
+    target_rho, target_options = [], replace(options, min_cos=max(options.min_cos,
+                                                                  TARGET_MIN_COS))
     needs_shadows = options.shadow_rays and not normal_map and not all(
         light.at_viewpoint for light in lights)
     # convexity costs a face-adjacency pass: only ask when a shadow ray could be needed
@@ -392,10 +247,15 @@ def collect_samples(scene, options=None):
         camera = image.photo.camera
         if traced_camera is not camera:  # one trace per camera (photos sharing it reuse it)
             surfaces = None  # let the previous camera's go before tracing the next
-            surfaces, object_mask, depth = _trace(scene, camera, intersector,
+            surfaces, object_mask, depth = trace_camera(scene, camera, intersector,
                                                   options.chunk_pixels)
             edge = silhouette_mask(object_mask, options.silhouette_px) | depth_edge_mask(
                 depth, camera, options.depth_edge_slope, options.silhouette_px)
+            if target is not None:  # the target's pixels, in front of the object, are not its
+                target_surfaces, target_mask = trace_target(target, camera, depth,
+                                                            options.chunk_pixels)
+                target_edge = silhouette_mask(target_mask, options.silhouette_px)
+                edge |= target_mask
             del depth
             traced_camera = camera
         stats = dict(photo=image.photo.stem, usable=int(image.usable.sum()),
@@ -410,6 +270,12 @@ def collect_samples(scene, options=None):
             for reason, count in got.rejected.items():
                 stats[reason] += count
             parts.append(got)
+        if target is not None:
+            for surface in target_surfaces:
+                got = photo_samples(image.radiance, image.usable, surface, lights[k],
+                                    target_options, None if lights[k].at_viewpoint else intersector,
+                                    image.clipped, target_edge)
+                target_rho.append(got.rho)
         per_photo.append(stats)
         part = {name: np.concatenate([getattr(p, name) for p in parts])
                 for name in SAMPLE_FIELDS[:-2]} if parts else None
@@ -427,11 +293,25 @@ def collect_samples(scene, options=None):
         t = clock.add("samples", t)
     pooled = store.pooled()
     _check_above_ambient(scene, pooled["rho"])
+    if target is not None:
+        factor, level_report = target_level(
+            np.concatenate(target_rho) if target_rho else np.zeros((0, 3)), level,
+            f"{scene.json_path}: level.target")
+        pooled["rho"] = pooled["rho"] * factor
+        if first.samples is not None and store.subsampled:
+            first.samples["rho"] = first.samples["rho"] * factor
+        level_report["flash_intensity_rgb"] = [
+            (np.asarray(light.power) / factor).tolist() for light in lights]
+    elif level is not None and level.calibrated:
+        level_report = calibrated_record()
+    else:
+        level_report = relative_record(scene)
     samples = FlashSamples(scene, options, pooled["theta_h"], pooled["theta_d"], pooled["rho"],
                            pooled["censored"], pooled["pixels"], pooled["photo"],
                            flashes[0].camera.shape, first.object_mask, first.face_image,
                            first.radiance, per_photo, clock.t, start, first.normals_at,
-                           first.samples if store.subsampled else None, pooled["face"])
+                           first.samples if store.subsampled else None, pooled["face"],
+                           level_report)
     return samples
 
 
@@ -443,7 +323,7 @@ class _FirstPhoto:
                  intersector):
         self.samples = part
         self.object_mask, self.radiance = object_mask, radiance
-        self.normals_at = _camera_normals(scene, camera, intersector)
+        self.normals_at = camera_normals(scene, camera, intersector)
         self.face_image = None
         if not normal_map:
             self.face_image = np.full(camera.shape, -1, dtype=np.int64)
@@ -484,6 +364,7 @@ def bin_samples(samples):
     report = _report(scene, options, samples.per_photo, theta_h, theta_d, inlier, n, clock.t,
                      np.bincount(bins[censored], minlength=N_THETA_H), censored)
     report["clamped_negative_bins"] = int(negative.any(axis=1).sum())
+    report["level"] = samples.level
     return SliceResult(estimate, n, spread, report)
 
 

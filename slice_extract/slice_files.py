@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from flashbrdf.brdf.merl import N_THETA_H
-from flashbrdf.brdf.views import write_slice_csv
+from flashbrdf.brdf.views import LEVEL_COMMENT, write_slice_csv
 from flashbrdf.files.atomic import write_text
 from flashbrdf.files.outputs import sidecar_json
 
@@ -105,6 +105,8 @@ def write_extraction(out, scene_dir, result, options, final_path=None):
         f"{options.max_theta_d_deg} deg; min cos {options.min_cos}; silhouette "
         f"{options.silhouette_px} px",
     ]
+    if result.report.get("level"):
+        comments.append(LEVEL_COMMENT + result.report["level"]["note"])
     clamped = result.report.get("clamped_negative_bins", 0)
     if clamped:
         comments.append(f"{clamped} bin(s) had a slightly negative estimate (noise around 0) and "

@@ -8,7 +8,9 @@ import numpy as np
 
 from flashbrdf.brdf.angles import merl_bin_index
 from flashbrdf.slice_extract import ExtractOptions, collect_samples, extract_slice
-from flashbrdf.slice_extract.extract import SampleStore, bin_samples, depth_edge_mask
+from flashbrdf.slice_extract.extract import bin_samples
+from flashbrdf.slice_extract.sample_store import SampleStore
+from flashbrdf.slice_extract.visibility import depth_edge_mask
 from synthetic import ggx_lambert, pinhole_camera, point_light, sphere_mesh, write_synthetic_scene
 
 
