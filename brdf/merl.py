@@ -125,21 +125,30 @@ def read_merl_bins(path, flat_index, dtype=np.float64):
     return values.T
 
 
-def write_merl(path, table):
+def write_merl(path, table, no_data=None):
     """Write a (90, 90, 180, 3) table in 1/sr as a MERL `.binary` file, atomically.
 
-    NaN, Inf or negative values are written as no data (-1 in file units). The file is exactly
+    NaN, Inf or negative values are written as no data (-1 in file units), and so are the bins
+    of no_data ((90, 90, 180) bool) when given. `table` may be a broadcast view (a 2D table
+    across phi_d): the file is built channel by channel, in place. The file is exactly
     34,992,012 bytes.
     """
-    table = np.asarray(table, dtype=np.float64)
+    table = np.asarray(table)
     if table.shape != MERL_SHAPE + (3,):
         raise ValueError(f"MERL table must be {MERL_SHAPE + (3,)}, got {table.shape}")
-    raw = table / MERL_SCALE
-    raw = np.where(np.isfinite(raw) & (raw >= 0), raw, -1.0)
+    raw = np.empty((3,) + MERL_SHAPE, dtype="<f8")
+    for c in range(3):
+        np.divide(table[..., c], MERL_SCALE[c], out=raw[c])
+    with np.errstate(invalid="ignore"):
+        missing = ~(raw >= 0)   # NaN too
+    missing |= np.isinf(raw)
+    if no_data is not None:
+        missing |= no_data
+    raw[missing] = -1.0
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             np.array(MERL_SHAPE, dtype="<i4").tofile(f)
-            np.ascontiguousarray(np.moveaxis(raw, -1, 0), dtype="<f8").tofile(f)
+            raw.tofile(f)
 
 
 def list_merl(folder):

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.brdf import merl, views
+from flashbrdf.brdf import merl
 from flashbrdf.files.atomic import write_text
 from flashbrdf.files.outputs import sidecar_json
 from flashbrdf.infer.novelty import novelty_warning
@@ -56,13 +56,12 @@ def predict_slice(method, rho, n, view, source="slice"):
 
 
 def merl_table(prediction):
-    """The full 3D MERL table (90, 90, 180, 3) to write: 2D copied across phi_d, -1 where MERL
-    has no data or nothing was predicted."""
-    full = views.table_3d_from_2d(prediction.table) if prediction.view == "2d" else \
-        prediction.table
-    full = np.where(np.isfinite(full), full, -1.0)
-    full[~merl.merl_valid_mask()] = -1.0
-    return full
+    """The full 3D MERL table (90, 90, 180, 3) to write: a 2D prediction as a read-only view
+    across phi_d (written without a copy); NaN where nothing was predicted."""
+    if prediction.view == "2d":
+        table = np.asarray(prediction.table, dtype=np.float64)
+        return np.broadcast_to(table[:, :, None, :], merl.MERL_SHAPE + (3,))
+    return prediction.table
 
 
 def uncertainty_summary(variance, feature_label):
@@ -100,7 +99,7 @@ def write_prediction(path, prediction, record):
     is written (a record of timings)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    merl.write_merl(path, merl_table(prediction))
+    merl.write_merl(path, merl_table(prediction), no_data=~merl.merl_valid_mask())
     try:
         if callable(record):
             record = record()

@@ -16,7 +16,13 @@ from flashbrdf.render.integrator import render_directional_light, render_envmap,
 
 
 class SceneGeometry:
-    """A scene's geometry with cached per-camera primary hits (capture.Surface)."""
+    """A scene's geometry with cached per-camera primary hits (capture.Surface).
+
+    The cache holds at most CACHED_HITS hits (the oldest cameras go first): a run renders every
+    reference once per method, so hits are reused, but 30 views of 24 MP would fill the memory.
+    """
+
+    CACHED_HITS = 40_000_000
 
     def __init__(self, scene):
         from flashbrdf import capture  # lazy: capture costs 0.2-0.8 s on every import of render
@@ -34,9 +40,13 @@ class SceneGeometry:
         key = camera_key(camera)
         if key not in self._surfaces:
             if self.intersector is not None:
-                self._surfaces[key] = capture.surface_from_mesh(self.intersector, camera)
+                surface = capture.surface_from_mesh(self.intersector, camera)
             else:
-                self._surfaces[key] = capture.surface_from_normal_map(self.scene.geometry, camera)
+                surface = capture.surface_from_normal_map(self.scene.geometry, camera)
+            while self._surfaces and (sum(len(s.rows) for s in self._surfaces.values())
+                                      + len(surface.rows) > self.CACHED_HITS):
+                del self._surfaces[next(iter(self._surfaces))]  # the oldest camera's
+            self._surfaces[key] = surface
         return self._surfaces[key]
 
     def occluder(self):
