@@ -56,6 +56,15 @@ def _add_import_colmap(sub):
                         "units (default 0,0,0: at the lens)")
     s.add_argument("--intensity", default="1,1,1", metavar="R,G,B",
                    help="the flash's intensity_rgb (default 1,1,1: the level is relative)")
+    s.add_argument("--target", metavar="MESH",
+                   help="a diffuse target of known reflectance (a grey card) seen in some flash "
+                        "photos, its own mesh in the model's frame: it fixes the slice's "
+                        "absolute level (scene.json \"level\")")
+    s.add_argument("--reflectance", metavar="R[,G,B]",
+                   help="the target's reflectance, one value or three, in (0, 1] (e.g. 0.18)")
+    s.add_argument("--calibrated", action="store_true",
+                   help="--intensity was measured before (a calibrated flash, scene units): the "
+                        "level is absolute")
     add_force(s, "replace SCENE_DIR if an earlier flashbrdf command made it (never any other "
                  "folder)")
     s.set_defaults(handler=import_colmap)
@@ -83,6 +92,19 @@ def import_colmap(args):
     done = write_scene(args.model_dir, args.images, args.mesh, args.out,
                        flash_offset=_numbers(args.flash_offset, "--flash-offset"),
                        intensity=_numbers(args.intensity, "--intensity"),
-                       force=args.force)
+                       force=args.force, target=args.target,
+                       reflectance=None if args.reflectance is None else
+                       _reflectance(args.reflectance), calibrated=args.calibrated)
     for line in done.lines():
         print(line)
+
+
+def _reflectance(text):
+    from flashbrdf.files.errors import InputError
+    try:
+        values = [float(p) for p in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) not in (1, 3):
+        raise InputError("--reflectance", f"expected one number or three, got {text!r}")
+    return values * 3 if len(values) == 1 else values

@@ -294,3 +294,26 @@ def test_negative_flash_offset_without_equals_sign(made, tmp_path):
     light = json.loads((out / "scene.json").read_text())["photos"][0]["light"]
     assert light == {"type": "point", "position": [-0.03, 0.02, 0.0],
                      "intensity_rgb": [0.01, 0.01, 0.01]}
+
+
+def test_a_target_or_a_calibrated_flash_goes_into_the_scene(made, tmp_path, capsys):
+    """--target/--reflectance write scene.json's "level" (the mesh relative to the scene folder,
+    as the photos are); --calibrated writes its own; a reflectance without a target is refused."""
+    card = tmp_path / "card.ply"
+    card.write_bytes(made["mesh"].read_bytes())
+    common = [str(made["sparse"]), "--images", str(made["images"]), "--mesh", str(made["mesh"])]
+    out = tmp_path / "with_card"
+    assert main(["import-colmap", *common, "--out", str(out), "--target", str(card),
+                 "--reflectance", "0.18"]) == 0
+    from flashbrdf.capture import load_scene
+    level = load_scene(out).level
+    assert level.target_mesh == card.resolve()
+    np.testing.assert_array_equal(level.reflectance, [0.18, 0.18, 0.18])
+    calibrated = tmp_path / "calibrated"
+    assert main(["import-colmap", *common, "--out", str(calibrated), "--calibrated"]) == 0
+    assert load_scene(calibrated).level.calibrated
+    capsys.readouterr()
+    assert main(["import-colmap", *common, "--out", str(tmp_path / "bad"),
+                 "--reflectance", "0.18"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--reflectance" in err[0] and not (tmp_path / "bad").exists()

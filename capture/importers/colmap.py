@@ -221,22 +221,28 @@ def _dumps(scene):
 
 
 def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 0.0),
-                  intensity=(1.0, 1.0, 1.0), force=False):
+                  intensity=(1.0, 1.0, 1.0), force=False, target=None, reflectance=None,
+                  calibrated=False):
     """Write the scene folder `out_dir` for a COLMAP sparse model, its flash photos in
     `images_dir` and a mesh in the model's frame. Returns a ColmapImport.
 
     flash_offset: the flash position in each camera's frame (model units); intensity: its
-    intensity_rgb; force: replace an out_dir that flashbrdf made. InputError (exit 2) naming
-    the file or field for bad input; then nothing is written.
+    intensity_rgb; force: replace an out_dir that flashbrdf made. The level (scene.json
+    "level", slice_extract.level): target, a mesh of a diffuse target in the model's frame, with
+    its reflectance (3 numbers in (0, 1]); or calibrated, the intensity was measured before;
+    neither: relative. InputError (exit 2) naming the file or field for bad input; then nothing
+    is written.
     """
     from flashbrdf.capture.geometry import MeshIntersector, load_mesh
     offset = _triple(flash_offset, "--flash-offset")
     power = _triple(intensity, "--intensity", positive=True)
+    level = _level(target, reflectance, calibrated)
     images_dir, mesh, out_dir = Path(images_dir), Path(mesh), Path(out_dir)
     if not images_dir.is_dir():
         raise InputError(images_dir, "not a folder (--images names the folder of the flash "
                                      "photos)")
-    check_outputs(inputs=[model_dir, images_dir, mesh], outputs=[out_dir], folders=[out_dir])
+    check_outputs(inputs=[model_dir, images_dir, mesh, target], outputs=[out_dir],
+                  folders=[out_dir])
     if _inside(out_dir, images_dir):
         raise InputError(out_dir, f"is inside --images {images_dir}: import-colmap writes "
                                   "nothing there; give a folder beside it")
@@ -274,9 +280,32 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
     scene = {"camera": photos[0]["camera"], "geometry": {"mesh": _relative(mesh, scene_folder)},
              "photos": photos,
              "provenance": _provenance(model, images_dir, mesh, skipped, error, frame)}
+    if level is not None:
+        if "target" in level:
+            level["target"]["mesh"] = _relative(Path(target), scene_folder)
+        scene["level"] = level
     with staged_output_dir(out_dir, force=force, command="import-colmap") as staged:
         Path(staged, "scene.json").write_text(_dumps(scene), encoding="utf-8")
     return ColmapImport(out_dir, model, matched, skipped, cameras, error, frame, scene)
+
+
+def _level(target, reflectance, calibrated):
+    """scene.json's "level" from the importer's options, or None (a relative level)."""
+    if target is not None and calibrated:
+        raise InputError("--calibrated", "give either --target (a diffuse target in the photos) "
+                                         "or --calibrated (a flash measured before), not both")
+    if calibrated:
+        return {"calibrated": True}
+    if target is None:
+        if reflectance is not None:
+            raise InputError("--reflectance", "is the reflectance of --target: give both")
+        return None
+    if not Path(target).is_file():
+        raise InputError(target, "target mesh not found")
+    values = _triple(reflectance if reflectance is not None else (), "--reflectance")
+    if not all(0 < v <= 1 for v in values):
+        raise InputError("--reflectance", f"expected 3 values in (0, 1], got {values}")
+    return {"target": {"mesh": None, "reflectance": values}}
 
 
 def _provenance(model, images_dir, mesh, skipped, error, frame):
