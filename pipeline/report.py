@@ -32,7 +32,8 @@ from flashbrdf.brdf.merl import theta_h_centres
 from flashbrdf.brdf.metrics import summarise
 from flashbrdf.brdf.views import slice_coverage, table_2d_view
 from flashbrdf.render import images
-from flashbrdf.render.compare import compare_images
+from flashbrdf.brdf.metrics import delta_e_log
+from flashbrdf.render.compare import compare_images, comparison_mask
 from flashbrdf.pipeline import report_figures as figs
 from flashbrdf.pipeline.report_html import write_report_html
 
@@ -49,6 +50,11 @@ HOW_TO_READ = """\
 - **rel_rmse**: the root-mean-square pixel difference divided by the RMS of the reference (0 is
   perfect, 1 means the error is as large as the signal). It is dominated by the brightest pixels,
   i.e. by the highlights.
+- **level-matched ΔE log**: the same, with each method's renders multiplied by one number (the
+  median over the photos of the mean over channels of reference / render). It removes one
+  light-calibration or exposure offset that all the photos share, which no BRDF can predict, and
+  keeps the angular shape of the BRDF: compare methods on it when the lights' calibration is in
+  doubt (both are printed, the calibrated one first).
 - **reference / render** (`level_ratio_rgb`): per channel, the sum of the photo over the sum of
   the render on the compared pixels, median over the photos; 1.00 when the levels agree. Methods
   differ here where their BRDFs do; an offset they all share gets a level-check note.
@@ -165,7 +171,8 @@ def _reference_rows(references, fig_dir, max_figures):
     rows, by_photo = [], {}
     for ref in references:
         row = {k: v for k, v in ref.items()
-               if k not in ("render", "reference", "delta_e_map", "mask", "compare")}
+               if k not in ("render", "reference", "delta_e_map", "mask", "compare",
+                             "compare_mask")}
         row.update({k: ref["compare"][k] for k in ("delta_e_log_mean", "delta_e_log_median",
                                                    "rel_rmse", "pixels")
                     if k in ref.get("compare", {}) and k not in ref})
@@ -200,8 +207,12 @@ def _reference_rows(references, fig_dir, max_figures):
     return rows, figures, len(by_photo)
 
 
-def _summary(rows):
+def _summary(rows, sources=None):
+    """Per method: ΔE-log and rel_rmse over its references, their level (reference / render), and
+    the level-matched ΔE-log (level_matched). sources: the rows with their images, when `rows`
+    are the report's copies without them."""
     out = {}
+    sources = rows if sources is None else sources
     for method in dict.fromkeys(r["method"] for r in rows):
         mine = [r for r in rows if r["method"] == method]
         out[method] = {key: summarise([r[key] for r in mine])
@@ -213,7 +224,37 @@ def _summary(rows):
                 warnings.simplefilter("ignore", RuntimeWarning)
                 out[method]["level_ratio_rgb"] = np.nanmedian(np.asarray(levels, float),
                                                               axis=0).tolist()
+            matched = level_matched([r for r in sources if r["method"] == method], levels)
+            if matched is not None:
+                out[method]["level_matched"] = matched
     return out
+
+
+def level_matched(rows, levels):
+    """{"scale", "delta_e_log_mean": {mean, median, ...}}: ΔE-log of one method's renders each
+    multiplied by one number, the median over its references of the mean over channels of
+    reference / render (level_ratio_rgb), over the pixels each comparison used. It removes one
+    light-calibration (or exposure) offset that the photos share and keeps the BRDF's angular
+    shape. None without the images or a finite scale."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        scale = float(np.nanmedian(np.nanmean(np.asarray(levels, float), axis=1)))
+    if not np.isfinite(scale) or scale <= 0:
+        return None
+    errors = []
+    for r in rows:
+        render, reference = read_image(r.get("render")), read_image(r.get("reference"))
+        if render is None or reference is None or r.get("delta_e_log_mean") is None:
+            continue
+        mask = r.get("compare_mask")
+        used = comparison_mask(render, reference, read_image(mask) if mask is not None
+                               else None)
+        if used.any():
+            errors.append(float(np.mean(delta_e_log(np.asarray(render, float)[used] * scale,
+                                                    np.asarray(reference, float)[used]))))
+    if not errors:
+        return None
+    return {"scale": scale, "delta_e_log_mean": summarise(errors)}
 
 
 LEVEL_NOTE = 0.03     # |reference / render − 1| beyond which a shared level offset is pointed out
@@ -299,7 +340,7 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
         "title": title,
         "stages": {k: float(v) for k, v in stages.items()},
         "references": rows,
-        "summary": _summary(rows),
+        "summary": _summary(rows, references),
         "slice": None if observed is None else {
             "theta_h_deg": theta_h_deg, "rho": observed["rho"], "n": observed["n"],
             "spread": observed.get("spread")},
@@ -325,14 +366,19 @@ def _markdown(report, n_photos, sections=()):
     summary = report["summary"]
     if summary:
         lines += ["## Summary", "", "| method | references | ΔE log mean (mean / median over "
-                  "references) | rel_rmse (mean / median) | reference / render (R, G, B) |",
-                  "|---|---|---|---|---|"]
+                  "references) | ΔE log level-matched (mean / median; scale) | rel_rmse (mean / "
+                  "median) | reference / render (R, G, B) |", "|---|---|---|---|---|---|"]
         for method, s in summary.items():
             level = s.get("level_ratio_rgb")
             level = "–" if level is None else ", ".join(_fmt(v) for v in level)
+            matched = s.get("level_matched")
+            matched = "–" if matched is None else (
+                f"{_fmt(matched['delta_e_log_mean']['mean'])} / "
+                f"{_fmt(matched['delta_e_log_mean']['median'])}; ×{_fmt(matched['scale'], 3)}")
             lines.append(f"| {method} | {s['references']} | {_fmt(s['delta_e_log_mean']['mean'])} / "
-                         f"{_fmt(s['delta_e_log_mean']['median'])} | {_fmt(s['rel_rmse']['mean'], 3)}"
-                         f" / {_fmt(s['rel_rmse']['median'], 3)} | {level} |")
+                         f"{_fmt(s['delta_e_log_mean']['median'])} | {matched} | "
+                         f"{_fmt(s['rel_rmse']['mean'], 3)} / {_fmt(s['rel_rmse']['median'], 3)}"
+                         f" | {level} |")
         lines.append("")
         note = level_note(summary)
         if note:

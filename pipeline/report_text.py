@@ -68,14 +68,19 @@ def summary_html(report, level_note=None, how_to_read=None):
             level = s.get("level_ratio_rgb")
             level = "–" if level is None else ", ".join(_num(v) for v in level)
             css = ' class="best"' if best is not None and means[method] == best else ""
+            matched = s.get("level_matched")
+            matched = "–" if matched is None else (
+                f"{_num(matched['delta_e_log_mean']['mean'])} / "
+                f"{_num(matched['delta_e_log_mean']['median'])}; ×{_num(matched['scale'], 3)}")
             rows.append(
                 f"<tr><td>{html.escape(str(method))}</td><td>{s['references']}</td>"
                 f"<td{css}>{_num(s['delta_e_log_mean']['mean'])} / "
-                f"{_num(s['delta_e_log_mean']['median'])}</td>"
+                f"{_num(s['delta_e_log_mean']['median'])}</td><td>{matched}</td>"
                 f"<td>{_num(s['rel_rmse']['mean'], 3)} / {_num(s['rel_rmse']['median'], 3)}</td>"
                 f"<td>{level}</td></tr>")
         parts.append("<table><thead><tr><th>method</th><th>references</th><th>ΔE log mean "
-                     "(mean / median over references)</th><th>rel_rmse (mean / median)</th>"
+                     "(mean / median over references)</th><th>ΔE log level-matched (mean / "
+                     "median; scale)</th><th>rel_rmse (mean / median)</th>"
                      "<th>reference / render (R, G, B)</th></tr></thead><tbody>"
                      + "".join(rows) + "</tbody></table>")
     if level_note:

@@ -187,6 +187,9 @@ def _print_summary(stages, report, out):
     for method, summary in report.get("summary", {}).items():
         mean = summary.get("delta_e_log_mean", {}).get("mean")
         if mean is not None:
+            matched = summary.get("level_matched")
             print(f"{method}: mean delta_e_log_mean {mean:.3f} over {summary['references']} "
-                  "reference(s)", file=sys.stderr)
+                  "reference(s)" + ("" if matched is None else
+                                    f"; level-matched {matched['delta_e_log_mean']['mean']:.3f} "
+                                    f"(renders x{matched['scale']:.3f})"), file=sys.stderr)
     print(f"report: {(out / 'report.md').resolve()}")

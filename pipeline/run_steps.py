@@ -103,7 +103,8 @@ def render_and_compare(scene, geometry, method_name, table, spp, out_dir, refere
                                                 json_name=f"{photo.stem}_compare.json",
                                                 png_name=f"{photo.stem}_delta_e.png",
                                                 return_map=True)
-            row.update(metrics, reference=reference, delta_e_map=delta_e)
+            row.update(metrics, reference=reference, delta_e_map=delta_e,
+                       compare_mask=mask & measured)
             if level:
                 row["level_ratio_rgb"] = level_ratio(image, reference, mask & measured).tolist()
         else:

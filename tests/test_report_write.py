@@ -179,3 +179,30 @@ def test_report_levels_are_medians_over_photos_and_the_note_is_written(tmp_path)
     # c has no finite level, so the check is over a and b alone: 5-10% brighter for both
     assert report["summary"]["c"]["level_ratio_rgb"] == [None, None, None]
     assert "**Level check:** the reference photos are 5–10% brighter than every method's" in text
+
+
+def test_level_matched_error_removes_one_shared_offset(tmp_path):
+    """Renders 10% too dark everywhere (a light calibrated 10% low): the calibrated ΔE-log is
+    positive, the level-matched one 0 (renders x 1.1 are the photos), and a render whose shape is
+    wrong keeps an error after the match."""
+    from flashbrdf.pipeline.report import write_report
+    rng = np.random.default_rng(0)
+    photos = [rng.uniform(0.1, 2.0, (8, 8, 3)) for _ in range(3)]
+    mask = np.ones((8, 8), bool)
+
+    def row(photo, k, render, method):
+        from flashbrdf.render.compare import compare_images, level_ratio
+        metrics, _ = compare_images(render, photo, mask)
+        return {"photo": f"p{k}", "method": method, "render": render, "reference": photo,
+                "mask": mask, "compare_mask": mask, **metrics,
+                "level_ratio_rgb": level_ratio(render, photo, mask).tolist()}
+
+    rows = [row(p, k, p / 1.1, "dark") for k, p in enumerate(photos)]
+    rows += [row(p, k, p[::-1] / 1.1, "wrong") for k, p in enumerate(photos)]
+    report = write_report(tmp_path, stages={"x": 1.0}, references=rows)
+    dark, wrong = report["summary"]["dark"], report["summary"]["wrong"]
+    assert dark["delta_e_log_mean"]["mean"] > 0.5
+    assert dark["level_matched"]["scale"] == pytest.approx(1.1, rel=1e-9)
+    assert dark["level_matched"]["delta_e_log_mean"]["mean"] == pytest.approx(0.0, abs=1e-9)
+    assert wrong["level_matched"]["delta_e_log_mean"]["mean"] > 1.0
+    assert "level-matched" in (tmp_path / "report.md").read_text()
