@@ -15,8 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from flashbrdf.files.atomic import atomic_path
-from flashbrdf.files.errors import DECODE_ERRORS, InputError
+from flashbrdf.files.errors import InputError
 from flashbrdf.capture import load_mesh
+from flashbrdf.pipeline.label_files import read_npy
 from flashbrdf.render.albedo_map import table_floor
 from flashbrdf.render.images import image_channel_names, read_image, write_exr
 from flashbrdf.slice_extract.albedo import estimate_albedo_map, face_means
@@ -100,12 +101,7 @@ def read_albedo(path, scene, camera, tables):
         floors = np.stack([table_floor(t) for t in tables])
     faces = None
     if npy_path.is_file():
-        try:
-            faces = np.load(npy_path, allow_pickle=False)
-        except DECODE_ERRORS as err:  # EOFError for an empty file
-            raise InputError(npy_path, f"cannot be read as a .npy array ({err})") from None
-        if not isinstance(faces, np.ndarray):  # np.load opened a .npz archive
-            raise InputError(npy_path, "is a .npz archive, not a .npy array")
+        faces = read_npy(npy_path)
         if faces.ndim != 2 or faces.shape[1] != 3 or faces.dtype.kind != "f" or not np.all(
                 np.isfinite(faces)):
             raise InputError(npy_path, "must be one finite [r, g, b] albedo per face (F, 3)")

@@ -145,18 +145,24 @@ def read_labels(path, shape):
     return labels
 
 
+def read_npy(path):
+    """The array of a .npy file; InputError naming it when it is damaged or an .npz archive."""
+    try:
+        array = np.load(path, allow_pickle=False)
+    except DECODE_ERRORS as err:  # EOFError for an empty file
+        raise InputError(path, f"cannot be read as a .npy array ({err})") from None
+    if not isinstance(array, np.ndarray):  # np.load opened a .npz archive
+        raise InputError(path, "is a .npz archive, not a .npy array")
+    return array
+
+
 def read_face_labels(labels_png, count, scene):
     """LABELS.faces.npy beside LABELS.png: (F,) int labels 1..count, one per mesh face, or None
     when there is no such file. InputError when it is not that (or not the mesh's face count)."""
     npy = faces_path(labels_png)
     if not npy.is_file():
         return None
-    try:
-        faces = np.load(npy, allow_pickle=False)
-    except DECODE_ERRORS as err:  # EOFError for an empty file
-        raise InputError(npy, f"cannot be read as a .npy array ({err})") from None
-    if not isinstance(faces, np.ndarray):  # np.load opened a .npz archive
-        raise InputError(npy, "is a .npz archive, not a .npy array")
+    faces = read_npy(npy)
     if faces.ndim != 1 or faces.dtype.kind not in "iu" or (
             len(faces) and (faces.min() < 1 or faces.max() > count)):
         raise InputError(npy, f"must be one label 1..{count} per face (int)")

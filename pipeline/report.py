@@ -17,24 +17,21 @@ figures. Every file is written atomically; NaN is written as null.
 """
 
 import json
-import math
 import os
 import warnings
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from flashbrdf.brdf import merl
 from flashbrdf.files.atomic import write_text
-from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import theta_h_centres
 from flashbrdf.brdf.metrics import summarise
 from flashbrdf.brdf.views import slice_coverage, table_2d_view
-from flashbrdf.render import images
 from flashbrdf.brdf.metrics import delta_e_log
 from flashbrdf.render.compare import compare_images, comparison_mask
 from flashbrdf.pipeline import report_figures as figs
+from flashbrdf.pipeline.report_data import jsonable, read_image
 from flashbrdf.pipeline.report_html import write_report_html
 
 HOW_TO_READ = """\
@@ -64,45 +61,8 @@ HOW_TO_READ = """\
 """
 
 
-def _clean(value):
-    """JSON-safe copy: numpy -> Python, NaN/inf -> None, paths -> str."""
-    if isinstance(value, dict):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_clean(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _clean(value.tolist())
-    if isinstance(value, np.bool_):
-        return bool(value)
-    if isinstance(value, (np.floating, float)):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, os.PathLike):
-        return os.fspath(value)
-    return value
-
-
 def _fmt(x, digits=2):
     return "–" if x is None or not np.isfinite(x) else f"{x:.{digits}f}"
-
-
-def read_image(source):
-    """An array passes through; a path is read: EXR/HDR/PFM with render.images.read_image (the
-    one linear-image reader), else OpenCV as stored (RGB: masks, ΔE PNGs). None where it is
-    missing or unreadable, where render.images.read_image raises: the report is written without it."""
-    if source is None or isinstance(source, np.ndarray):
-        return source
-    path = Path(source)
-    if path.suffix.lower() in (".exr", ".hdr", ".pfm"):
-        try:
-            return images.read_image(path)
-        except InputError:
-            return None
-    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
-    if image is None:
-        return None
-    return image[..., 2::-1] if image.ndim == 3 else image
 
 
 def image_errors(render, reference, mask=None):
@@ -336,7 +296,7 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
         x_key = x_key if x_key and all(x_key in r for r in rows) else None
         figs.error_plot(fig_dir / "errors.png", rows, x_key, x_label or x_key or "reference photo")
         figures["errors"] = "figures/errors.png"
-    report = _clean({
+    report = jsonable({
         "title": title,
         "stages": {k: float(v) for k, v in stages.items()},
         "references": rows,

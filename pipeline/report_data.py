@@ -13,9 +13,15 @@ overlay_delta_e) so that the tests can check the page's pixels against it.
 
 import base64
 import math
+import os
 import zlib
+from pathlib import Path
 
+import cv2
 import numpy as np
+
+from flashbrdf.files.errors import InputError
+from flashbrdf.render import images
 
 # A page's embedded image bytes (after deflate, before base64) are kept under this: the sample
 # capture needs ~1 MB; a DiLiGenT object (95 photos x 5 methods) is downsampled to fit.
@@ -244,3 +250,40 @@ def slice_entry(rho, n, spread=None):
             "n": [int(v) for v in np.asarray(n).reshape(-1)],
             "spread": None if spread is None else float32_b64(
                 np.asarray(spread, dtype=np.float64).reshape(90, 3))}
+
+
+def jsonable(value):
+    """JSON-safe copy: numpy -> Python, NaN/inf -> None, paths -> str."""
+    if isinstance(value, dict):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, np.bool_):
+        return bool(value)
+    if isinstance(value, (np.floating, float)):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    return value
+
+
+def read_image(source):
+    """An array passes through; a path is read: EXR/HDR/PFM with render.images.read_image (the
+    one linear-image reader), else OpenCV as stored (RGB: masks, ΔE PNGs). None where it is
+    missing or unreadable, where render.images.read_image raises: the report is written without it."""
+    if source is None or isinstance(source, np.ndarray):
+        return source
+    path = Path(source)
+    if path.suffix.lower() in (".exr", ".hdr", ".pfm"):
+        try:
+            return images.read_image(path)
+        except InputError:
+            return None
+    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        return None
+    return image[..., 2::-1] if image.ndim == 3 else image

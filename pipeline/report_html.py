@@ -72,7 +72,7 @@ def write_report_html(out_dir, report, references=(), observed=None, predictions
         "TITLE": title,
         "CSS": _read("report.css"),
         "SUMMARY": summary_html(report, level_note, how_to_read),
-        "META": json.dumps(_jsonable(meta), allow_nan=False).replace("<", "\\u003c"),
+        "META": json.dumps(data.jsonable(meta), allow_nan=False).replace("<", "\\u003c"),
         "BLOCKS": blocks_html,
         "JS": "\n".join(_read(name) for name in SCRIPTS),
     }
@@ -102,21 +102,6 @@ def _fill(template, values):
     included, is inserted as it is)."""
     pieces = re.split(r"\{\{([A-Z_]+)\}\}", template)
     return "".join(values.get(p, "{{" + p + "}}") if k % 2 else p for k, p in enumerate(pieces))
-
-
-def _jsonable(value):
-    """A JSON-safe copy: numpy scalars -> Python, NaN/inf -> None (JSON has no NaN)."""
-    if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    if isinstance(value, Path):
-        return str(value)
-    return value
 
 
 # ---- the BRDF and the materials, from the arguments or from OUT_DIR -------------------------

@@ -6,33 +6,11 @@ base64 block, which the page inflates only when that photo is first shown.
 """
 
 import os
-from pathlib import Path
 
-import cv2
 import numpy as np
 
-from flashbrdf.files.errors import InputError
 from flashbrdf.pipeline import report_data as data
-from flashbrdf.render import images
 from flashbrdf.render.compare import compare_images
-
-
-def read_image(source):
-    """An array passes through; a path is read (linear EXR/HDR/PFM, else as stored by OpenCV, RGB
-    order); None where missing or unreadable. As pipeline.report.read_image, which this module
-    cannot import: report.py calls into this package's writer."""
-    if source is None or isinstance(source, np.ndarray):
-        return source
-    path = Path(source)
-    if path.suffix.lower() in (".exr", ".hdr", ".pfm"):
-        try:
-            return images.read_image(path)
-        except InputError:
-            return None
-    image = cv2.imread(os.fspath(path), cv2.IMREAD_UNCHANGED)
-    if image is None:
-        return None
-    return image[..., 2::-1] if image.ndim == 3 else image
 
 
 def delta_e_map(render, reference, mask=None):
@@ -58,10 +36,10 @@ def gather(references):
     false-colour PNG holds no ΔE values: it is recomputed from the render and the photo."""
     photos = {}
     for row in references:
-        render, reference = read_image(row.get("render")), read_image(row.get("reference"))
-        mask = read_image(row.get("mask"))
+        render, reference = data.read_image(row.get("render")), data.read_image(row.get("reference"))
+        mask = data.read_image(row.get("mask"))
         de = row.get("delta_e_map")
-        de = read_image(de) if isinstance(de, (str, os.PathLike)) else de
+        de = data.read_image(de) if isinstance(de, (str, os.PathLike)) else de
         if (de is None or np.ndim(de) != 2 or np.asarray(de).dtype.kind != "f") and (
                 render is not None and reference is not None):
             de = delta_e_map(render, reference, mask)
