@@ -37,6 +37,7 @@ VALID_SCENE = {
     "camera": {"model": "pinhole", "width": 8, "height": 6, "fx": 10.0, "fy": 10.0, "cx": 3.5,
                "cy": 2.5, "world_from_camera": np.eye(4).tolist(), "distortion": [0, 0, 0, 0, 0]},
     "geometry": {"mesh": "object.ply"},
+    "level": {"target": {"mesh": "card.ply", "reflectance": [0.18, 0.18, 0.18]}},
     "photos": [
         {"file": "flash.exr", "role": "flash", "scale": 2.0,
          "light": {"type": "point", "position": [0.01, 0, 0], "intensity_rgb": [1, 1, 1]}},
@@ -56,7 +57,8 @@ FIELDS = [("camera",), ("camera", "model"), ("camera", "width"), ("camera", "hei
           ("photos", 1, "brackets", 0, "exposure_s"), ("photos", 2, "encoding"),
           ("photos", 2, "saturation"), ("photos", 2, "camera"),
           ("photos", 2, "light", "world_from_envmap"), ("photos", 2, "light", "scale"),
-          ("photos", 2, "light", "file")]
+          ("photos", 2, "light", "file"), ("level",), ("level", "target"),
+          ("level", "target", "mesh"), ("level", "target", "reflectance"), ("level", "calibrated")]
 
 
 def _one_line_naming(err, name):
