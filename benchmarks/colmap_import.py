@@ -1,7 +1,7 @@
 """Does import-colmap lose anything against cameras written by hand, and what does a 1-pixel pose
 error cost? (issue 35's numbers)
 
-    nice -n 10 python benchmarks/colmap_import.py [--views 12] [--scale 2 4] [--photons 1e3 1e4 0]
+    nice -n 10 python -m benchmarks.colmap_import [--views 12] [--scale 2 4] [--photons 1e3 1e4 0]
         [--seeds 3] [--work DIR]
 
 A synthetic multi-view flash capture (tests/colmap_synthetic.py: a torus around a sphere, which
@@ -27,8 +27,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tests"))
 from benchmarks._real_common import RESULTS, write_json  # noqa: E402
 
 N_MIN = 20
@@ -64,7 +62,7 @@ def perturbed_model(model_dir, out_dir, pixels, seed):
 
 
 def run_level(work, views, scale, photons, seeds, offset):
-    from colmap_synthetic import make_colmap_capture, true_slice
+    from tests.colmap_synthetic import make_colmap_capture, true_slice
     from flashbrdf.capture.importers.colmap import import_colmap
     made = make_colmap_capture(work, views=views, photons=photons, size_scale=scale,
                                offset=offset)
@@ -91,7 +89,7 @@ def run_level(work, views, scale, photons, seeds, offset):
 
 def write_report(rows, args):
     lines = ["# import-colmap against hand-written cameras, and a 1-pixel pose error", "",
-             f"`python benchmarks/colmap_import.py --views {args.views} --scale "
+             f"`python -m benchmarks.colmap_import --views {args.views} --scale "
              f"{' '.join(str(v) for v in args.scale)} "
              f"--photons {' '.join(str(p) for p in args.photons)} --seeds {args.seeds}`", "",
              "Median over bins (n >= 20) of the largest per-channel relative error of the "

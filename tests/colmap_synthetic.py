@@ -30,8 +30,10 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from synthetic import combine, sphere_mesh, torus_mesh  # noqa: E402
+try:  # as tests' helper (tests/ on the path) or as tests.colmap_synthetic (benchmarks)
+    from synthetic import combine, sphere_mesh, torus_mesh
+except ImportError:
+    from tests.synthetic import combine, sphere_mesh, torus_mesh
 
 FLASH_OFFSET = (0.03, -0.02, 0.0)   # metres, camera frame: right of and above the lens
 BACKGROUND_SHARE = 0.2
