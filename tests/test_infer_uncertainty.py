@@ -124,6 +124,9 @@ def test_weights_disagreement_is_the_two_point_variance():
 
 
 def test_anchored_variance_adds_the_combination_terms_and_the_paper_keeps_the_gp_alone(fitted, materials):
+    # the DS-GPLVM's own variance: the consensus' spread (tests/test_infer_consensus.py) left out
+    fitted = method_from_model("dsgplvm", fitted.model_, materials.subset(range(7)),
+                               **(fitted.get_params() | {"consensus": False}))
     rho = materials.slices[7]
     _, var = fitted.predict(rho, "2d")
     parts = fitted._weight_parts(slice_features(rho, fitted.feature_space), "2d")

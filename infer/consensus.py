@@ -1,0 +1,116 @@
+"""Consensus: the anchored DS-GPLVM's 2D prediction averaged with the baselines', per θd, in the
+space the error is measured in.
+
+Why: off the training kinds the methods err differently (benchmarks/generalisation.py, kind
+hold-out: the DS-GPLVM is best on felt, Nöll on satin, PCA on papers at grazing θd), so an average
+beats each of them on most materials. The average is taken in CIELAB of ln(1 + ρ) (the LAB-log
+metric's own space, brdf.metrics): ΔE*ab is a norm, so the error of a convex combination is never
+more than the combination of the members' errors, bin by bin.
+
+    f(θh, θd) = Σ_m w_m(θd) · Lab(ln(1 + ρ_m(θh, θd))),     ρ = exp(Lab⁻¹(f)) − 1,
+
+with w_m(θd) ≥ 0, Σ_m w_m = 1, piecewise linear in θd between the knots THETA_D_KNOTS_DEG (the
+centres of the θd bands 0–30, 30–60, 60–75, 75–90° that the benchmarks report) and constant beyond
+them. The knot weights CONSENSUS_WEIGHTS were chosen on the RGL (NBRDF proxy) dev kind hold-out
+(benchmarks/consensus_weights.py: each kind's figure comes from weights chosen on the other kinds'
+held-out predictions only).
+"""
+
+import numpy as np
+
+from flashbrdf.brdf import merl
+from flashbrdf.brdf.bins import valid_bins_3d
+from flashbrdf.brdf.colour import FEATURE_OFFSET, lab_to_linear_rgb, linear_rgb_to_lab
+from flashbrdf.infer.anchoring import apply_log_correction
+from flashbrdf.infer.baselines import PCA, Noll
+from flashbrdf.infer.estimator import LinearSpace
+
+THETA_D_KNOTS_DEG = (15.0, 45.0, 67.5, 82.5)
+CONSENSUS_MEMBERS = ("dsgplvm", "noll", "pca")
+# rows: knots of THETA_D_KNOTS_DEG; columns: CONSENSUS_MEMBERS (benchmarks/consensus_weights.py)
+CONSENSUS_WEIGHTS = np.array([[0.96, 0.04, 0.00],
+                              [0.36, 0.52, 0.12],
+                              [0.29, 0.34, 0.37],
+                              [0.34, 0.27, 0.39]])
+
+
+def metric_features(rho):
+    """CIELAB of ln(1 + ρ) (..., 3), ρ in 1/sr clamped ≥ 0: the LAB-log metric's space. NaN stays."""
+    rho = np.asarray(rho, dtype=float)
+    return linear_rgb_to_lab(np.log1p(np.where(np.isnan(rho), np.nan, np.maximum(rho, 0.0))))
+
+
+def from_metric_features(features):
+    """ρ ≥ 0 in 1/sr of metric_features, its inverse."""
+    return np.maximum(np.expm1(np.minimum(lab_to_linear_rgb(features), 700.0)), 0.0)
+
+
+def weights_per_theta_d(knot_weights=CONSENSUS_WEIGHTS):
+    """(90, M) member weights per θd bin: knot rows interpolated linearly in θd (held constant
+    beyond the end knots), then renormalised to sum to 1."""
+    knots = np.asarray(knot_weights, dtype=float)
+    theta_d = np.degrees(merl.theta_d_centres())
+    w = np.stack([np.interp(theta_d, THETA_D_KNOTS_DEG, knots[:, m])
+                  for m in range(knots.shape[1])], axis=1)
+    return w / w.sum(axis=1, keepdims=True)
+
+
+def consensus_table(tables, knot_weights=CONSENSUS_WEIGHTS):
+    """The consensus of member 2D tables (M, 90, 90, 3) in 1/sr (NaN where no data), ordered as
+    knot_weights' columns: (90, 90, 3), NaN where any member has none."""
+    features = metric_features(np.asarray(tables, dtype=float))          # (M, 90, 90, 3)
+    w = weights_per_theta_d(knot_weights)                                # (90, M)
+    mixed = np.einsum("dm,mhdc->hdc", w, features)
+    out = from_metric_features(np.nan_to_num(mixed))
+    out[~np.isfinite(mixed).all(axis=-1)] = np.nan
+    return out
+
+
+def member_spread(member_features, knot_weights=CONSENSUS_WEIGHTS):
+    """Σ_m w_m(θd) (x_m − x̄)² per bin and channel, x̄ = Σ_m w_m x_m: (90, 90, 3) ≥ 0 in the
+    features' units², for member features (M, 90, 90, 3) in any per-bin feature space (the
+    variance of the member the consensus draws, at its weights)."""
+    x = np.asarray(member_features, dtype=float)
+    w = weights_per_theta_d(knot_weights).T[:, None, :, None]            # (M, 1, 90, 1)
+    mean = (w * x).sum(axis=0)
+    return (w * (x - mean) ** 2).sum(axis=0)
+
+
+class ConsensusMembers:
+    """The baselines the consensus averages with the DS-GPLVM, fitted on the DS-GPLVM's own
+    training set: Nöll et al. (infer.baselines.noll) and PCA (infer.baselines.pca, with the
+    hyperparameters `train` chose for it, or its defaults)."""
+
+    def __init__(self, training, pca_params=None):
+        self.noll = Noll().fit(training)
+        self.pca = PCA(**(pca_params or {})).fit(training)
+
+    def tables(self, flash_slice):
+        """{"noll": (90, 90, 3), "pca": (90, 90, 3)} 2D predictions in 1/sr for a checked slice."""
+        return {"noll": self.noll.predict(flash_slice, "2d")[0],
+                "pca": self.pca.predict(flash_slice, "2d")[0]}
+
+
+class ConsensusSpace(LinearSpace):
+    """Another combination space whose inverse also moves each 3D bin by the (θh, θd) log
+    correction that takes the DS-GPLVM's 2D prediction to the consensus (log_c (90, 90, 3) in
+    ln(ρ + e), e = brdf.colour.FEATURE_OFFSET): a streamed 3D prediction keeps the DS-GPLVM's φd
+    structure and takes the consensus' (θh, θd) level."""
+
+    def __init__(self, base, log_c):
+        self.base, self.log_c = base, np.nan_to_num(log_c)
+        self.clip_to_training = base.clip_to_training
+
+    def forward(self, rho, sel=slice(None)):
+        return self.base.forward(rho, sel)
+
+    def inverse(self, mapped, sel=slice(None)):
+        ih, jd, _ = valid_bins_3d()
+        return apply_log_correction(self.base.inverse(mapped, sel), self.log_c[ih[sel], jd[sel]])
+
+
+def consensus_log_correction(table_2d, consensus_2d):
+    """ln(consensus + e) − ln(table + e) (90, 90, 3), 0 where either is NaN."""
+    e = FEATURE_OFFSET
+    out = np.log(np.maximum(consensus_2d, 0.0) + e) - np.log(np.maximum(table_2d, 0.0) + e)
+    return np.nan_to_num(out)
