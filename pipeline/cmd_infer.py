@@ -12,7 +12,7 @@ from flashbrdf.brdf.atomic import write_text
 from flashbrdf.brdf.errors import InputError
 from flashbrdf.experiments.evaluate import check_protocol_tables, experiment_predictor, run_evaluation
 from flashbrdf.experiments.test_set import run_test_set
-from flashbrdf.infer import TrainingSet, load_method, make_method, novelty_warning
+from flashbrdf.infer import TrainingSet, load_method, make_method, prediction_warning
 from flashbrdf.infer.model_selection import check_training_size
 from flashbrdf.infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
                           without_sparse_tail)
@@ -98,7 +98,7 @@ def infer(args):
     t1 = time.perf_counter()
     table, variance = method.predict(rho, view=view)
     t2 = time.perf_counter()
-    novelty, warning = novelty_warning(method, rho, args.slice)
+    novelty, warning = prediction_warning(method, rho, args.slice)
     if warning:
         print(warning, file=sys.stderr)
     if view == "2d":
@@ -117,8 +117,7 @@ def infer(args):
               "timings": {"load_s": t1 - t0, "predict_s": t2 - t1, "write_s": t3 - t2,
                           "total_s": t3 - t0},
               "uncertainty": _uncertainty_summary(variance, getattr(method, "feature_label", "")),
-              "novelty": None if novelty is None else
-              {"score": novelty, "out_of_distribution": bool(novelty > 1.0)}}
+              "novelty": novelty}
     try:
         write_text(json_path, json.dumps(report, indent=2, default=str) + "\n")
     except BaseException:

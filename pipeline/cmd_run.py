@@ -29,7 +29,7 @@ from flashbrdf import capture
 from flashbrdf.brdf import merl, views
 from flashbrdf.brdf.atomic import write_text
 from flashbrdf.brdf.errors import InputError
-from flashbrdf.infer import METHODS, make_method, novelty_warning
+from flashbrdf.infer import METHODS, make_method, prediction_warning
 from flashbrdf.infer.model_file import check_model_file, load_methods
 from flashbrdf.infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
                           without_sparse_tail)
@@ -120,7 +120,7 @@ def _infer(method, method_name, model_path, rho, n, out_dir):
     rho, ignored = without_sparse_tail(rho, n)
     table, variance = method.predict(rho, view=view)
     seconds = time.perf_counter() - start
-    novelty, warning = novelty_warning(method, rho, f"{method_name}")
+    novelty, warning = prediction_warning(method, rho, f"{method_name}")
     full = views.table_3d_from_2d(table) if view == "2d" else table
     full = np.where(np.isfinite(full), full, -1.0)
     full[~merl.merl_valid_mask()] = -1.0
