@@ -44,13 +44,14 @@ def disagreement(table_a, table_b, min_theta_d_deg=DISAGREEMENT_MIN_THETA_D_DEG)
 def prediction_warning(method, flash_slice, source="slice"):
     """(record, one-line warning or None) for a fitted method and a (90, 3) slice (NaN = empty).
 
-    record (BRDF.json's "novelty"): {"score": the GP's novelty or None, "disagreement": the
-    DS-GPLVM/Nöll disagreement in ΔE or None (methods without a consensus), "disagreement_threshold",
-    "observed_theta_h_bins", "out_of_distribution": bool, "reasons": [str], "advice": str or None}.
-    It warns when the members disagree past DISAGREEMENT_WARN_DE, when the GP's novelty exceeds 1
-    (farther from every training slice than 99% of them are from their nearest neighbour), or
-    when the slice says too little to place it (fewer than MIN_OBSERVED_BINS bins, or none below
-    MAX_FIRST_THETA_H_DEG)."""
+    record (BRDF.json's "novelty"): {"score": the GP's novelty or None, "beyond_training",
+    "disagreement": the DS-GPLVM/Nöll disagreement in ΔE or None (methods without a consensus),
+    "disagreement_threshold", "observed_theta_h_bins", "out_of_distribution": bool, "reasons":
+    [str], "advice": str or None}.
+    "beyond_training": the GP's novelty exceeds 1 (farther from every training slice than 99% of
+    them are from their nearest neighbour; recorded, not warned on). It warns when the members
+    disagree past DISAGREEMENT_WARN_DE, or when the slice says too little to place it (fewer than
+    MIN_OBSERVED_BINS bins, or none below MAX_FIRST_THETA_H_DEG)."""
     rho = np.asarray(flash_slice, dtype=float)
     seen = np.isfinite(rho).all(axis=1)
     score = method.novelty(rho)
@@ -62,14 +63,15 @@ def prediction_warning(method, flash_slice, source="slice"):
                        f"{DISAGREEMENT_MIN_THETA_D_DEG:.0f} deg (warning past "
                        f"{DISAGREEMENT_WARN_DE:.0f}): the slice does not settle how this material "
                        "behaves toward grazing")
-    if score is not None and np.isfinite(score) and score > OUT_OF_TRAINING_NOVELTY:
-        reasons.append(f"novelty {score:.2f}: farther from every training slice than 99% of them "
-                       f"are from their nearest neighbour")
+    # the GP's novelty past 1 (where the slice fit takes over, infer.slice_fit) is recorded, not
+    # warned on: on the kind hold-out it fired on 3 of the 21 materials the default did not lose
+    # and on none it did (benchmarks/consensus_weights.py)
+    beyond = score is not None and np.isfinite(score) and score > OUT_OF_TRAINING_NOVELTY
     theta_h = np.degrees(merl.theta_h_centres())
     if seen.sum() < MIN_OBSERVED_BINS or not (seen & (theta_h < MAX_FIRST_THETA_H_DEG)).any():
         first = theta_h[seen].min() if seen.any() else float("nan")
         reasons.append(f"only {int(seen.sum())} theta_h bins observed, the first at {first:.0f} deg")
-    record = {"score": score, "disagreement": spread,
+    record = {"score": score, "beyond_training": bool(beyond), "disagreement": spread,
               "disagreement_threshold": DISAGREEMENT_WARN_DE,
               "observed_theta_h_bins": int(seen.sum()), "out_of_distribution": bool(reasons),
               "reasons": reasons, "advice": ADVICE if reasons else None}

@@ -124,8 +124,9 @@ def test_the_warning_fires_exactly_past_the_disagreement_threshold():
     record, line = prediction_warning(above, rho, "s.csv")
     assert record["out_of_distribution"] is True and line.startswith("warning: s.csv:")
     assert "noll" in line and "reference photo" in line and record["advice"] in line
-    # the GP's novelty past 1 and a slice of 3 bins still warn on their own
-    assert prediction_warning(_FakeMethod(grey(0.0), grey(0.0), 1.5), rho)[0]["out_of_distribution"]
+    # the GP's novelty past 1 is recorded, not warned on; a slice of 3 bins warns on its own
+    record, line = prediction_warning(_FakeMethod(grey(0.0), grey(0.0), 1.5), rho)
+    assert record["beyond_training"] and not record["out_of_distribution"] and line is None
     sparse = np.full((90, 3), np.nan)
     sparse[:3] = 0.1
     record, line = prediction_warning(below, sparse)
