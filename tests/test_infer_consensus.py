@@ -13,7 +13,7 @@ from flashbrdf.brdf.bins import valid_bins_3d
 from flashbrdf.infer import DSGPLVMMethod
 from flashbrdf.infer.consensus import (CONSENSUS_WEIGHTS, ConsensusSpace, consensus_table,
                                        from_metric_features, member_spread, metric_features,
-                                       weights_per_theta_d)
+                                       weights_per_bin)
 from flashbrdf.infer.estimator import LinearSpace
 from flashbrdf.infer.warning import DISAGREEMENT_WARN_DE, disagreement, prediction_warning
 from tests.test_infer_baselines import ap_material, training_set
@@ -26,15 +26,25 @@ def _tables(seed, n):
     return np.exp(rng.normal(-1.0, 1.5, size=(n, 90, 90, 3)))     # ρ over six decades
 
 
-def test_weights_are_convex_and_follow_the_knots():
-    w = weights_per_theta_d()
-    assert w.shape == (90, 3) and (w >= 0).all()
-    np.testing.assert_allclose(w.sum(axis=1), 1.0, rtol=1e-12)
-    knots = CONSENSUS_WEIGHTS / CONSENSUS_WEIGHTS.sum(axis=1, keepdims=True)
-    np.testing.assert_allclose(w[0], knots[0], rtol=1e-12)        # θd 0.5° < 15°: first knot
-    np.testing.assert_allclose(w[-1], knots[-1], rtol=1e-12)      # 89.5° > 82.5°: last knot
-    mid = np.interp(30.5, (15.0, 45.0), (0.0, 1.0))              # θd bin 30 lies between knots 1-2
-    np.testing.assert_allclose(w[30], (1 - mid) * knots[0] + mid * knots[1], rtol=1e-9)
+def test_weights_are_convex_and_bilinear_between_the_knots():
+    knots = np.random.default_rng(0).uniform(0.1, 1.0, size=(3, 4, 3))
+    w = weights_per_bin(knots)
+    assert w.shape == (90, 90, 3) and (w >= 0).all()
+    np.testing.assert_allclose(w.sum(axis=2), 1.0, rtol=1e-12)
+    unit = knots / knots.sum(axis=2, keepdims=True)
+    np.testing.assert_allclose(w[0, 0], unit[0, 0], rtol=1e-12)      # θh 0.01° < 5°, θd 0.5° < 15°
+    np.testing.assert_allclose(w[-1, -1], unit[-1, -1], rtol=1e-12)  # θh 89°, θd 89.5°: last knots
+    theta_h = np.degrees(merl.theta_h_centres())
+    i = int(np.argmin(np.abs(theta_h - 15.0)))                       # between θh knots 5° and 25°
+    a = (theta_h[i] - 5.0) / 20.0
+    d = (30.5 - 15.0) / 30.0                                         # θd bin 30, between 15° and 45°
+    raw = ((1 - a) * ((1 - d) * knots[0, 0] + d * knots[0, 1])
+           + a * ((1 - d) * knots[1, 0] + d * knots[1, 1]))
+    np.testing.assert_allclose(w[i, 30], raw / raw.sum(), rtol=1e-9)
+    # a (D, M) array is the same weights for every θh
+    flat = weights_per_bin(knots[1])
+    np.testing.assert_allclose(flat[0], flat[-1], rtol=1e-12)
+    assert weights_per_bin().shape == (90, 90, len(CONSENSUS_WEIGHTS[0, 0]))
 
 
 def test_equal_members_give_themselves_back_and_the_map_inverts():
@@ -52,12 +62,12 @@ def test_the_consensus_error_is_at_most_the_weighted_error_of_its_members_bin_by
     f_true = metric_features(truth)
     err = np.linalg.norm(metric_features(cons) - f_true, axis=-1)           # (90, 90)
     each = np.linalg.norm(metric_features(members) - f_true, axis=-1)       # (3, 90, 90)
-    bound = np.einsum("dm,mhd->hd", weights_per_theta_d(), each)
+    bound = np.einsum("hdm,mhd->hd", weights_per_bin(), each)
     assert (err <= bound + 1e-9).all()
     # equality needs the members' errors to point the same way; random members never do, so where
     # two members weigh 0.1 or more it is strict at every bin
-    mixed = np.sort(weights_per_theta_d(), axis=1)[:, -2] >= 0.1
-    assert mixed.sum() > 60 and (err[:, mixed] < bound[:, mixed] - 1e-6).all()
+    mixed = np.sort(weights_per_bin(), axis=2)[..., -2] >= 0.1
+    assert mixed.sum() > 2000 and (err[mixed] < bound[mixed] - 1e-6).all()
 
 
 def test_a_missing_bin_in_any_member_is_missing_in_the_consensus():
