@@ -120,6 +120,7 @@ def main(argv=None):
     stages["infer"] = time.perf_counter() - start
     result = {"command": "python benchmarks/diligent_ball.py " + " ".join(argv or sys.argv[1:]),
               "flash_photo": f"{args.flash:03d}", "extractor": extractor,
+              "object": Path(args.data).name.replace("diligent-", ""),
               "model": None if model is None else str(model),
               "slice_bins_observed": int((observed["n"] > 0).sum()),
               "slice_theta_h_max_deg": float(theta_h_deg()[observed["n"] > 0].max()),
@@ -174,7 +175,7 @@ def main(argv=None):
     far = gallery[-1]["file"]
     far_rows = [r for r in report_refs if r["photo"] == far]
     write_gallery(RESULTS / "diligent_ball_gallery.png", far, far_rows)
-    log(f"wrote {RESULTS / 'diligent_ball.md'} and the full report {work / 'report' / 'report.md'}")
+    log(f"wrote {RESULTS / (name + '.md')} and the full report {work / 'report' / 'report.md'}")
     return 0
 
 
@@ -210,7 +211,8 @@ def _summarise(result):
 
 
 def _markdown(result):
-    lines = ["# DiLiGenT ball: infer the BRDF from one near-axis light, predict the other 95", "",
+    lines = [f"# DiLiGenT {result['object']}: infer the BRDF from one near-axis light, predict the "
+             "other 95", "",
              f"Command: `{result['command']}`. Flash photo {result['flash_photo']}; slice from the "
              f"{result['extractor']}, {result['slice_bins_observed']} θh bins observed up to "
              f"{result['slice_theta_h_max_deg']:.1f}°. Metrics over the ball's mask, per light; "
