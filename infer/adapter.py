@@ -250,8 +250,9 @@ class DSGPLVMMethod(InferenceMethod):
             return None
         rho = check_slice(flash_slice)
         key = rho.tobytes()
-        if self._members_cache is not None and self._members_cache[0] == key:
-            return self._members_cache[1]
+        cached = self._members_cache     # one read: another thread may replace it meanwhile
+        if cached is not None and cached[0] == key:
+            return cached[1]
         if own_table is None:
             with one_blas_thread():
                 own_table = InferenceMethod.predict(self, rho, "2d")[0]

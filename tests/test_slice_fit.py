@@ -57,7 +57,8 @@ def materials():
 def test_a_material_mixed_from_training_materials_is_predicted_exactly_by_the_fit(materials):
     """A test table whose log-RGB features are 0.4·(material 1) + 0.6·(material 4): with λ = 1 the
     prediction is that mixture of the training tables, i.e. the truth (anchoring then changes
-    nothing: the θd = 0 row already passes through the slice; the row blend and the consensus are off)."""
+    nothing: the θd = 0 row already passes through the slice; the row blend and the consensus
+    are off)."""
     feats = table_features(materials.tables_2d, "rgb").reshape(-1, 90, 90, 3)
     mixed = colour.features_to_rho(0.4 * feats[1] + 0.6 * feats[4], space="rgb")
     mixed[~np.isfinite(materials.tables_2d[0]).all(-1)] = np.nan
