@@ -70,12 +70,16 @@ def test_the_consensus_error_is_at_most_the_weighted_error_of_its_members_bin_by
     assert mixed.sum() > 2000 and (err[mixed] < bound[mixed] - 1e-6).all()
 
 
-def test_a_missing_bin_in_any_member_is_missing_in_the_consensus():
+def test_a_bin_a_baseline_misses_takes_the_dsgplvm_value_and_one_it_misses_stays_missing():
     members = _tables(4, 3)
-    members[1, 5, 7] = np.nan
+    members[1, 5, 7] = np.nan                    # noll has no value there: the DS-GPLVM's stands in
     cons = consensus_table(members)
-    assert np.isnan(cons[5, 7]).all() and np.isfinite(np.delete(cons.reshape(-1, 3),
-                                                                5 * 90 + 7, 0)).all()
+    filled = members.copy()
+    filled[1, 5, 7] = members[0, 5, 7]
+    np.testing.assert_allclose(cons, consensus_table(filled), rtol=1e-12)
+    members[0, 8, 9] = np.nan                    # the DS-GPLVM has none: no data
+    cons = consensus_table(members)
+    assert np.isnan(cons[8, 9]).all() and np.isfinite(cons).all(-1).sum() == 90 * 90 - 1
 
 
 def test_spread_is_the_weighted_variance_of_two_members():
