@@ -95,10 +95,13 @@ def _renders(scene_dir, scene, brdf_path, method, mask, normals, view, work, tab
 def main(argv=None):
     ap = argument_parser(__doc__.splitlines()[0], "diligent-ball", "flashbrdf_bench_diligent_ball")
     ap.add_argument("--flash", type=int, default=52)
+    ap.add_argument("--results-name", default="diligent_ball",
+                    help="RESULTS/<name>.{json,md,png}: e.g. diligent_pot2 with --data ...pot2")
     args = ap.parse_args(argv)
     from flashbrdf.brdf.merl import read_merl
     from flashbrdf.brdf.views import table_2d
     from flashbrdf.pipeline.report import image_errors, read_image, write_report
+    from flashbrdf.render.compare import level_ratio
     work = args.work
     work.mkdir(parents=True, exist_ok=True)
     log = lambda msg: print(msg, flush=True)  # noqa: E731
@@ -116,6 +119,7 @@ def main(argv=None):
     stages["infer"] = time.perf_counter() - start
     result = {"command": "python -m benchmarks.diligent_ball " + " ".join(argv or sys.argv[1:]),
               "flash_photo": f"{args.flash:03d}", "extractor": extractor,
+              "object": Path(args.data).name.replace("diligent-", ""),
               "model": None if model is None else str(model),
               "slice_bins_observed": int((observed["n"] > 0).sum()),
               "slice_theta_h_max_deg": float(theta_h_deg()[observed["n"] > 0].max()),
@@ -138,19 +142,27 @@ def main(argv=None):
         result["methods"][method] = {"infer_seconds": infer_seconds, "renderer": renderer,
                                      "render_seconds": seconds,
                                      "render_stage_vs_direct_median_rel_gap_max": gap}
+        references = {photo["file"]: read_image(scene_dir / photo["file"]) for photo in refs}
+        # level-matched (issue 36): the renders of this object scaled by one number, the median
+        # over its references of the mean over channels of reference / render (level_ratio)
+        level = float(np.nanmedian([np.nanmean(level_ratio(renders[f], references[f], mask))
+                                    for f in references]))
+        result["methods"][method]["level"] = level
         for photo in refs:
-            reference = read_image(scene_dir / photo["file"])
+            reference = references[photo["file"]]
             _, mean, median, rel, pixels = image_errors(renders[photo["file"]], reference, mask)
+            matched = image_errors(level * renders[photo["file"]], reference, mask)[1]
             row = {"photo": photo["file"], "method": method, "light_angle_deg": angle[photo["file"]],
                    "delta_e_log_mean": mean, "delta_e_log_median": median, "rel_rmse": rel,
-                   "pixels": pixels}
+                   "pixels": pixels, "delta_e_log_mean_level_matched": matched}
             result["per_light"].append(row)
             report_refs.append(dict(row, render=renders[photo["file"]], reference=reference,
                                     mask=mask))
     _summarise(result)
-    write_json(RESULTS / "diligent_ball.json", result)
-    (RESULTS / "diligent_ball.md").write_text(_markdown(result))
-    _plot(result, RESULTS / "diligent_ball.png")
+    name = args.results_name
+    write_json(RESULTS / f"{name}.json", result)
+    (RESULTS / f"{name}.md").write_text(_markdown(result))
+    _plot(result, RESULTS / f"{name}.png")
     gallery = sorted(refs, key=lambda p: angle[p["file"]])
     picks = {gallery[0]["file"], gallery[len(gallery) // 2]["file"], gallery[-1]["file"]}
     write_report(work / "report", stages=stages, observed=observed, predictions=predictions,
@@ -162,7 +174,7 @@ def main(argv=None):
     far = gallery[-1]["file"]
     far_rows = [r for r in report_refs if r["photo"] == far]
     write_gallery(RESULTS / "diligent_ball_gallery.png", far, far_rows)
-    log(f"wrote {RESULTS / 'diligent_ball.md'} and the full report {work / 'report' / 'report.md'}")
+    log(f"wrote {RESULTS / (name + '.md')} and the full report {work / 'report' / 'report.md'}")
     return 0
 
 
@@ -185,6 +197,9 @@ def _summarise(result):
         ang = np.array([r["light_angle_deg"] for r in mine])
         info["delta_e_log_mean"] = {"mean": float(np.nanmean(de)), "median": float(np.nanmedian(de))}
         info["rel_rmse"] = {"mean": float(np.nanmean(rel)), "median": float(np.nanmedian(rel))}
+        matched = np.array([r["delta_e_log_mean_level_matched"] for r in mine])
+        info["delta_e_log_mean_level_matched"] = {"mean": float(np.nanmean(matched)),
+                                                  "median": float(np.nanmedian(matched))}
         info["by_angle"] = []
         for lo, hi in zip(ANGLE_BINS[:-1], ANGLE_BINS[1:]):
             sel = (ang >= lo) & (ang < hi)
@@ -195,7 +210,8 @@ def _summarise(result):
 
 
 def _markdown(result):
-    lines = ["# DiLiGenT ball: infer the BRDF from one near-axis light, predict the other 95", "",
+    lines = [f"# DiLiGenT {result['object']}: infer the BRDF from one near-axis light, predict the "
+             "other 95", "",
              f"Command: `{result['command']}`. Flash photo {result['flash_photo']}; slice from the "
              f"{result['extractor']}, {result['slice_bins_observed']} θh bins observed up to "
              f"{result['slice_theta_h_max_deg']:.1f}°. Metrics over the ball's mask, per light; "
@@ -207,6 +223,13 @@ def _markdown(result):
         lines.append(f"| {method} | {info['renderer']} | {info['delta_e_log_mean']['mean']:.2f} / "
                      f"{info['delta_e_log_mean']['median']:.2f} | {info['rel_rmse']['mean']:.3f} / "
                      f"{info['rel_rmse']['median']:.3f} |")
+    lines += ["", "Level-matched (issue 36): each method's renders scaled by one number, the median "
+              "over the references of the mean over channels of reference / render; it removes "
+              "one light-calibration offset per object and keeps the BRDF's angular shape.", "",
+              "| method | level | ΔE log mean, as calibrated | level-matched |", "|---|---|---|---|"]
+    for method, info in result["methods"].items():
+        lines.append(f"| {method} | {info['level']:.4f} | {info['delta_e_log_mean']['mean']:.4f} | "
+                     f"{info['delta_e_log_mean_level_matched']['mean']:.4f} |")
     lines += ["", "## By light angle from the view axis", "",
               "| method | " + " | ".join(f"{lo}-{hi}°" for lo, hi in zip(ANGLE_BINS[:-1],
                                                                           ANGLE_BINS[1:])) + " |",

@@ -184,7 +184,7 @@ def markdown(result):
             row = {r["method"]: r["lab_log"] for r in block["records"] if r["material"] == mat}
             if row:   # a --fold-runs part scores only its folds' materials
                 lines.append(f"| {mat} | " + " | ".join(f"{row[m]:.2f}" for m in present) + " |")
-        lines += kinds_markdown(block, present)
+        lines += kinds_markdown(block, present) or warning_lines(block["records"])
         lines.append("")
     lines += checks_markdown(result)
     return "\n".join(lines)
@@ -196,18 +196,38 @@ def kinds_markdown(block, present):
     kinds = list(dict.fromkeys(r["kind"] for r in block["records"] if "kind" in r))
     if not kinds:
         return []
-    lines = ["", "Per held-out kind, 2D LAB-log mean:", "",
-             "| kind | n | " + " | ".join(present) + " | dsgplvm / best baseline |",
-             "|---|---|" + "---|" * len(present) + "---|"]
+    lines = ["", "Per held-out kind, 2D LAB-log mean, and the share of θd > 0 bins inside dsgplvm's "
+             "central 90% intervals:", "",
+             "| kind | n | " + " | ".join(present) + " | dsgplvm / best baseline | 90% coverage |",
+             "|---|---|" + "---|" * len(present) + "---|---|"]
     for kind in kinds:
         mean = {m: float(np.mean([r["lab_log"] for r in block["records"]
                                   if r.get("kind") == kind and r["method"] == m]))
                 for m in present}
         best = min((m for m in BASELINES if m in mean), key=mean.get)
-        n = sum(1 for r in block["records"] if r.get("kind") == kind and r["method"] == "dsgplvm")
-        lines.append(f"| {kind} | {n} | " + " | ".join(f"{mean[m]:.2f}" for m in present)
-                     + f" | {mean['dsgplvm'] / mean[best]:.2f}× {best} |")
-    return lines
+        ds = [r for r in block["records"] if r.get("kind") == kind and r["method"] == "dsgplvm"]
+        cover = sum(r["hits"] for r in ds) / max(1, sum(r["bins"] for r in ds))
+        lines.append(f"| {kind} | {len(ds)} | " + " | ".join(f"{mean[m]:.2f}" for m in present)
+                     + f" | {mean['dsgplvm'] / mean[best]:.2f}× {best} | {100 * cover:.1f}% |")
+    return lines + warning_lines(block["records"])
+
+
+def warning_lines(records, lost_ratio=1.2):
+    """Issue 36's warning check: among materials where dsgplvm's LAB-log exceeds lost_ratio × the
+    best baseline's on that material, the share warned (recall); among the others, the share warned
+    (false-warning rate)."""
+    ds = {r["material"]: r for r in records if r["method"] == "dsgplvm"}
+    best = {m: min(r["lab_log"] for r in records if r["material"] == m and r["method"] in BASELINES)
+            for m in ds}
+    lost = [m for m in ds if ds[m]["lab_log"] > lost_ratio * best[m]]
+    kept = [m for m in ds if m not in lost]
+    warned = [m for m in ds if ds[m]["warned"]]
+    recall = f"{sum(m in warned for m in lost)}/{len(lost)}" if lost else "— (none lost)"
+    return ["", f"Warning: dsgplvm lost (> {lost_ratio}× the material's best baseline) on "
+            f"{len(lost)}: {', '.join(lost) or 'none'}; warned {len(warned)}: "
+            f"{', '.join(warned) or 'none'}. Recall {recall}; false warnings "
+            f"{sum(m in warned for m in kept)}/{len(kept)} "
+            f"({100 * sum(m in warned for m in kept) / max(1, len(kept)):.0f}%)."]
 
 
 def band_check(summary):

@@ -33,7 +33,7 @@ from flashbrdf.infer.training_set import check_distinct
 PAPER = "dsgplvm-paper"                          # the paper's DS-GPLVM, scored from the same fits
 PAPER_FIXED = {"feature_space": "lab", "anchor": False}
 METHOD_ORDER = ("chandraker", "ashikhmin", "noll", "pca", "oracle", "dsgplvm", PAPER)
-PREDICTION_ONLY = ("anchor", "latent", "row_blend_deg")  # switches that need no refit
+PREDICTION_ONLY = ("anchor", "latent", "row_blend_deg", "consensus", "pca_params")  # no refit
 ORACLE_GRID = {"ridge": [1e-6, 1e-2, 1.0]}
 QUICK_DS_GRID = {"q": [None], "beta": [50.0], "feature_space": ["lab", "rgb"],
                  "max_cycles": [10]}  # smoke run: short ADM
@@ -116,7 +116,7 @@ def run_experiment(k, split, data, cache, quick, costs, points, ablations, measu
             train_s = time.perf_counter() - t0
             peak = costs.get("dsgplvm", {}).get("peak_mb") if measure else None
         elif name in grids:
-            fixed = DS_FIXED if name == "dsgplvm" else None
+            fixed = DS_FIXED | {"pca_params": chosen["pca"]} if name == "dsgplvm" else None
             fit = lambda: select(name, grids[name], train, valid_idx, data, fixed)  # noqa: E731
             if measure:  # peak over the grid's fits (each fit alone peaks no higher)
                 (m, params, trials), _, peak = _measure(fit)

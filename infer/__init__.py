@@ -14,9 +14,10 @@ from flashbrdf.infer.training_set import TrainingSet
 from flashbrdf.infer.model_file import load_method, read_model, save_model
 from flashbrdf.infer.relative import RelativeDSGPLVMMethod
 from flashbrdf.infer.methods import METHODS, dsgplvm_method, make_method, method_from_model
-from flashbrdf.infer.novelty import novelty_warning
+from flashbrdf.infer.warning import novelty_warning, prediction_warning
 
 
-__all__ = ["METHODS", "dsgplvm_method", "make_method", "method_from_model", "novelty_warning", "InferenceMethod", "TrainingSet", "DSGPLVMMethod",
+__all__ = ["METHODS", "dsgplvm_method", "make_method", "method_from_model", "novelty_warning",
+           "prediction_warning", "InferenceMethod", "TrainingSet", "DSGPLVMMethod",
            "RelativeDSGPLVMMethod", "PCA",
            "Ashikhmin", "Chandraker", "Noll", "Oracle", "save_model", "read_model", "load_method"]

@@ -15,6 +15,8 @@ import numpy as np
 from flashbrdf.brdf import colour
 from flashbrdf.brdf.bins import scatter_valid, valid_flat_3d, valid_mask_2d
 from flashbrdf.brdf.merl import N_THETA_D, N_THETA_H
+from flashbrdf.infer.consensus import (ConsensusMembers, ConsensusSpace, consensus_log_correction,
+                                       consensus_table, member_spread)
 from flashbrdf.infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
 from flashbrdf.infer.blas import one_blas_thread
 from flashbrdf.infer.dsgplvm import DSGPLVM
@@ -83,6 +85,10 @@ class DSGPLVMMethod(InferenceMethod):
     the training tables that comes from a direct convex fit of the training slices to the observed
     one rather than from the GP (infer.slice_fit; 0: the GP's weights alone, as in the paper);
     all of them for a slice past the out-of-training threshold (infer.slice_fit.slice_fit_share).
+    consensus: our addition, applied with anchor=True: the 2D prediction is averaged with Nöll's
+    and PCA's (fitted on the same training set; PCA with `pca_params`) per θd in the LAB-log
+    metric's space (infer.consensus); the variance gains the members' spread. 3D predictions take
+    the consensus' (θh, θd) level and keep the DS-GPLVM's φd structure.
     A DSGPLVM trained before (read from a model file) is used through `from_model`, not `fit`.
     """
     name = "dsgplvm"
@@ -91,7 +97,7 @@ class DSGPLVMMethod(InferenceMethod):
     def __init__(self, q=None, beta=50.0, feature_space="lab", views=("1d", "2d"), seed=0,
                  latent="backprojection", anchor=False, representation="absolute",
                  calibration=1.0, row_blend_deg=ROW_BLEND_DEG, slice_fit=SLICE_FIT_WEIGHT,
-                 **model_kw):
+                 consensus=True, pca_params=None, **model_kw):
         if representation != "absolute":
             raise ValueError("DSGPLVMMethod is the absolute representation; see infer.dsgplvm_method")
         if latent not in ("backprojection", "optimise"):
@@ -100,6 +106,7 @@ class DSGPLVMMethod(InferenceMethod):
         self.views, self.seed, self.latent = views, seed, latent
         self.anchor, self.representation, self.calibration = anchor, representation, calibration
         self.row_blend_deg, self.slice_fit = row_blend_deg, slice_fit
+        self.consensus, self.pca_params = consensus, pca_params
         self.model_kw = model_kw
 
     @property
@@ -158,6 +165,9 @@ class DSGPLVMMethod(InferenceMethod):
         # a variance needs no more, and predict reads them whole (2 × 11 MB for 121 tables)
         self.rows_2d_ = None if rows is None else np.nan_to_num(rows).astype(np.float32)
         self.rows_2d_squared_ = None if rows is None else self.rows_2d_ ** 2
+        self.members_ = ConsensusMembers(training, self.pca_params) \
+            if self.anchor and self.consensus else None
+        self._members_cache = None
         return self
 
     def novelty(self, flash_slice):
@@ -233,7 +243,34 @@ class DSGPLVMMethod(InferenceMethod):
         if self.anchor and view == "2d":  # 3D: anchored in combination()
             rho = check_slice(flash_slice)
             table = blend_toward_row(anchor_to_slice(table, rho), rho, self.row_blend_deg)
+            if self.members_ is not None:
+                members = self.member_tables(rho, table)
+                stack = np.stack(list(members.values()))
+                spread = member_spread(colour.rho_to_features(np.nan_to_num(stack),
+                                                              space=self.feature_space))
+                variance = variance + self.calibration * np.where(np.isnan(variance), np.nan,
+                                                                  spread)
+                table = consensus_table(stack)
         return table, variance
+
+    def member_tables(self, flash_slice, own_table=None):
+        """{"dsgplvm": the anchored DS-GPLVM's own 2D table, "noll", "pca"}: the consensus'
+        members (infer.consensus) for a slice, each (90, 90, 3) in 1/sr; None without consensus.
+        The last slice's are kept: the warning (infer.consensus_warning) asks again."""
+        if self.members_ is None:
+            return None
+        rho = check_slice(flash_slice)
+        key = rho.tobytes()
+        cached = self._members_cache     # one read: another thread may replace it meanwhile
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        if own_table is None:
+            with one_blas_thread():
+                own_table = InferenceMethod.predict(self, rho, "2d")[0]
+            own_table = blend_toward_row(anchor_to_slice(own_table, rho), rho, self.row_blend_deg)
+        members = {"dsgplvm": own_table} | self.members_.tables(rho)
+        self._members_cache = (key, members)
+        return members
 
     def _predict_2d(self, rho, parts=None):
         """parts: _weight_parts for the 2D view, when already at hand."""
@@ -288,6 +325,12 @@ class DSGPLVMMethod(InferenceMethod):
             log_c = anchor_log_correction(table_2d[:, 0], rho)
             space = space if log_c is None else AnchoredSpace(space, log_c)
             space = RowBlendSpace(space, rho, self.row_blend_deg)
+            if self.members_ is not None:
+                with one_blas_thread():
+                    members = self.member_tables(rho)
+                log_c = consensus_log_correction(members["dsgplvm"],
+                                                 consensus_table(np.stack(list(members.values()))))
+                space = ConsensusSpace(space, log_c)
         return np.asarray(weights, float), space, var
 
 

@@ -120,9 +120,13 @@ def tune_baselines(training, seed=0, feature_space="auto", workers=None):
     *trials, (pca_params, ashikhmin_params) = _run(
         tasks + [delayed(_tune_closed_form)(training, train, valid)], workers)
     best, ds, _ = _best(trials)
+    # the consensus (infer.consensus) averages with the PCA baseline as tuned here
+    best = type(best).from_model(best.model_, best.training_,
+                                 **(best.get_params() | {"pca_params": pca_params}))
     # the per-bin variance is calibrated on the same held-out 20%: central 90% intervals there
     # cover 90% of the bins
     kappa = calibration_factor(best, training.slices[valid], training.tables_2d[valid])
     return {"pca": pca_params, "ashikhmin": ashikhmin_params,
             "noll": {}, "chandraker": {},
-            "dsgplvm": {"feature_space": ds["feature_space"], "calibration": kappa}}
+            "dsgplvm": {"feature_space": ds["feature_space"], "calibration": kappa,
+                        "pca_params": pca_params}}

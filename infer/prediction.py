@@ -15,7 +15,7 @@ import numpy as np
 from flashbrdf.brdf import merl
 from flashbrdf.files.atomic import write_text
 from flashbrdf.files.outputs import sidecar_json
-from flashbrdf.infer.novelty import novelty_warning
+from flashbrdf.infer.warning import prediction_warning
 from flashbrdf.infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
                                     without_sparse_tail)
 
@@ -23,7 +23,8 @@ from flashbrdf.infer.slices import (sample_counts, sparse_tail_note, sparse_tail
 @dataclass(eq=False)
 class Prediction:
     """table (90, 90, 3) or (90, 90, 180, 3) 1/sr, NaN where not predicted; variance or None;
-    view "2d" | "3d"; seconds of predict; novelty score or None and its warning line or None;
+    view "2d" | "3d"; seconds of predict; novelty: infer.warning.prediction_warning's record
+    (BRDF.json's "novelty") and warning: its line or None;
     ignored: theta_h bins of the slice's sparse tail left out; n (90,) sample counts;
     observed_bins: theta_h bins the prediction was made from."""
     table: np.ndarray
@@ -50,7 +51,7 @@ def predict_slice(method, rho, n, view, source="slice"):
     start = time.perf_counter()
     table, variance = method.predict(rho, view=view)
     seconds = time.perf_counter() - start
-    novelty, warning = novelty_warning(method, rho, source)
+    novelty, warning = prediction_warning(method, rho, source)
     return Prediction(table, variance, view, seconds, novelty, warning, ignored, n,
                       int(np.isfinite(rho).all(axis=1).sum()))
 
@@ -89,8 +90,7 @@ def brdf_record(prediction, method, method_name, model_path, level=None):
             "sparse_tail_ignored": sparse_tail_record(prediction.ignored, prediction.n),
             "uncertainty": uncertainty_summary(prediction.variance,
                                                getattr(method, "feature_label", "")),
-            "novelty": None if novelty is None else
-            {"score": novelty, "out_of_distribution": bool(novelty > 1.0)}}
+            "novelty": novelty}
 
 
 def write_prediction(path, prediction, record):

@@ -26,7 +26,8 @@ def train_model(training, path, views=("1d", "2d"), seed=0, feature_space="auto"
     space = params["dsgplvm"]["feature_space"]
     model = DSGPLVMMethod(views=wanted, seed=seed, feature_space=space).fit(training)
     params["dsgplvm"] = {"feature_space": space, "views": wanted, "seed": seed,
-                         "calibration": params["dsgplvm"]["calibration"]}
+                         "calibration": params["dsgplvm"]["calibration"],
+                         "pca_params": params["dsgplvm"]["pca_params"]}
     done = time.perf_counter()
     params["train_seconds"] = done - start
     params["fit_seconds"] = {"tuning": tuned - start, "dsgplvm": done - tuned}

@@ -49,10 +49,10 @@ class ExtractOptions:
     chunk_pixels: int = 1 << 20  # pixels traced per batch: bounds memory, keeps arrays in cache
     # Many photos at full resolution (30 x 24 MP) give far more samples than a bin needs: past
     # sample_budget pooled samples, each theta_h bin keeps a uniform random subset of at most
-    # max_samples_per_bin (its robust estimate moves by ~1/sqrt(150,000) of its spread), so
+    # max_samples_per_bin (its robust estimate moves by ~1/sqrt(80,000) of its spread), so
     # memory stays bounded whatever the number of photos. Below the budget nothing is dropped.
-    sample_budget: int = 15_000_000
-    max_samples_per_bin: int = 150_000
+    sample_budget: int = 8_000_000
+    max_samples_per_bin: int = 80_000
     # an inner occluding contour (a depth jump between neighbouring pixels steeper than
     # atan(depth_edge_slope) ~ 87 deg) is rejected like the outline: a pose a pixel off puts
     # the surface behind, or the background, there (0: off)
@@ -288,7 +288,7 @@ def collect_samples(scene, options=None):
             first = _FirstPhoto(part, object_mask, image.radiance, surfaces, camera,
                                 normal_map, scene, intersector)
         if part is not None:
-            store.add(store.add_keys(part) if store.subsampled else part)
+            store.add(part)
         del image, parts, part
         t = clock.add("samples", t)
     pooled = store.pooled()
@@ -326,7 +326,7 @@ class _FirstPhoto:
         self.normals_at = camera_normals(scene, camera, intersector)
         self.face_image = None
         if not normal_map:
-            self.face_image = np.full(camera.shape, -1, dtype=np.int64)
+            self.face_image = np.full(camera.shape, -1, dtype=np.int32)
             for surface in surfaces:
                 self.face_image[surface.rows, surface.cols] = surface.face
 

@@ -9,12 +9,19 @@ from flashbrdf.brdf.merl import N_THETA_H
 SAMPLE_FIELDS = ("theta_h", "theta_d", "rho", "censored", "pixels", "face", "photo")
 
 
+# once subsampling starts the store keeps what binning reads, compactly (binning works in float32)
+COMPACT = {"theta_h": np.float32, "theta_d": np.float32, "rho": np.float32, "pixels": np.int32,
+           "face": np.int32, "photo": np.int32, "key": np.float32}
+
+
 class SampleStore:
     """The pooled samples of many photos, bounded: once more than options.sample_budget are held,
     every theta_h bin keeps a uniform random subset of at most options.max_samples_per_bin (each
     sample carries a random key and a bin keeps its smallest keys, so the subset is uniform over
-    all the photos seen, whatever their order). Below the budget it keeps every sample, in
-    order, so a capture of a few photos gives the slice it always gave."""
+    all the photos seen, whatever their order), stored compactly (float32). Below the budget it
+    keeps every sample, in order and as given, so a capture of a few photos gives the slice it
+    always gave. The subset is taken part by part (only the bins and keys are pooled), so memory
+    peaks at the budget plus one photo's samples, not twice that."""
 
     def __init__(self, options, seed=0):
         self.budget, self.cap = options.sample_budget, options.max_samples_per_bin
@@ -23,31 +30,44 @@ class SampleStore:
 
     def add(self, part):
         """part: {field: array} of one photo's samples (SAMPLE_FIELDS)."""
+        if self.subsampled:
+            part = self._compact(part)
         if len(part["theta_h"]):
             self.parts.append(part)
             self.count += len(part["theta_h"])
         if self.count > self.budget:
             self._keep_per_bin()
 
+    def _compact(self, part):
+        """The part in COMPACT dtypes, with its random keys."""
+        if "key" not in part:
+            part = {**part, "key": self.rng.random(len(part["theta_h"]), np.float32)}
+        return {name: (values.astype(COMPACT[name], copy=False) if name in COMPACT else values)
+                for name, values in part.items()}
+
     def _keep_per_bin(self):
-        pooled = self._concatenated()
-        bins = merl_bin_index(pooled["theta_h"], 0.0, 0.0)[0]
-        keys = pooled.get("key")
-        if keys is None:
-            keys = self.rng.random(len(bins))
+        if not self.subsampled:
+            self.parts = [self._compact(p) for p in self.parts]
+            self.subsampled = True
+        bins = np.concatenate([merl_bin_index(p["theta_h"], 0.0, 0.0)[0].astype(np.int16)
+                               for p in self.parts])
+        keys = np.concatenate([p["key"] for p in self.parts])
         order = np.lexsort((keys, bins))
+        del keys
         sorted_bins = bins[order]
         first_of_bin = np.searchsorted(sorted_bins, np.arange(N_THETA_H))
         rank = np.arange(len(order)) - first_of_bin[sorted_bins]
         keep = np.zeros(len(bins), bool)
         keep[order[rank < self.cap]] = True
-        self.parts = [{name: values[keep] for name, values in {**pooled, "key": keys}.items()}]
+        del order, sorted_bins, rank, bins
+        start, kept = 0, []
+        for part in self.parts:
+            mine = keep[start:start + len(part["theta_h"])]
+            start += len(mine)
+            if mine.any():
+                kept.append({name: values[mine] for name, values in part.items()})
+        self.parts = kept
         self.count = int(keep.sum())
-        self.subsampled = True
-
-    def add_keys(self, part):
-        """A part's random keys, once subsampling has started (later parts need them too)."""
-        return {**part, "key": self.rng.random(len(part["theta_h"]))}
 
     def pooled(self):
         """{field: array} of the samples kept (SAMPLE_FIELDS): all of them below the budget,

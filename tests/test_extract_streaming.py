@@ -39,7 +39,7 @@ def test_store_past_the_budget_caps_each_bin_uniformly_over_photos():
     dense = np.full(2000, 0.3)
     for k in range(60):
         part = _part(np.concatenate([dense, [1.2]]), k)  # + one sample in another bin
-        store.add(store.add_keys(part) if store.subsampled else part)
+        store.add(part)
     pooled = store.pooled()
     bins = merl_bin_index(pooled["theta_h"], 0.0, 0.0)[0]
     counts = np.bincount(bins, minlength=90)

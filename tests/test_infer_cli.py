@@ -120,10 +120,11 @@ def test_anchored_3d_carries_the_2d_correction_over_theta_d_and_phi_d(trained):
     from flashbrdf.infer import load_method
     folder, model, slice_csv = trained
     rho, _ = views.read_slice_csv(slice_csv)
-    # the anchoring alone (no observed-row blend, which is tested with the blend below, and no
-    # slice fit, which changes the weights: tests/test_slice_fit.py)
+    # the anchoring alone (no observed-row blend, which is tested with the blend below, no
+    # slice fit, which changes the weights: tests/test_slice_fit.py, and no consensus:
+    # tests/test_infer_consensus.py)
     plain, anchored = (load_method(model, "dsgplvm", merl_dir=folder, anchor=a, row_blend_deg=0,
-                                   slice_fit=0) for a in (0, 1))
+                                   slice_fit=0, consensus=False) for a in (0, 1))
     u2, a2 = plain.predict(rho, "2d")[0], anchored.predict(rho, "2d")[0]
     u3, a3 = plain.predict(rho, "3d")[0], anchored.predict(rho, "3d")[0]
     ok = merl.merl_valid_mask() & (a3[..., 0] > 0)            # unclamped bins
@@ -138,8 +139,9 @@ def test_anchored_3d_carries_the_2d_correction_over_theta_d_and_phi_d(trained):
     # float32 3D path, measured 3.7e-5 relative; 2e-4 leaves a margin of five.
     row3 = np.nanmean(a3[:, 0], axis=1)
     np.testing.assert_allclose(row3, a2[:, 0], rtol=2e-4)
-    # With the observed-row blend (the default) both views blend toward the same row with the
-    # same weights per (theta_h, theta_d) bin, so the same bound holds at theta_d = 0.5 deg.
+    # With the observed-row blend and the consensus (the default) both views blend toward the
+    # same row with the same weights per (theta_h, theta_d) bin, and the 3D view takes the 2D
+    # consensus' level per bin, so the same bound holds at theta_d = 0.5 deg.
     blended = load_method(model, "dsgplvm", merl_dir=folder, anchor=1)
     b2, b3 = blended.predict(rho, "2d")[0], blended.predict(rho, "3d")[0]
     np.testing.assert_allclose(np.nanmean(b3[:, 0], axis=1), b2[:, 0], rtol=2e-4)
@@ -180,7 +182,6 @@ def test_evaluate_render_takes_its_envmaps_from_a_flag(tmp_path, capsys, monkeyp
     """Nothing may depend on files outside the project unless a flag names them: `evaluate
     --render --envmap FILE` renders Table 2 under FILE, and reads it (exit 2 naming it when it is
     missing) before any training, without ../shared's maps."""
-    import argparse
 
     from synthetic import write_exr
     monkeypatch.setenv("FLASHBRDF_SHARED", str(tmp_path / "no_shared"))
@@ -202,7 +203,6 @@ def test_evaluate_render_takes_its_envmaps_from_a_flag(tmp_path, capsys, monkeyp
 def test_evaluate_render_without_envmap_reads_no_file(monkeypatch):
     """The contract's `evaluate ... --render` needs no --envmap: Table 2's default maps are made
     in code (render.envmap.default_envmaps), so nothing is read from ../shared (it was before)."""
-    import argparse
 
     from flashbrdf.pipeline.evaluate_job import render_envmaps
     monkeypatch.setenv("FLASHBRDF_SHARED", "/nonexistent")  # the old fallback's override

@@ -57,13 +57,14 @@ def materials():
 def test_a_material_mixed_from_training_materials_is_predicted_exactly_by_the_fit(materials):
     """A test table whose log-RGB features are 0.4·(material 1) + 0.6·(material 4): with λ = 1 the
     prediction is that mixture of the training tables, i.e. the truth (anchoring then changes
-    nothing: the θd = 0 row already passes through the slice; the row blend is off)."""
+    nothing: the θd = 0 row already passes through the slice; the row blend and the consensus
+    are off)."""
     feats = table_features(materials.tables_2d, "rgb").reshape(-1, 90, 90, 3)
     mixed = colour.features_to_rho(0.4 * feats[1] + 0.6 * feats[4], space="rgb")
     mixed[~np.isfinite(materials.tables_2d[0]).all(-1)] = np.nan
     flash_slice = mixed[:, 0]
     method = DSGPLVMMethod(max_cycles=3, anchor=True, feature_space="rgb", slice_fit=1.0,
-                           row_blend_deg=0.0).fit(materials)
+                           row_blend_deg=0.0, consensus=False).fit(materials)
     pred, _ = method.predict(flash_slice, "2d")
     ok = np.isfinite(mixed).all(-1)
     # NNLS to ~1e-7 in the weights, times features of O(10): ρ within 1e-5 relative
@@ -93,7 +94,7 @@ def test_an_out_of_training_slice_is_predicted_by_the_slice_fit_alone(materials,
     its channels scaled 30× and 1/30× lies far outside the six materials (novelty > 1) and is
     predicted exactly as with slice_fit = 1, which differs from the λ = 0.5 mixture."""
     method = DSGPLVMMethod(max_cycles=3, anchor=True, feature_space="rgb",
-                           row_blend_deg=0.0).fit(materials)
+                           row_blend_deg=0.0, consensus=False).fit(materials)
     inside = materials.slices[2]
     outside = inside * np.array([30.0, 1.0, 1.0 / 30.0])
     assert method.novelty(inside) < 1.0 < method.novelty(outside)
