@@ -14,6 +14,7 @@ import zipfile
 import numpy as np
 
 from flashbrdf.brdf import merl
+from flashbrdf.brdf.bins import valid_mask_2d
 from flashbrdf.files.atomic import atomic_path
 from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.infer.adapter import table_features
@@ -23,6 +24,7 @@ from flashbrdf.infer.training_set import TrainingSet
 from flashbrdf.infer.viewdata import restore_rows
 
 FORMAT = "flashbrdf-infer-model-1"
+PCA_STATE = ("ref", "mean", "var", "dual")  # PCA.state()'s arrays, stored as pca_<name>
 
 
 def _model_bytes(model):
@@ -34,9 +36,11 @@ def _model_bytes(model):
             return np.frombuffer(f.read(), np.uint8)
 
 
-def save_model(path, training, params, dsgplvm=None, merl_dir=""):
+def save_model(path, training, params, dsgplvm=None, merl_dir="", pca_state=None):
     """Write MODEL.npz atomically. params: {method: {hyperparameter: value}}. merl_dir: the
-    training folder, or a list of them (all recorded in `merl_dirs`; `merl_dir` keeps the first)."""
+    training folder, or a list of them (all recorded in `merl_dirs`; `merl_dir` keeps the first).
+    pca_state: infer.baselines.pca.PCA.state() of a PCA fitted on these tables, restored at load
+    (TrainingSet.fitted_pca) instead of refitted."""
     merl_dirs = [str(merl_dir)] if isinstance(merl_dir, (str, os.PathLike)) else \
         [str(d) for d in merl_dir]
     # float32 keeps 7 digits, far below the feature map's resolution, and halves the file.
@@ -49,6 +53,9 @@ def save_model(path, training, params, dsgplvm=None, merl_dir=""):
         arrays["dsgplvm"] = _model_bytes(dsgplvm)
     if training.valid_3d is not None:
         arrays["valid_3d"] = np.asarray(training.valid_3d, np.float32)
+    if pca_state is not None:
+        arrays["pca_params"] = np.array(json.dumps(pca_state["params"]))
+        arrays.update({f"pca_{k}": np.asarray(pca_state[k]) for k in PCA_STATE})
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
             np.savez_compressed(f, **arrays)
@@ -111,6 +118,8 @@ def read_model(path, merl_dir=None):
             if training.valid_3d.shape != shape:
                 raise InputError(path, f"damaged model: valid_3d has shape "
                                        f"{training.valid_3d.shape}, expected {shape}")
+        if "pca_params" in z.files and all(f"pca_{k}" in z.files for k in PCA_STATE):
+            training.fitted_pca = _pca_state(z, n, path)
         params = json.loads(str(z["params"]))
         if not isinstance(params, dict):
             raise InputError(path, "damaged model: params is not a JSON object")
@@ -132,6 +141,23 @@ def read_model(path, merl_dir=None):
         # (TrainingSet.table_3d_valid), and the caller warns (TrainingSet.missing_3d).
         training.paths = [found.get(n) for n in names]
     return training, params, blob
+
+
+def _pca_state(z, n, path):
+    """The stored PCA state (TrainingSet.fitted_pca), checked: finite arrays of the shapes a fit
+    on n tables gives; InputError naming the model when damaged."""
+    params = json.loads(str(z["pca_params"]))
+    state = {k: np.asarray(z[f"pca_{k}"], np.float64) for k in PCA_STATE}
+    bins = int(np.count_nonzero(valid_mask_2d()))
+    k = len(state["var"]) if state["var"].ndim == 1 else -1
+    shapes = {"ref": (bins, 3), "mean": (3 * bins,), "var": (k,), "dual": (n, k)}
+    for name, shape in shapes.items():
+        if state[name].shape != shape or not np.all(np.isfinite(state[name])):
+            raise InputError(path, f"damaged model: pca_{name} has shape {state[name].shape}, "
+                                   f"expected {shape} finite values")
+    if not isinstance(params, dict) or not 0 < k < n or np.any(state["var"] <= 0):
+        raise InputError(path, "damaged model: its stored PCA is not a fit of its tables")
+    return {"params": params, **state}
 
 
 def load_dsgplvm(blob, training=None, feature_space="lab", features_2d=None):

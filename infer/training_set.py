@@ -57,6 +57,7 @@ def check_distinct(paths, tables_2d):
 class TrainingSet:
     """Training materials: names (N,), flash slices (N, 90, 3), 2D tables (N, 90, 90, 3), in 1/sr.
 
+    fitted_pca: see below.
     3D tables are never all held in memory: `table_3d_valid(i)` reads one at a time, either from
     `paths` (MERL .binary files) or from `valid_3d` (N, n_valid, 3) stored rows (array or memmap).
     """
@@ -65,6 +66,10 @@ class TrainingSet:
     tables_2d: np.ndarray
     paths: list = None
     valid_3d: np.ndarray = field(default=None, repr=False)
+    # a PCA fitted on exactly these tables when the model was trained (PCA.state(), read from
+    # MODEL.npz): PCA.fit with the same hyperparameters restores it instead of refitting (the
+    # eigen-decomposition is a third of `infer`'s time). A subset does not carry it.
+    fitted_pca: dict = field(default=None, repr=False)
 
     def __len__(self):
         return len(self.names)

@@ -280,3 +280,26 @@ def test_sparse_tail_record_tells_the_threshold_used(tmp_path, capsys):
         assert "past the last one of >= 2 samples" in capsys.readouterr().err
         reports.append(record)
     assert reports[0] == reports[1]
+
+
+def test_the_model_stores_its_pca_and_infer_restores_it(trained):
+    """train stores the consensus' PCA fit (pca_* arrays); reading the model hands it to the
+    training set, and PCA.fit with the same hyperparameters restores it: the predictions equal a
+    fresh fit's to 1e-10 (the same eigen-decomposition, read back instead of recomputed)."""
+    import zipfile
+
+    from flashbrdf.infer import make_method
+    from flashbrdf.infer.model_file import read_model
+    model = trained[1]
+    members = set(zipfile.ZipFile(model).namelist())
+    assert {"pca_params.npy", "pca_ref.npy", "pca_mean.npy", "pca_var.npy",
+            "pca_dual.npy"} <= members
+    training, params, _ = read_model(model)
+    assert training.fitted_pca is not None
+    pca_params = params["dsgplvm"]["pca_params"] or {}
+    restored = make_method("pca", **pca_params).fit(training)
+    training.fitted_pca = None
+    fresh = make_method("pca", **pca_params).fit(training)
+    flash = training.slices[0]
+    np.testing.assert_allclose(restored.predict(flash, "2d")[0], fresh.predict(flash, "2d")[0],
+                               rtol=1e-10, equal_nan=True)

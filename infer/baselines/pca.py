@@ -74,6 +74,9 @@ class PCA(InferenceMethod):
         _, w2 = cosine_weights()
         self.w_ = w2[valid][:, None]                                     # (n2, 1)
         tables = np.asarray(training.tables_2d)[:, valid, :]             # (N, n2, 3)
+        stored = getattr(training, "fitted_pca", None)
+        if stored is not None and stored["params"] == self.get_params():
+            return self._restore(stored, tables)
         self.ref_ = np.median(tables, axis=0)                            # (n2, 3)
         mapped = to_mapped(tables, self.ref_, self.w_).reshape(len(tables), -1)
         self.mean_ = mapped.mean(axis=0)
@@ -85,18 +88,46 @@ class PCA(InferenceMethod):
         keep = keep[eigval[keep] > 1e-12 * max(eigval.max(), 1e-300)]
         self.var_ = eigval[keep]                                         # s² (k,)
         self.dual_ = eigvec[:, keep] / np.sqrt(self.var_)                # V / s  (N, k)
-        self.components_ = centred.T @ self.dual_                        # U (D, k), orthonormal
+        # U = centred.T @ dual_ (D, k) is formed only where asked (components_): a prediction
+        # needs its slice rows and a weighted sum of the training rows, not the D x N x k product
+        self.centred_ = centred
+        self._components = None
         # observed bins: θd bin 0 of every θh (all valid), 3 channels each
         flat = np.flatnonzero(valid.ravel())
         self.slice_rows_ = np.searchsorted(flat, np.arange(N_THETA_H) * N_THETA_D)     # index of (θh, 0) in n2
         return self
+
+    def state(self):
+        """What fit computed beyond the training tables, for MODEL.npz: {"params", "ref", "mean",
+        "var", "dual"} (arrays; params the hyperparameters)."""
+        return {"params": self.get_params(), "ref": self.ref_, "mean": self.mean_,
+                "var": self.var_, "dual": self.dual_}
+
+    def _restore(self, stored, tables):
+        """fit's state from state() of a fit on the same tables: only the mapped rows are made."""
+        self.ref_, self.mean_ = stored["ref"], stored["mean"]
+        self.var_, self.dual_ = stored["var"], stored["dual"]
+        mapped = to_mapped(tables, self.ref_, self.w_).reshape(len(tables), -1)
+        self.centred_ = mapped - self.mean_
+        self._components = None
+        flat = np.flatnonzero(valid_mask_2d().ravel())
+        self.slice_rows_ = np.searchsorted(flat, np.arange(N_THETA_H) * N_THETA_D)
+        return self
+
+    @property
+    def components_(self):
+        """U (D, k): the orthonormal principal directions of the mapped training tables."""
+        if self._components is None:
+            self._components = self.centred_.T @ self.dual_
+        return self._components
 
     def coefficients(self, rho):
         ok = np.isfinite(rho).all(axis=1)
         rows = self.slice_rows_[ok]
         m_obs = to_mapped(rho[ok], self.ref_[rows], self.w_[rows]).ravel()
         cols = (rows[:, None] * 3 + np.arange(3)).ravel()
-        u_obs = self.components_[cols]
+        u_obs = (self._components[cols] if self._components is not None
+                 else self.centred_[:, cols].T @ self.dual_)
         r = m_obs - self.mean_[cols]
         lhs = u_obs.T @ u_obs + self.ridge * np.diag(1.0 / self.var_)
         return np.linalg.solve(lhs + 1e-12 * np.trace(lhs) * np.eye(len(lhs)), u_obs.T @ r)
@@ -110,7 +141,7 @@ class PCA(InferenceMethod):
     @on_one_blas_thread
     def _predict_2d(self, rho):
         c = self.coefficients(rho)
-        return self._table_from_mapped(self.mean_ + self.components_ @ c), None
+        return self._table_from_mapped(self.mean_ + self.centred_.T @ (self.dual_ @ c)), None
 
     def training_weights(self, c):
         """Weights b (N,) with  mean + U c = Σ_i b_i m_i  (m_i the mapped training tables)."""
