@@ -27,11 +27,18 @@ class SampleStore:
         self.budget, self.cap = options.sample_budget, options.max_samples_per_bin
         self.rng = np.random.default_rng(seed)
         self.parts, self.count, self.subsampled = [], 0, False
+        # per bin, the largest key kept once the bin holds `cap` (inf before): a later sample
+        # with a key at or above it can never be kept, so it is dropped on arrival, not sorted
+        self.key_limit = np.full(N_THETA_H, np.inf, np.float32)
 
     def add(self, part):
         """part: {field: array} of one photo's samples (SAMPLE_FIELDS)."""
         if self.subsampled:
             part = self._compact(part)
+            bins = merl_bin_index(part["theta_h"], 0.0, 0.0)[0]
+            wanted = part["key"] < self.key_limit[bins]
+            if not wanted.all():
+                part = {name: values[wanted] for name, values in part.items()}
         if len(part["theta_h"]):
             self.parts.append(part)
             self.count += len(part["theta_h"])
@@ -53,13 +60,14 @@ class SampleStore:
                                for p in self.parts])
         keys = np.concatenate([p["key"] for p in self.parts])
         order = np.lexsort((keys, bins))
-        del keys
         sorted_bins = bins[order]
         first_of_bin = np.searchsorted(sorted_bins, np.arange(N_THETA_H))
         rank = np.arange(len(order)) - first_of_bin[sorted_bins]
         keep = np.zeros(len(bins), bool)
         keep[order[rank < self.cap]] = True
-        del order, sorted_bins, rank, bins
+        full = np.flatnonzero(np.bincount(bins, minlength=N_THETA_H) >= self.cap)
+        self.key_limit[full] = keys[order[first_of_bin[full] + self.cap - 1]]
+        del order, sorted_bins, rank, bins, keys
         start, kept = 0, []
         for part in self.parts:
             mine = keep[start:start + len(part["theta_h"])]

@@ -50,6 +50,36 @@ def test_store_past_the_budget_caps_each_bin_uniformly_over_photos():
     assert np.all(np.abs(per_photo - 20) <= 22), per_photo
 
 
+def test_store_keeps_exactly_each_bins_smallest_keys_over_all_photos():
+    """After every photo, the subset is the one a single sort over every sample added so far
+    would keep: per bin, the `cap` smallest random keys. Samples dropped on arrival (a key at or
+    above the bin's limit) would have been cut by that sort too; none that it keeps is lost
+    (a sample just under the limit is kept only until smaller keys arrive, so the check is made
+    photo by photo, not only at the end)."""
+    options = replace(ExtractOptions(), sample_budget=3000, max_samples_per_bin=400)
+    store = SampleStore(options, seed=3)
+    rng = np.random.default_rng(1)
+    # ~19 theta_h bins of ~2,000 samples each: every bin fills early and is filtered on arrival
+    parts = [_part(rng.uniform(0.2, 0.5, 1500), k) for k in range(25)]
+    # the keys the store draws, in order: once it subsamples (at the part that takes it past the
+    # budget, 3 x 1500 > 3000), one per sample added, the earlier parts' first
+    keys = np.random.default_rng(3).random(1500 * 25, np.float32)
+    theta_h = np.concatenate([p["theta_h"] for p in parts]).astype(np.float32)
+    bins = merl_bin_index(theta_h, 0.0, 0.0)[0]
+    for k, part in enumerate(parts):
+        part["pixels"] = np.arange(1500) + 1500 * k  # a unique id per sample
+        store.add(part)
+        if not store.subsampled:
+            continue
+        seen = np.arange(1500 * (k + 1))
+        expected = set()
+        for b in np.unique(bins[seen]):
+            mine = seen[bins[seen] == b]
+            expected.update(mine[np.argsort(keys[mine], kind="stable")[:400]].tolist())
+        assert set(store.pooled()["pixels"].tolist()) == expected, k
+    assert np.isfinite(store.key_limit).sum() > 0  # the filter on arrival was in use
+
+
 def test_depth_edges_mark_both_sides_of_a_jump_only():
     camera = SimpleNamespace(shape=(6, 8), model="pinhole", fx=1000.0, fy=1000.0)
     depth = np.full((6, 8), np.inf, np.float32)
