@@ -189,7 +189,7 @@ def test_size_missing_and_corrupt_files(tmp_path):
 def test_image_over_opencvs_size_limit_is_named_with_the_limit(tmp_path):
     """cv2.imread raises (not None) past its limits: the one line names the file and the limit it
     exceeds, not "cannot read image (corrupt or unsupported)"."""
-    from test_bad_input_corpus import png_bomb
+    from corpus_inputs import png_bomb
     big = tmp_path / "big.png"
     big.write_bytes(png_bomb(40000))
     with pytest.raises(InputError) as err:

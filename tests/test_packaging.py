@@ -45,3 +45,15 @@ def test_the_wheel_holds_the_default_model_and_the_command(wheel):
     assert "flashbrdf/sample_data/models/merl100_1d2d.npz" in names
     entry = next(n for n in names if n.endswith("entry_points.txt"))
     assert "flashbrdf = flashbrdf.cli.main:main" in wheel.read(entry).decode()
+
+
+def test_no_module_of_the_repository_is_over_500_lines():
+    """The house rule (a module is one idea a reader holds at once), over the package, its tests
+    and benchmarks alike."""
+    long = {}
+    for folder in (*STAGE_FOLDERS, "tests", "benchmarks"):
+        for module in (REPO / folder).rglob("*.py"):
+            count = len(module.read_text(encoding="utf-8").splitlines())
+            if count > 500:
+                long[str(module.relative_to(REPO))] = count
+    assert long == {}
