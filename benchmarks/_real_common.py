@@ -136,5 +136,5 @@ def theta_h_deg():
 
 def write_json(path, data):
     from flashbrdf.files.atomic import write_text
-    from flashbrdf.pipeline.report import _clean
-    write_text(path, json.dumps(_clean(data), indent=1) + "\n")
+    from flashbrdf.pipeline.report_data import jsonable
+    write_text(path, json.dumps(jsonable(data), indent=1) + "\n")

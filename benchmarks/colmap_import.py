@@ -26,8 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-from benchmarks._real_common import RESULTS, write_json  # noqa: E402
+from benchmarks._real_common import RESULTS, write_json
 
 N_MIN = 20
 

@@ -415,7 +415,7 @@ def extract_material_slices(samples, labels, where="--labels", face_labels=None)
     slices = {}
     for k in range(1, count + 1):
         mine = of_sample == k
-        keep = _interior_samples(mine, interior, bins)
+        keep = interior_samples(mine, interior, bins)
         try:
             slices[k] = bin_samples(samples.subset(keep))
         except NotABRDFError:  # the photos' fault, not this material's coverage
@@ -442,7 +442,7 @@ def _border_faces(scene, face_labels):
     return border
 
 
-def _interior_samples(mine, interior, bins, min_bin=BORDER_MIN_BIN):
+def interior_samples(mine, interior, bins, min_bin=BORDER_MIN_BIN):
     """(N,) bool: a material's samples (mine (N,) bool) away from its borders with other
     materials (interior (N,) bool), except in the theta_h bins (bins (N,) int) where the
     interior keeps fewer than min_bin samples: there every sample of the material stays, so

@@ -1,9 +1,9 @@
 """The border band a material's slice leaves out (slice_extract.segment.material_interior,
-border_width_px; slice_extract.extract._interior_samples): known label images, exact answers."""
+border_width_px; slice_extract.extract.interior_samples): known label images, exact answers."""
 
 import numpy as np
 
-from flashbrdf.slice_extract.extract import _interior_samples
+from flashbrdf.slice_extract.extract import interior_samples
 from flashbrdf.slice_extract.segment import border_width_px, material_interior
 
 
@@ -43,7 +43,7 @@ def test_a_bin_the_interior_leaves_empty_keeps_its_border_samples():
     bins = np.array([0, 0, 1, 1, 2, 2])
     # bin 0: the interior sample only; bin 1: no interior sample, so both border samples stay;
     # bin 2: the interior one; the last sample is another material's
-    assert _interior_samples(mine, interior, bins).tolist() == [1, 0, 1, 1, 1, 0]
+    assert interior_samples(mine, interior, bins).tolist() == [1, 0, 1, 1, 1, 0]
 
 
 def test_a_material_seen_only_inside_the_lobe_is_flagged_narrow_and_warned():
