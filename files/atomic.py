@@ -8,6 +8,8 @@ import errno
 import os
 import tempfile
 
+from flashbrdf.files.signals import raise_if_signalled
+
 # What creating a file or folder at a path the user gave fails with when that path cannot hold
 # one (a name too long, a read-only or pseudo filesystem such as /proc, no permission): bad input
 # naming the path, not a traceback. A full disk or an I/O error stays an error of its own (exit 1).
@@ -57,6 +59,7 @@ def atomic_path(path, suffix=None):
     os.chmod(tmp, 0o666 & ~current_umask())
     try:
         yield tmp
+        raise_if_signalled()
         os.replace(tmp, path)
     except BaseException:
         with contextlib.suppress(OSError):

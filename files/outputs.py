@@ -33,7 +33,7 @@ import time
 from flashbrdf.files.atomic import (current_umask, make_parents, name_extension, remove_empty,
                                     unwritable)
 from flashbrdf.files.errors import InputError
-from flashbrdf.files.signals import signals_deferred
+from flashbrdf.files.signals import raise_if_signalled, signals_deferred
 
 MARKER = ".flashbrdf-output"
 
@@ -206,6 +206,7 @@ def staged_output_dir(path, force=False, command=None):
             f.write("\n")
         yield tmp
         with signals_deferred():  # no Ctrl-C between moving the old folder away and renaming
+            raise_if_signalled()
             _check_replaceable(target, force)
             old = None
             try:

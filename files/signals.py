@@ -2,6 +2,8 @@
 staged outputs removed, files.outputs), and what C libraries print is held back on bad input.
 
 - handle_signals(): SIGTERM raises Terminated, SIGINT KeyboardInterrupt, in the main thread;
+- raise_if_signalled(): before an output is committed, raise what a library swallowed (trimesh's
+  optional imports catch BaseException: a SIGTERM landing there would be lost);
 - signals_deferred(): hold both while a few renames run (an output is replaced whole or not);
 - hold_native_stderr(): libpng, OpenEXR and friends write to fd 2 directly; bad input gets only
   the contract's one stderr line.
@@ -22,6 +24,19 @@ class Terminated(BaseException):
 
     A BaseException like KeyboardInterrupt: no `except Exception` swallows it.
     """
+
+
+# the signals handle_signals caught during the current command, in order
+_received = []
+
+
+def raise_if_signalled():
+    """Raise Terminated (SIGTERM) or KeyboardInterrupt (SIGINT) if one arrived under
+    handle_signals, even though the exception its handler raised was swallowed on the way (an
+    `except BaseException` without re-raise in a library). Called before an output is committed,
+    so a command told to stop never leaves its output."""
+    if _received:
+        raise Terminated() if _received[-1] == signal.SIGTERM else KeyboardInterrupt()
 
 
 @contextlib.contextmanager
@@ -84,19 +99,28 @@ def _fd_is_file(fd):
 def handle_signals():
     """While the body runs, SIGTERM raises Terminated and SIGINT KeyboardInterrupt in the main
     thread (so staged outputs are cleaned up). SIGINT is set too because a library imported
-    earlier (drjit, via mitsuba) may have replaced Python's default handler. Outside the main
-    thread (e.g. a Dask worker) nothing changes."""
+    earlier (drjit, via mitsuba) may have replaced Python's default handler. Each signal is also
+    remembered, so one whose exception a library swallowed still stops the command
+    (raise_if_signalled). Outside the main thread (e.g. a Dask worker) nothing changes."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
 
     def raise_terminated(signum, frame):
+        _received.append(signal.SIGTERM)
         raise Terminated()
 
+    def raise_interrupt(signum, frame):
+        _received.append(signal.SIGINT)
+        raise KeyboardInterrupt()
+
+    _received.clear()
     previous = signal.signal(signal.SIGTERM, raise_terminated)
-    previous_int = signal.signal(signal.SIGINT, signal.default_int_handler)
+    previous_int = signal.signal(signal.SIGINT, raise_interrupt)
     try:
         yield
+        raise_if_signalled()  # the command finished, but it was told to stop: it did not succeed
     finally:
         signal.signal(signal.SIGTERM, previous)
         signal.signal(signal.SIGINT, previous_int)
+        _received.clear()  # a later command, or library use outside one, starts afresh

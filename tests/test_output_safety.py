@@ -156,6 +156,39 @@ def test_signal_inside_a_command_exits_130_or_143_with_nothing_written(tmp_path,
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL or sig == signal.SIGINT
 
 
+@pytest.mark.parametrize("sig,status", [(signal.SIGTERM, 143), (signal.SIGINT, 130)])
+@pytest.mark.parametrize("output", ["folder", "file"])
+def test_a_signal_a_library_swallows_still_stops_the_command(tmp_path, monkeypatch, capsys, sig,
+                                                             status, output):
+    """trimesh's optional imports catch BaseException: a SIGTERM or Ctrl-C landing there raised
+    an exception nobody saw, and the command ran on to exit 0 with its output written (one run
+    in three under load in the interrupted-run test above). The signal is remembered: neither a
+    staged folder nor an atomic file is committed, and the command exits 130 or 143."""
+    import flashbrdf.pipeline.render_jobs as render_jobs
+    from flashbrdf.cli.main import main
+    from flashbrdf.files.atomic import atomic_path
+
+    def compare_under_a_broad_except(pred, ref, out, **options):
+        with (staged_output_dir(out) if output == "folder" else atomic_path(out)) as tmp:
+            try:  # what `try: from PIL import Image / except BaseException` does
+                signal.raise_signal(sig)
+            except BaseException:
+                pass
+            Path(tmp, "done.json").write_text("{}") if output == "folder" else \
+                Path(tmp).write_text("{}")
+        return 0
+
+    monkeypatch.setattr(render_jobs, "compare", compare_under_a_broad_except)
+    assert main(["compare", "a.exr", "b.exr", "--out", str(tmp_path / "out")]) == status
+    assert os.listdir(tmp_path) == []
+    assert "no output written" in capsys.readouterr().err
+    # the next command, and library use outside one, are not haunted by it
+    assert main(["--version"]) == 0
+    with atomic_path(tmp_path / "later.txt") as tmp:
+        Path(tmp).write_text("x")
+    assert os.listdir(tmp_path) == ["later.txt"]
+
+
 @pytest.mark.parametrize("name,suffix", [("..exr", ".exr"), ("a.b.exr", ".exr"),
                                          (".hidden", ""), ("plain", "")])
 def test_atomic_path_keeps_the_extension_of_a_dotted_name(tmp_path, name, suffix):
