@@ -192,4 +192,5 @@ def _print_summary(stages, report, out):
                   "reference(s)" + ("" if matched is None else
                                     f"; level-matched {matched['delta_e_log_mean']['mean']:.3f} "
                                     f"(renders x{matched['scale']:.3f})"), file=sys.stderr)
-    print(f"report: {(out / 'report.md').resolve()}")
+    # the page a user opens first, then the Markdown beside it (same numbers)
+    print(f"report: {(out / 'report.html').resolve()} (and report.md, report.json beside it)")

@@ -5,6 +5,7 @@ default model was not trained on; the reference photo is the sphere under pisa.
 """
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -90,7 +91,7 @@ def test_unknown_method_or_missing_model_exit_2_and_write_nothing(sphere_scene, 
 
 
 def test_a_scene_without_references_compares_nothing_and_renders_previews(sphere_scene,
-                                                                           tmp_path):
+                                                                           tmp_path, capsys):
     scene = tmp_path / "scene"
     scene.mkdir()
     doc = json.loads((sphere_scene / "scene.json").read_text())
@@ -100,6 +101,9 @@ def test_a_scene_without_references_compares_nothing_and_renders_previews(sphere
     (scene / "scene.json").write_text(json.dumps(doc))
     out = tmp_path / "out"
     assert main(["run", str(scene), "--out", str(out), "--methods", "chandraker"]) == 0
+    # stdout names the page to open, and it is there
+    page = capsys.readouterr().out.strip().splitlines()[-1].split()[1]
+    assert page == str((out / "report.html").resolve()) and Path(page).is_file()
     report = json.loads((out / "report.json").read_text())
     assert report["references"] == [] and "render+compare chandraker" not in report["stages"]
     assert any("no reference photo" in note for note in report["notes"])
