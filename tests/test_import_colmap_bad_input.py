@@ -55,29 +55,28 @@ def replace_line(name, old_start, new_line):
     return edit
 
 
-def image_line(field_values):
-    """edit of images.txt: image 1's pose line with some fields replaced {index: text}."""
+def fields_of_line_1(name, field_values):
+    """edit of `name` (images.txt, frames.txt): the line of id 1 with some of its
+    whitespace-separated fields replaced {index: text}."""
     def edit(folder):
-        lines = (folder / "images.txt").read_text().splitlines(True)
+        lines = (folder / name).read_text().splitlines(True)
         k = next(i for i, ln in enumerate(lines) if ln.startswith("1 "))
         fields = lines[k].split()
         for index, text in field_values.items():
             fields[index] = text
         lines[k] = " ".join(fields) + "\n"
-        (folder / "images.txt").write_text("".join(lines))
+        (folder / name).write_text("".join(lines))
     return edit
+
+
+def image_line(field_values):
+    """edit of images.txt: image 1's pose line."""
+    return fields_of_line_1("images.txt", field_values)
 
 
 def frame_line(quaternion):
-    """edit of frames.txt: frame 1's rig_from_world quaternion (qw qx qy qz) replaced."""
-    def edit(folder):
-        lines = (folder / "frames.txt").read_text().splitlines(True)
-        k = next(i for i, ln in enumerate(lines) if ln.startswith("1 "))
-        fields = lines[k].split()
-        fields[2:6] = quaternion
-        lines[k] = " ".join(fields) + "\n"
-        (folder / "frames.txt").write_text("".join(lines))
-    return edit
+    """edit of frames.txt: frame 1's rig_from_world quaternion (qw qx qy qz, fields 2-5)."""
+    return fields_of_line_1("frames.txt", dict(zip(range(2, 6), quaternion)))
 
 
 def binary_with_pose(w, tmp, quaternion_xyzw):

@@ -29,6 +29,11 @@ def training_set(rows):
                        valid_3d=np.array(rows, np.float32))
 
 
+# six (roughness, r0, diffuse) specs spanning sharp to broad lobes, weak to strong diffuse
+SIX_AP_SPECS = [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02), (0.5, 0.9, 0.5),
+                (0.15, 0.2, 0.05), (0.7, 0.05, 0.8)]
+
+
 def coloured_ap_set(seed, specs):
     """training_set of ap_material rows, one per (roughness, r0, diffuse) in specs, each with a
     random colour in [0.1, 1)³ from a generator seeded with `seed`."""

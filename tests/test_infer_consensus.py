@@ -16,7 +16,7 @@ from flashbrdf.infer.consensus import (CONSENSUS_WEIGHTS, ConsensusSpace, consen
                                        weights_per_bin)
 from flashbrdf.infer.estimator import LinearSpace
 from flashbrdf.infer.warning import DISAGREEMENT_WARN_DE, disagreement, prediction_warning
-from tests.test_infer_baselines import ap_material, training_set
+from tests.test_infer_baselines import SIX_AP_SPECS, coloured_ap_set
 
 THETA_D = np.degrees(merl.theta_d_centres())
 
@@ -149,11 +149,7 @@ def test_the_warning_fires_exactly_past_the_disagreement_threshold():
 
 @pytest.fixture(scope="module")
 def materials():
-    rng = np.random.default_rng(11)
-    rows = [ap_material(a, r0, rng.uniform(0.1, 1, 3), diffuse=d)
-            for a, r0, d in [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02),
-                             (0.5, 0.9, 0.5), (0.15, 0.2, 0.05), (0.7, 0.05, 0.8)]]
-    return training_set(rows)
+    return coloured_ap_set(11, SIX_AP_SPECS)
 
 
 def test_the_default_predicts_the_consensus_of_its_members_and_widens_its_variance(materials):

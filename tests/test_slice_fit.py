@@ -12,7 +12,7 @@ from flashbrdf.infer.adapter import table_features
 import flashbrdf.infer.adapter
 from flashbrdf.infer.slice_fit import (OUT_OF_TRAINING_NOVELTY, convex_slice_weights, mixed_weights,
                              slice_fit_share)
-from tests.test_infer_baselines import ap_material, training_set
+from tests.test_infer_baselines import SIX_AP_SPECS, coloured_ap_set
 
 
 def test_a_convex_mixture_of_training_rows_is_recovered_with_missing_dimensions():
@@ -47,11 +47,7 @@ def test_near_duplicate_training_rows_share_the_weight_and_stay_finite():
 
 @pytest.fixture(scope="module")
 def materials():
-    rng = np.random.default_rng(11)
-    rows = [ap_material(a, r0, rng.uniform(0.1, 1, 3), diffuse=d)
-            for a, r0, d in [(0.08, 0.04, 0.1), (0.2, 0.5, 0.3), (0.35, 0.1, 0.02),
-                             (0.5, 0.9, 0.5), (0.15, 0.2, 0.05), (0.7, 0.05, 0.8)]]
-    return training_set(rows)
+    return coloured_ap_set(11, SIX_AP_SPECS)
 
 
 def test_a_material_mixed_from_training_materials_is_predicted_exactly_by_the_fit(materials):
