@@ -64,6 +64,18 @@ def table_2d_view(table):
     return table_2d(table) if table.ndim == 4 else table
 
 
+def variance_2d_view(variance):
+    """A prediction's variance beside its 2D table: (90, 90) or (90, 90, 3) as is, a 3D
+    (phi_d-resolved) one averaged over phi_d like the table; None when there is none, or its
+    shape is not a 2D table's."""
+    if variance is None:
+        return None
+    variance = np.asarray(variance, dtype=float)
+    if variance.ndim == 4:
+        variance = _nanmean(variance, axis=2)
+    return variance if variance.shape[:2] == (90, 90) and variance.ndim in (2, 3) else None
+
+
 def table_3d_from_2d(table_2d):
     """A (90, 90, 180, 3) table copying `table_2d` across phi_d, NaN where MERL has no data."""
     table = np.repeat(np.asarray(table_2d, dtype=np.float64)[:, :, None, :], 180, axis=2)

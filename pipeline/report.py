@@ -27,7 +27,7 @@ from flashbrdf.brdf import merl
 from flashbrdf.files.atomic import write_text
 from flashbrdf.brdf.merl import theta_h_centres
 from flashbrdf.brdf.metrics import summarise
-from flashbrdf.brdf.views import slice_coverage, table_2d_view
+from flashbrdf.brdf.views import slice_coverage, table_2d_view, variance_2d_view
 from flashbrdf.brdf.metrics import delta_e_log
 from flashbrdf.render.compare import compare_images, comparison_mask
 from flashbrdf.pipeline import report_figures as figs
@@ -104,18 +104,6 @@ def coverage(theta_h_deg, observed):
     if thin:
         warnings.append(f"{thin} observed θh bins rest on fewer than 5 pixels: noisy")
     return info, warnings
-
-
-def variance_2d(variance):
-    """A (90,90[,3]) uncertainty to show beside the 2D table, or None when there is none to show."""
-    if variance is None:
-        return None
-    variance = np.asarray(variance, dtype=float)
-    if variance.ndim == 4:  # a 3D (phi_d-resolved) variance: average over phi_d like the table
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            variance = np.nanmean(variance, axis=2)
-    return variance if variance.shape[:2] == (90, 90) and variance.ndim in (2, 3) else None
 
 
 def _number(value):
@@ -276,7 +264,14 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
     theta_h_deg = np.degrees(theta_h_centres())
     predictions = {m: (p if isinstance(p, dict) else {"table": p})
                    for m, p in (predictions or {}).items()}
-    tables = {m: table_2d_view(p["table"]) for m, p in predictions.items()}
+    # each prediction as the figures and the page show it: the 2D table and its 2D variance
+    variance_means = {m: (float(np.nanmean(p["variance"])) if p.get("variance") is not None
+                          and np.isfinite(p["variance"]).any() else None)
+                      for m, p in predictions.items()}
+    predictions = {m: {**p, "table": table_2d_view(p["table"]),
+                       "variance": variance_2d_view(p.get("variance"))}
+                   for m, p in predictions.items()}
+    tables = {m: p["table"] for m, p in predictions.items()}
     figures, warnings = {}, list(warnings)
     cover = None
     if observed is not None:
@@ -289,7 +284,7 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
         figures["slice"] = "figures/slice.png"
     for method, p in predictions.items():
         figs.brdf_images(fig_dir / f"brdf_{method}.png", method, tables[method],
-                         variance_2d(p.get("variance")), p.get("variance_label", "uncertainty"))
+                         p["variance"], p.get("variance_label", "uncertainty"))
         figures[f"brdf_{method}"] = f"figures/brdf_{method}.png"
     rows, ref_figures, n_photos = _reference_rows(references, fig_dir, max_reference_figures)
     if rows:
@@ -305,9 +300,7 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
             "theta_h_deg": theta_h_deg, "rho": observed["rho"], "n": observed["n"],
             "spread": observed.get("spread")},
         "predictions": {m: {"theta_d0": tables[m][:, 0, :], "file": p.get("file"),
-                            "variance_mean": (float(np.nanmean(p["variance"]))
-                                              if p.get("variance") is not None
-                                              and np.isfinite(p["variance"]).any() else None)}
+                            "variance_mean": variance_means[m]}
                         for m, p in predictions.items()},
         "coverage": cover, "warnings": warnings, "notes": list(notes),
         "figures": {**figures, "references": ref_figures},

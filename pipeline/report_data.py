@@ -20,6 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from flashbrdf.brdf.views import table_2d_view, variance_2d_view
 from flashbrdf.files.errors import InputError
 from flashbrdf.render import images
 
@@ -208,36 +209,27 @@ def merl_table_2d(path):
     return mean.T.reshape(MERL_SHAPE[0], MERL_SHAPE[1], 3).astype(np.float32)
 
 
-def variance_2d(variance):
-    """A method's variance as (90, 90) or (90, 90, 3), averaged over phi_d when 3D; None when
-    there is none or its shape is not a 2D table's."""
-    if variance is None:
-        return None
-    variance = np.asarray(variance, dtype=np.float64)
-    if variance.ndim == 4:
-        finite = np.isfinite(variance)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            variance = np.where(finite, variance, 0).sum(2) / finite.sum(2)
-    ok = variance.shape[:2] == (90, 90) and variance.ndim in (2, 3)
-    return variance if ok else None
+def uniform_value(values):
+    """The one value of a non-empty array whose values all agree (to 1e-9 relative), else None:
+    an uncertainty that is one number in every bin (one isotropic GP per view) is said, not
+    painted, on the page and in the figures alike."""
+    values = np.asarray(values, dtype=float)
+    if values.size and np.ptp(values) <= 1e-9 * max(float(np.abs(values).max()), 1e-300):
+        return float(values.flat[0])
+    return None
 
 
 def brdf_entry(table, variance=None, variance_label="uncertainty", variance_note=None):
     """One method's BRDF for the page: the 2D table, and its uncertainty as a map, as one
     number (every bin alike: one isotropic GP per view), or absent (variance_note: why)."""
-    table = np.asarray(table, dtype=np.float64)
-    if table.ndim == 4:
-        finite = np.isfinite(table)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            table = np.where(finite, table, 0).sum(2) / finite.sum(2)
-    entry = {"table": float32_b64(table), "variance_label": variance_label}
+    entry = {"table": float32_b64(table_2d_view(table)), "variance_label": variance_label}
     if variance_note:
         entry["variance_note"] = variance_note
-    variance = variance_2d(variance)
+    variance = variance_2d_view(variance)
     if variance is not None:
         values = variance[np.isfinite(variance)]
-        if values.size and np.ptp(values) <= 1e-9 * max(float(np.abs(values).max()), 1e-300):
-            entry["variance_constant"] = float(values[0])
+        if uniform_value(values) is not None:
+            entry["variance_constant"] = uniform_value(values)
         elif values.size:
             entry["variance"] = float32_b64(np.broadcast_to(
                 variance[..., None] if variance.ndim == 2 else variance, (90, 90, 3)))

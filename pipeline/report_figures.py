@@ -8,6 +8,7 @@ import numpy as np
 
 from flashbrdf.files.atomic import atomic_path
 from flashbrdf.brdf.colour import srgb_encode
+from flashbrdf.pipeline.report_data import uniform_value
 
 CHANNELS = ("R", "G", "B")
 CHANNEL_COLOURS = ("tab:red", "tab:green", "tab:blue")
@@ -69,9 +70,8 @@ def brdf_images(path, method, table_2d, uncertainty=None, uncertainty_label="unc
         values = unc[np.isfinite(unc)]
         if not values.size:
             unc = None
-        elif np.ptp(values) <= 1e-9 * max(abs(values).max(), 1e-300):
-            # One number for every bin (e.g. one isotropic GP per view): say it, don't paint it.
-            unc = float(values[0])
+        elif uniform_value(values) is not None:  # one number in every bin: said, not painted
+            unc = uniform_value(values)
     cols = 3 if unc is None else (4 if isinstance(unc, float) else 6)
     fig, axes = plt.subplots(1, cols, figsize=(2.7 * cols, 3.0))
     log_rho = np.log10(np.where(table_2d > 0, table_2d, np.nan))

@@ -15,12 +15,12 @@ import numpy as np
 
 from flashbrdf.brdf.merl import theta_h_centres
 from flashbrdf.brdf.models import TabulatedBRDF
-from flashbrdf.brdf.views import table_2d_view
+from flashbrdf.brdf.views import table_2d_view, variance_2d_view
 from flashbrdf.pipeline import report_figures as figs
 from flashbrdf.pipeline.albedo_files import albedo_for_scene, write_albedo
 from flashbrdf.pipeline.label_files import write_labels
 from flashbrdf.pipeline.previews import previews_under_envmap
-from flashbrdf.pipeline.report import variance_2d, write_report
+from flashbrdf.pipeline.report import write_report
 from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
 from flashbrdf.pipeline.run_steps import infer_method, render_and_compare
 from flashbrdf.render import DiffuseAlbedoMap, MaterialMap
@@ -142,7 +142,7 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
                                                       "features") + ")"
             name = f"material_{k}_brdf_{m}.png"
             figs.brdf_images(fig_dir / name, f"{m}, material {k}", table_2d_view(prediction.table),
-                             variance_2d(prediction.variance), label)
+                             variance_2d_view(prediction.variance), label)
             sections += [f"![material {k} {m}](figures/{name})"]
         sections += [""]
     extra = {"materials": material_entries(labels, {k: f"materials/material_{k}.csv"
