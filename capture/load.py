@@ -67,15 +67,20 @@ def same_view(a, b):
 
 def _ambient(scene, photo):
     """(rgb, usable, scale or None) of the ambient photo(s) of a flash photo's view, averaged, or
-    (None, None, None) when the scene has none. With several views (a multi-view capture), the
-    ambient photos taken from the flash photo's camera; with one, every ambient photo."""
+    (None, None, None) when the scene has none. The ambient photos taken from the flash photo's
+    camera; when the flash photos are all of one view, every ambient photo (a single-view
+    capture may give the ambient photo a camera of its own). A flash photo of a multi-view
+    capture with no ambient photo from its view is refused: another view's ambient light falls
+    on other pixels."""
     ambients = scene.photos_with_role("ambient")
     if not ambients:
         return None, None, None
     from_view = [a for a in ambients if same_view(a.camera, photo.camera)]
+    flashes = scene.photos_with_role("flash")
     if from_view:
         ambients = from_view
-    elif any(not same_view(a.camera, ambients[0].camera) for a in ambients):
+    elif (any(not same_view(a.camera, ambients[0].camera) for a in ambients)
+          or any(not same_view(f.camera, photo.camera) for f in flashes)):
         raise InputError(photo.where, "no ambient photo was taken from this flash photo's "
                                       "camera; give one ambient photo per view, or none")
     total, usable = None, None

@@ -5,6 +5,7 @@ from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 from flashbrdf.brdf.angles import merl_bin_index
 from flashbrdf.slice_extract import ExtractOptions, collect_samples, extract_slice
@@ -112,3 +113,31 @@ def test_many_photos_subsampled_give_the_slice_all_of_them_give(tmp_path):
     both = np.isfinite(whole.rho).all(axis=1) & np.isfinite(capped.rho).all(axis=1)
     assert both.sum() >= 0.9 * np.isfinite(whole.rho).all(axis=1).sum()
     assert np.max(np.abs(capped.rho[both] / whole.rho[both] - 1)) < 0.01
+
+
+def test_a_multiview_flash_photo_without_its_views_ambient_is_refused(tmp_path):
+    """Ambient photos are subtracted view by view. A second view with no ambient photo of its
+    own is refused, naming it: the first view's ambient light lies on other pixels. With every
+    flash photo of one view, the ambient photo applies (its camera may be given apart)."""
+    import json
+    import shutil
+
+    from flashbrdf import capture
+    from flashbrdf.files.errors import InputError
+    scene = write_synthetic_scene(tmp_path / "s", sphere_mesh(subdivisions=2), ggx_lambert(),
+                                  pinhole_camera(24, 24, 40.0), [point_light([0.02, 0, 0])])
+    shutil.copy(scene / "flash0.exr", scene / "ambient0.exr")
+    shutil.copy(scene / "flash0.exr", scene / "flash1.exr")
+    doc = json.loads((scene / "scene.json").read_text())
+    turned = json.loads(json.dumps(doc["camera"]))
+    turned["world_from_camera"][0][3] = 0.01  # a second view, 1 cm aside
+    doc["photos"].append({"file": "ambient0.exr", "role": "ambient"})
+    (scene / "scene.json").write_text(json.dumps(doc))
+    one_view = list(capture.iter_flash_images(capture.load_scene(scene)))
+    assert len(one_view) == 1 and float(np.abs(one_view[0].radiance).max()) == 0.0  # a - a
+    doc["photos"].append({**doc["photos"][0], "file": "flash1.exr", "camera": turned})
+    (scene / "scene.json").write_text(json.dumps(doc))
+    images = capture.iter_flash_images(capture.load_scene(scene))
+    next(images)  # the first view has its ambient photo
+    with pytest.raises(InputError, match=r"photos\[2\].*no ambient photo"):
+        next(images)
