@@ -29,6 +29,7 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   load_reference_entry(photo) -> rgb, measured   # what renders are compared against
   photo_exists(photo) -> bool   # a reference photo may be absent: rendered, not compared
   same_view(camera_a, camera_b) -> bool   # one pixel grid, intrinsics and pose
+  camera_key(camera) -> hashable           # what same_view compares, exactly
   embree_rays(camera, rows, cols, shift) -> float32 origins - shift, directions (not unit)
   iter_flash_images(scene_or_dir) -> FlashImage(photo, radiance, usable, clipped), one at a time
   load_flash_images(scene_or_dir) -> [FlashImage, ...]
@@ -43,7 +44,7 @@ from flashbrdf.capture.geometry import (Hits, MeshIntersector, Surface, intersec
                                         load_mesh, occluded, scene_intersector,
                                         surface_at_pixels, surface_from_mesh)
 from flashbrdf.capture.normal_map import load_normal_map, surface_from_normal_map
-from flashbrdf.capture.load import (FlashImage, iter_flash_images, load_flash_images,
+from flashbrdf.capture.load import (FlashImage, camera_key, iter_flash_images, load_flash_images,
                                     load_photo_entry, load_reference_entry, photo_exists,
                                     same_view)
 from flashbrdf.capture.photo import load_brackets, load_photo, read_float_image, srgb_to_linear
@@ -52,7 +53,7 @@ from flashbrdf.capture.scene import Camera, Geometry, Light, Photo, Scene, load_
 
 __all__ = [
     "Camera", "FlashImage", "Geometry", "Hits", "Light", "MeshIntersector", "Photo", "Scene",
-    "Surface", "camera_rays", "embree_rays", "intersect", "is_convex", "load_brackets",
+    "Surface", "camera_key", "camera_rays", "embree_rays", "intersect", "is_convex", "load_brackets",
     "iter_flash_images", "load_flash_images", "load_mesh", "load_normal_map", "load_photo", "load_photo_entry",
     "load_reference_entry", "load_scene", "photo_exists", "same_view", "occluded", "pixel_box", "pixel_rays", "project_points",
     "read_float_image", "scene_intersector", "srgb_to_linear", "surface_at_pixels", "surface_from_mesh",

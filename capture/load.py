@@ -56,13 +56,17 @@ def load_reference_entry(photo):
     return load_photo_entry(photo)
 
 
+def camera_key(camera):
+    """What identifies a camera's pixel grid, intrinsics, distortion and pose, exactly: photos
+    with equal keys are one view (they share primary rays, label and albedo images, ambient)."""
+    return (camera.model, camera.width, camera.height, camera.fx, camera.fy, camera.cx,
+            camera.cy, camera.pixel_size, np.asarray(camera.world_from_camera).tobytes(),
+            None if camera.distortion is None else np.asarray(camera.distortion).tobytes())
+
+
 def same_view(a, b):
-    """Whether two cameras are one view: the same pixel grid, intrinsics and pose."""
-    def fields(c):
-        return (c.model, c.shape, c.fx, c.fy, c.cx, c.cy, c.pixel_size,
-                None if c.distortion is None else tuple(np.ravel(c.distortion)))
-    return a is b or (fields(a) == fields(b)
-                      and np.allclose(a.world_from_camera, b.world_from_camera))
+    """Whether two cameras are one view (camera_key)."""
+    return a is b or camera_key(a) == camera_key(b)
 
 
 def _ambient(scene, photo):

@@ -2,15 +2,8 @@
 
 import numpy as np
 
+from flashbrdf.capture.load import camera_key
 from flashbrdf.files.errors import InputError
-
-
-def camera_key(camera):
-    """What identifies a camera's pixel grid and pose: photos with equal keys share their
-    primary rays and their label and albedo images."""
-    return (camera.model, camera.width, camera.height, camera.fx, camera.fy, camera.cx,
-            camera.cy, camera.pixel_size, np.asarray(camera.world_from_camera).tobytes(),
-            None if camera.distortion is None else np.asarray(camera.distortion).tobytes())
 
 
 class MaterialMap:

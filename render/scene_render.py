@@ -9,7 +9,8 @@ import numpy as np
 
 from flashbrdf.files.errors import InputError
 from flashbrdf.render.albedo_map import DiffuseAlbedoMap
-from flashbrdf.render.material_map import MaterialMap, camera_key
+from flashbrdf.capture.load import camera_key
+from flashbrdf.render.material_map import MaterialMap
 from flashbrdf.brdf.models import TabulatedBRDF
 from flashbrdf.render.envmap import EnvMap
 from flashbrdf.render.integrator import render_directional_light, render_envmap, render_point_light
