@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from flashbrdf.capture.importers.scene_json import dumps_scene
 from flashbrdf.files.errors import InputError
-from flashbrdf.capture.importers.diligent import dumps_scene
 from flashbrdf.files.outputs import staged_output_dir
 from flashbrdf.render.images import write_exr
 

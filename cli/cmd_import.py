@@ -3,7 +3,6 @@ import-diligent OBJ_DIR --flash INDEX --out SCENE_DIR`: another tool's capture a
 (capture.importers)."""
 
 import re
-import sys
 
 from flashbrdf.cli.options import add_force
 
@@ -18,19 +17,11 @@ def add_parsers(sub):
     s.set_defaults(handler=import_diligent)
 
 
-def progress_bar(what):
-    """A progress bar over photos on a terminal (none in a log)."""
-    from tqdm import tqdm
-
-    def progress(iterable):
-        return tqdm(iterable, desc=what, unit="photo", file=sys.stderr,
-                    disable=not sys.stderr.isatty())
-    return progress
-
-
 def import_diligent(args):
     from flashbrdf.capture.importers.diligent import import_diligent as write_scene
-    scene = write_scene(args.obj_dir, args.flash, args.out, progress=progress_bar("import-diligent"),
+    from flashbrdf.files.progress import photo_progress
+    scene = write_scene(args.obj_dir, args.flash, args.out,
+                        progress=lambda photos: photo_progress(photos, "import-diligent"),
                         force=args.force, notify=print)
     n_ref = sum(p["role"] == "reference" for p in scene["photos"])
     flash = next(p for p in scene["photos"] if p["role"] == "flash")

@@ -30,8 +30,13 @@ import shutil
 import tempfile
 import time
 
-from flashbrdf.files.atomic import (current_umask, make_parents, name_extension, remove_empty,
-                                    unwritable)
+from flashbrdf.files.atomic import (
+    current_umask,
+    make_parents,
+    name_extension,
+    remove_empty,
+    unwritable,
+)
 from flashbrdf.files.errors import InputError
 from flashbrdf.files.signals import raise_if_signalled, signals_deferred
 
@@ -44,7 +49,7 @@ def _forms(path):
     return {os.path.normpath(os.path.abspath(path)), os.path.realpath(path)}
 
 
-def _inside(child, parent):
+def path_inside(child, parent):
     """Whether path `child` is `parent` or lies under it (both absolute, normalised)."""
     return child == parent or child.startswith(parent.rstrip(os.sep) + os.sep)
 
@@ -96,7 +101,7 @@ def check_outputs(inputs, outputs, folders=()):
             src_forms = _forms(src)
             if out_forms & src_forms or _same_file(out, src):
                 raise InputError(out, f"is an input ({src}); refusing to overwrite it")
-            if is_folder and any(_inside(s, o) for s in src_forms for o in out_forms):
+            if is_folder and any(path_inside(s, o) for s in src_forms for o in out_forms):
                 raise InputError(out, f"output folder contains an input ({src}); refusing to "
                                       "replace it")
         check_output_kind(out, is_folder)

@@ -16,7 +16,7 @@ Public API:
   extract_material_slices(samples, labels (H, W), where, face_labels (F,) or None)
       -> {k: SliceResult or None}   # other views' samples labelled through their mesh faces
   slice_extract.segment.segment_samples(samples, materials="auto"|K) -> Segmentation(labels
-      (H, W) uint16, k, criterion, sample_labels); face_labels(labels, face_image, centroids)
+      (H, W) uint16, k, criterion); face_labels(labels, face_image, centroids)
   half_diff_thetas(wi, wo, normal) -> theta_h, theta_d
   silhouette_mask(object_mask, width_px) -> (H, W) bool
 """

@@ -16,7 +16,6 @@ Default thresholds:
   ~ 1e-12) and the slice stays the theta_d ~ 0 slice of the paper; raise it only knowingly.
 """
 
-import sys
 import time
 from dataclasses import dataclass, field, replace
 
@@ -36,6 +35,7 @@ from flashbrdf.slice_extract.level import (TARGET_MIN_COS, calibrated_record, re
 from flashbrdf.slice_extract.samples import REASONS, light_setup, photo_samples
 from flashbrdf.slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
                                    material_interior)
+from flashbrdf.files.progress import photo_progress
 
 
 @dataclass(frozen=True)
@@ -197,13 +197,6 @@ class FlashSamples:
         return FlashSamples(**{**self.__dict__, **pick})
 
 
-def _progress(items, what):
-    """A progress bar over photos on a terminal (and only for more than one photo)."""
-    from tqdm import tqdm
-    return tqdm(items, desc=what, unit="photo", file=sys.stderr,
-                disable=len(items) < 2 or not sys.stderr.isatty())
-
-
 def collect_samples(scene, options=None):
     """Trace the flash photos and compute every usable pixel's sample; returns FlashSamples.
 
@@ -241,7 +234,7 @@ def collect_samples(scene, options=None):
     store, per_photo, first = SampleStore(options), [], None
     traced_camera, surfaces, object_mask, edge = None, None, None, None
     images = capture.iter_flash_images(scene)
-    for k in _progress(range(len(flashes)), "extract"):
+    for k in photo_progress(range(len(flashes)), "extract"):
         image = next(images)
         t = clock.add("load_photos", t)
         camera = image.photo.camera

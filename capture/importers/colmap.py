@@ -15,20 +15,19 @@ contract's "relative to the folder" allows), so moving the scene folder together
 keeps it working. The folder is built aside and renamed into place when complete.
 """
 
-import json
 import os
-import re
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 
 import numpy as np
 
-from flashbrdf.files.errors import InputError
 from flashbrdf.capture.importers.colmap_model import camera_model_name, read_colmap_model
 from flashbrdf.capture.importers.mesh_frame import check_mesh_frame, require_mesh_in_frame
+from flashbrdf.capture.importers.scene_json import dumps_scene
 from flashbrdf.capture.photo import CV_EXTENSIONS, FLOAT_EXTENSIONS, RAW_EXTENSIONS
 from flashbrdf.capture.scene import MAX_FACTOR, MIN_FACTOR
-from flashbrdf.files.outputs import check_outputs, staged_output_dir
+from flashbrdf.files.errors import InputError
+from flashbrdf.files.outputs import check_outputs, path_inside, staged_output_dir
 
 PHOTO_EXTENSIONS = FLOAT_EXTENSIONS + CV_EXTENSIONS + RAW_EXTENSIONS
 LISTED_NAMES = 8          # skipped images named on stdout; the rest are counted
@@ -198,11 +197,6 @@ def photo_size(path):
     return spec.width, spec.height
 
 
-def _inside(path, folder):
-    path, folder = os.path.realpath(path), os.path.realpath(folder)
-    return path == folder or path.startswith(folder.rstrip(os.sep) + os.sep)
-
-
 def _relative(path, scene_folder):
     """`path` relative to the (future) scene folder `scene_folder` (a real path). The folders
     are compared as real paths, as capture.load_scene resolves the scene folder before joining,
@@ -211,13 +205,6 @@ def _relative(path, scene_folder):
     path = Path(os.path.abspath(path))
     folder = os.path.relpath(os.path.realpath(path.parent), scene_folder)
     return (Path(folder) / path.name).as_posix()
-
-
-def _dumps(scene):
-    """JSON text with each innermost list of numbers on one line."""
-    text = json.dumps(scene, indent=1)
-    numbers = re.compile(r"\[\s*(-?[\d.eE+-]+(?:,\s*-?[\d.eE+-]+)*)\s*\]")
-    return numbers.sub(lambda m: "[" + re.sub(r"\s+", " ", m.group(1)) + "]", text) + "\n"
 
 
 def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 0.0),
@@ -243,7 +230,7 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
                                      "photos)")
     check_outputs(inputs=[model_dir, images_dir, mesh, target], outputs=[out_dir],
                   folders=[out_dir])
-    if _inside(out_dir, images_dir):
+    if path_inside(os.path.realpath(out_dir), os.path.realpath(images_dir)):
         raise InputError(out_dir, f"is inside --images {images_dir}: import-colmap writes "
                                   "nothing there; give a folder beside it")
     model = read_colmap_model(model_dir)
@@ -285,7 +272,7 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
             level["target"]["mesh"] = _relative(Path(target), scene_folder)
         scene["level"] = level
     with staged_output_dir(out_dir, force=force, command="import-colmap") as staged:
-        Path(staged, "scene.json").write_text(_dumps(scene), encoding="utf-8")
+        Path(staged, "scene.json").write_text(dumps_scene(scene), encoding="utf-8")
     return ColmapImport(out_dir, model, matched, skipped, cameras, error, frame, scene)
 
 

@@ -19,8 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.files.errors import InputError
 from flashbrdf.capture.scene import MAX_FACTOR, MAX_IMAGE_SIDE, MIN_FACTOR
+from flashbrdf.files.errors import InputError
 
 MODEL_FILES = {"binary": ("cameras.bin", "images.bin", "points3D.bin"),
                "text": ("cameras.txt", "images.txt", "points3D.txt")}

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from flashbrdf.capture.importers.scene_json import dumps_scene
 from flashbrdf.files.errors import InputError
 from flashbrdf.files.outputs import check_outputs, staged_output_dir
 from flashbrdf.render.images import write_exr
@@ -196,16 +197,6 @@ def read_diligent(obj_dir):
 def normals_to_camera(normals_diligent):
     """(..., 3) DiLiGenT-frame normals -> (..., 3) contract camera-frame normals (x, -y, -z)."""
     return np.asarray(normals_diligent) @ CAMERA_FROM_DILIGENT.T
-
-
-def dumps_scene(scene):
-    """scene dict -> JSON text, indented, with every list of numbers on one line."""
-    import json
-    import re
-    text = json.dumps(scene, indent=1)
-    # Innermost lists hold only numbers: collapse each onto one line for a readable file.
-    number_list = re.compile(r"\[\s*(-?[\d.eE+-]+(?:,\s*-?[\d.eE+-]+)*)\s*\]")
-    return number_list.sub(lambda m: "[" + re.sub(r"\s+", " ", m.group(1)) + "]", text) + "\n"
 
 
 def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, notify=None):

@@ -43,12 +43,10 @@ class SegmentOptions:
 @dataclass(eq=False)
 class Segmentation:
     """labels (H, W) uint16, 0 = not the object, 1..K; k: K; criterion: JSON-ready numbers
-    (BIC per K, merged K, residuals) that say why K was chosen; sample_labels (N,) int 1..K of
-    the samples it was computed from (before spatial clean-up, 0 for censored)."""
+    (BIC per K, merged K, residuals) that say why K was chosen."""
     labels: np.ndarray
     k: int
     criterion: dict
-    sample_labels: np.ndarray
 
 
 def merge_components(means, covariances, weights, separation, min_fraction, margins=None):

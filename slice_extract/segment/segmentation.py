@@ -49,10 +49,7 @@ def _segment_samples(samples, materials, options):
     image.ravel()[pixels] = labels + 1
     cleaned = clean_label_image(image, samples.object_mask, options.min_area_fraction)
     criterion["chosen_k"] = int(cleaned.max())
-    sample_labels = np.zeros(len(samples.pixels), int)
-    pooled = (samples.photo == 0) & ~samples.censored & np.all(np.isfinite(samples.rho), axis=1)
-    sample_labels[pooled] = np.take(cleaned.ravel(), samples.pixels[pooled])
-    return Segmentation(cleaned, int(cleaned.max()), criterion, sample_labels)
+    return Segmentation(cleaned, int(cleaned.max()), criterion)
 
 
 def _fixed_k(rho, theta_h, k, options):
