@@ -76,8 +76,8 @@ def weights_per_bin(knot_weights=CONSENSUS_WEIGHTS):
 def consensus_table(tables, knot_weights=CONSENSUS_WEIGHTS):
     """The consensus of member 2D tables (M, 90, 90, 3) in 1/sr (NaN where no data), ordered as
     knot_weights' columns: (90, 90, 3), NaN where the first member (the DS-GPLVM) has none; where
-    another member has none, the first member's value stands in for it (a training table with a
-    hole makes Nöll's mixture NaN there whatever its weight)."""
+    another member has none (a Nöll mixture over a training table with a hole there), the first
+    member's value stands in for it."""
     tables = np.asarray(tables, dtype=float)
     tables = np.where(np.isnan(tables), tables[:1], tables)
     features = metric_features(tables)                                   # (M, 90, 90, 3)

@@ -87,6 +87,21 @@ def test_noll_passes_through_observed_samples(mixed_set):
     np.testing.assert_allclose(table[:, 0], s, rtol=1e-6, atol=2e-9)
 
 
+def test_noll_leaves_a_tables_hole_to_the_others(mixed_set):
+    """The slice of training material 0 is fitted by material 0 (weight 1, the others ~1e-10):
+    a hole in material 2's 2D table (NaN at θd > 0, where the others hold data) must not void
+    the prediction there (1e-10 × NaN is NaN in a plain weighted sum)."""
+    tables = mixed_set.tables_2d.copy()
+    tables[2, 30:40, 10:20] = np.nan
+    holed = TrainingSet(mixed_set.names, mixed_set.slices, tables,
+                        valid_3d=mixed_set.valid_3d)
+    table, _ = Noll().fit(holed).predict(mixed_set.slices[0].copy(), "2d")
+    want = mixed_set.tables_2d[0]
+    seen = np.isfinite(want).all(axis=-1)
+    assert np.isfinite(table[seen]).all()
+    np.testing.assert_allclose(table[30:40, 10:20], want[30:40, 10:20], rtol=1e-6)
+
+
 def test_pca_all_components_recovers_training_material(mixed_set):
     method = PCA(n_components=None, ridge=0.0).fit(mixed_set)
     for i in (0, 3):

@@ -81,5 +81,15 @@ class Noll(InferenceMethod):
 
     def _predict_2d(self, rho):
         w, space = self.combination(rho)
-        mixed = np.einsum("i,ijkc->jkc", w, self.training_.tables_2d)
+        # a training table with a hole (NaN) leaves the mixture there to the others, their
+        # weights scaled up to the same total: in a plain sum, even a weight of 1e-10 times NaN
+        # voids the bin for every prediction
+        tables = self.training_.tables_2d
+        present = np.isfinite(tables)
+        share = np.einsum("i,ijkc->jkc", w, present)
+        mixed = np.einsum("i,ijkc->jkc", w, np.where(present, tables, 0.0))
+        holes = ~present.all(axis=0)  # (bins every table holds keep the plain sum's bits)
+        if w.sum() != 0 and holes.any():  # all-zero weights (a black slice) mix to 0
+            with np.errstate(invalid="ignore", divide="ignore"):
+                mixed[holes] *= w.sum() / share[holes]
         return np.maximum(mixed, 0.0) * space.correction[:, None, :], None
