@@ -70,6 +70,12 @@ def _undistorted_grid(width, height, intrinsics, distortion):
     return grid
 
 
+def _lens_grid(camera):
+    """The cached (2, H, W) normalised (x, y) of a distorted pinhole camera's pixel centres."""
+    return _undistorted_grid(camera.width, camera.height, camera.intrinsics.tobytes(),
+                             np.asarray(camera.distortion, np.float64).tobytes())
+
+
 def embree_rays(camera, rows, cols, shift):
     """float32 rays for Embree through pixel centres (rows, cols) (N,) int: origins - shift
     (N, 3) and directions (N, 3), WORLD frame, NOT unit length (Embree does not need them unit;
@@ -82,8 +88,7 @@ def embree_rays(camera, rows, cols, shift):
             x = ((np.asarray(cols, np.float32) - np.float32(camera.cx)) / np.float32(camera.fx))
             y = ((np.asarray(rows, np.float32) - np.float32(camera.cy)) / np.float32(camera.fy))
         else:
-            grid = _undistorted_grid(camera.width, camera.height, camera.intrinsics.tobytes(),
-                                     np.asarray(camera.distortion, np.float64).tobytes())
+            grid = _lens_grid(camera)
             flat = rows.astype(np.int64) * camera.width + cols
             x, y = grid[0].ravel()[flat], grid[1].ravel()[flat]
         directions = np.empty((len(x), 3), dtype=np.float32)
@@ -151,13 +156,13 @@ def pixel_box(camera, bounds, margin=2):
     """Pixel rectangle that can see an axis-aligned WORLD box: rays outside it cannot hit.
 
     bounds: (2, 3) [min, max] corners. Returns (row0, row1, col0, col1), half-open, clipped to
-    the image; the whole image when the box straddles a pinhole camera's z = 0 plane or the lens
-    is distorted (the projected corners then no longer bound the projection). The projection of
-    a box is the convex hull of its projected corners (perspective and affine maps keep convexity).
+    the image; the whole image when the box straddles a pinhole camera's z = 0 plane. The
+    projection of a box is the convex hull of its projected corners (perspective and affine maps
+    keep convexity). Through a distorted lens that holds before the distortion: the box is the
+    pixels whose undistorted centres (the cached lens grid the rays are built from) fall in the
+    corners' undistorted bounding rectangle.
     """
     whole = (0, camera.height, 0, camera.width)
-    if camera.model == "pinhole" and camera.distortion is not None:
-        return whole
     lo, hi = np.asarray(bounds, dtype=np.float64)
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
                         for z in (lo[2], hi[2])])
@@ -166,8 +171,19 @@ def pixel_box(camera, bounds, margin=2):
         return whole
     if camera.model == "orthographic" and np.all(z < 0):
         return (0, 0, 0, 0)
+    clip = lambda v, top: int(min(max(v, 0), top))  # noqa: E731
+    if camera.model == "pinhole" and camera.distortion is not None:
+        local = camera.to_camera(corners)
+        normalised = local[:, :2] / local[:, 2:]
+        (x0, y0), (x1, y1) = normalised.min(0), normalised.max(0)
+        x, y = _lens_grid(camera)
+        inside = (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
+        rows, cols = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
+        if not rows.size:
+            return (0, 0, 0, 0)
+        return (clip(rows[0] - margin, camera.height), clip(rows[-1] + margin + 1, camera.height),
+                clip(cols[0] - margin, camera.width), clip(cols[-1] + margin + 1, camera.width))
     c0, r0 = np.floor(uv.min(0)) - margin
     c1, r1 = np.ceil(uv.max(0)) + margin + 1
-    clip = lambda v, top: int(min(max(v, 0), top))  # noqa: E731
     return (clip(r0, camera.height), clip(r1, camera.height), clip(c0, camera.width),
             clip(c1, camera.width))

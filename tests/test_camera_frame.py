@@ -61,3 +61,22 @@ def test_embree_rays_of_a_distorted_camera_match_its_exact_rays():
     unit = directions / np.linalg.norm(directions, axis=1, keepdims=True)
     assert np.abs(unit - pixel_rays(other, rows, cols)[1]).max() < 4e-7
     assert np.abs(unit - exact).max() > 1e-3  # the two lenses differ by far more
+
+
+def test_the_pixel_box_of_a_distorted_lens_holds_every_hit_and_little_else():
+    # A sphere off the axis of a strongly distorted lens: the box (margin 0) must hold every
+    # pixel whose ray hits (traced over the whole frame), and be that set's bounding box
+    # exactly up to the corners' slack (the sphere's bounding cube, ~1.3× its disc here), far
+    # smaller than the frame the box used to be for any distorted lens.
+    from flashbrdf.capture import MeshIntersector, pixel_box, surface_at_pixels
+    from synthetic import sphere_mesh
+    camera = Camera("pinhole", 160, 120, np.eye(4), fx=120.0, fy=120.0, cx=80.0, cy=60.0,
+                    distortion=np.array([-0.25, 0.08, 0.001, -0.001, 0.0]))
+    mesh = MeshIntersector(sphere_mesh(radius=0.08, centre=(0.25, 0.12, 1.0), subdivisions=4))
+    rows, cols = (a.ravel() for a in np.indices(camera.shape))
+    hits = surface_at_pixels(mesh, camera, rows, cols)
+    r0, r1, c0, c1 = pixel_box(camera, mesh.mesh.bounds, margin=0)
+    assert hits.rows.min() >= r0 and hits.rows.max() < r1
+    assert hits.cols.min() >= c0 and hits.cols.max() < c1
+    hit_area = (np.ptp(hits.rows) + 1) * (np.ptp(hits.cols) + 1)
+    assert hit_area <= (r1 - r0) * (c1 - c0) <= 2.0 * hit_area < 0.25 * camera.width * camera.height
