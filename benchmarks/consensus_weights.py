@@ -35,7 +35,8 @@ from flashbrdf.brdf import colour, merl  # noqa: E402
 from flashbrdf.infer import TrainingSet  # noqa: E402
 from flashbrdf.infer.consensus import (CONSENSUS_MEMBERS, CONSENSUS_WEIGHTS,  # noqa: E402
                                        THETA_D_KNOTS_DEG, THETA_H_KNOTS_DEG, consensus_table,
-                                       member_spread, metric_features, weights_per_bin)
+                                       member_spread, weights_per_bin)
+from flashbrdf.brdf.metrics import lab_log_features  # noqa: E402
 from flashbrdf.infer.estimator import InferenceMethod  # noqa: E402
 from flashbrdf.infer.warning import (DISAGREEMENT_WARN_DE, disagreement,  # noqa: E402
                                     prediction_warning)
@@ -116,7 +117,7 @@ def fit_knots(samples):
 def sample_of(members, true):
     ok = np.isfinite(true).all(-1) & np.isfinite(members).all(-1).all(0)
     ih, jd = np.nonzero(ok)
-    return metric_features(members[:, ok]), metric_features(true[ok]), ih, jd
+    return lab_log_features(members[:, ok]), lab_log_features(true[ok]), ih, jd
 
 
 def coverage_hits(table, variance, true, space, coverage=0.9):

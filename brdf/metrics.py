@@ -9,7 +9,7 @@ Valid bins are those where the ground truth is finite; a NaN prediction there co
 
 import numpy as np
 
-from flashbrdf.brdf.colour import linear_rgb_to_lab
+from flashbrdf.brdf.colour import lab_to_linear_rgb, linear_rgb_to_lab
 
 TRANSFORMS = ("lin", "root", "log")
 SPACES = ("rgb", "lab")
@@ -88,12 +88,23 @@ def summarise(values):
     return {"mean": float(np.mean(values)), "median": float(np.median(values))}
 
 
+def lab_log_features(rho):
+    """CIELAB of ln(1 + rho): the LAB-log metric's space, where its Delta E is Euclidean.
+
+    rho: (..., 3) linear RGB (1/sr, or pixel values), clamped to >= 0; NaN stays NaN.
+    Returns (..., 3) float64."""
+    return linear_rgb_to_lab(np.log1p(np.maximum(np.asarray(rho, dtype=np.float64), 0.0)))
+
+
+def rho_from_lab_log(features):
+    """rho >= 0 (..., 3) of lab_log_features, its inverse (exp clipped short of overflow)."""
+    return np.maximum(np.expm1(np.minimum(lab_to_linear_rgb(features), 700.0)), 0.0)
+
+
 def delta_e_log(pred, ref):
     """Per-element Delta E*ab between CIELAB(ln(1 + pred)) and CIELAB(ln(1 + ref)).
 
     pred, ref: (..., 3) linear RGB (pixels or BRDF values), clamped to >= 0. Returns (...).
     This is Table 2's render metric.
     """
-    p = np.log1p(np.maximum(np.asarray(pred, dtype=np.float64), 0.0))
-    r = np.log1p(np.maximum(np.asarray(ref, dtype=np.float64), 0.0))
-    return np.linalg.norm(linear_rgb_to_lab(p) - linear_rgb_to_lab(r), axis=-1)
+    return np.linalg.norm(lab_log_features(pred) - lab_log_features(ref), axis=-1)

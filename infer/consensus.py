@@ -21,7 +21,8 @@ import numpy as np
 
 from flashbrdf.brdf import merl
 from flashbrdf.brdf.bins import valid_bins_3d
-from flashbrdf.brdf.colour import FEATURE_OFFSET, lab_to_linear_rgb, linear_rgb_to_lab
+from flashbrdf.brdf.colour import FEATURE_OFFSET
+from flashbrdf.brdf.metrics import lab_log_features, rho_from_lab_log
 from flashbrdf.infer.anchoring import apply_log_correction
 from flashbrdf.infer.baselines import PCA, Noll
 from flashbrdf.infer.estimator import LinearSpace
@@ -42,17 +43,6 @@ CONSENSUS_WEIGHTS = np.array([[[0.698, 0.301, 0.001],
                                [0.387, 0.582, 0.031],
                                [0.846, 0.154, 0.000],
                                [1.000, 0.000, 0.000]]])
-
-
-def metric_features(rho):
-    """CIELAB of ln(1 + ρ) (..., 3), ρ in 1/sr clamped ≥ 0: the LAB-log metric's space. NaN stays."""
-    rho = np.asarray(rho, dtype=float)
-    return linear_rgb_to_lab(np.log1p(np.where(np.isnan(rho), np.nan, np.maximum(rho, 0.0))))
-
-
-def from_metric_features(features):
-    """ρ ≥ 0 in 1/sr of metric_features, its inverse."""
-    return np.maximum(np.expm1(np.minimum(lab_to_linear_rgb(features), 700.0)), 0.0)
 
 
 def weights_per_bin(knot_weights=CONSENSUS_WEIGHTS):
@@ -80,9 +70,9 @@ def consensus_table(tables, knot_weights=CONSENSUS_WEIGHTS):
     member's value stands in for it."""
     tables = np.asarray(tables, dtype=float)
     tables = np.where(np.isnan(tables), tables[:1], tables)
-    features = metric_features(tables)                                   # (M, 90, 90, 3)
+    features = lab_log_features(tables)                                   # (M, 90, 90, 3)
     mixed = np.einsum("hdm,mhdc->hdc", weights_per_bin(knot_weights), features)
-    out = from_metric_features(np.nan_to_num(mixed))
+    out = rho_from_lab_log(np.nan_to_num(mixed))
     out[~np.isfinite(mixed).all(axis=-1)] = np.nan
     return out
 

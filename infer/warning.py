@@ -16,7 +16,7 @@ measures it nested, each kind's threshold chosen on the other kinds).
 import numpy as np
 
 from flashbrdf.brdf import merl
-from flashbrdf.infer.consensus import metric_features
+from flashbrdf.brdf.metrics import delta_e_log
 from flashbrdf.infer.slice_fit import OUT_OF_TRAINING_NOVELTY
 
 DISAGREEMENT_MIN_THETA_D_DEG = 30.0
@@ -38,7 +38,7 @@ def disagreement(table_a, table_b, min_theta_d_deg=DISAGREEMENT_MIN_THETA_D_DEG)
     ok = np.isfinite(a).all(-1) & np.isfinite(b).all(-1)
     if not ok.any():
         return float("nan")
-    return float(np.linalg.norm(metric_features(a[ok]) - metric_features(b[ok]), axis=-1).mean())
+    return float(delta_e_log(a[ok], b[ok]).mean())
 
 
 def prediction_warning(method, flash_slice, source="slice"):

@@ -198,8 +198,10 @@ def level_matched(rows, levels):
         used = comparison_mask(render, reference, read_image(mask) if mask is not None
                                else None)
         if used.any():
-            errors.append(float(np.mean(delta_e_log(np.asarray(render, float)[used] * scale,
-                                                    np.asarray(reference, float)[used]))))
+            # mask first, then float64: no float64 copy of whole images per photo
+            errors.append(float(np.mean(delta_e_log(
+                np.asarray(render)[used].astype(float) * scale,
+                np.asarray(reference)[used].astype(float)))))
     if not errors:
         return None
     return {"scale": scale, "delta_e_log_mean": summarise(errors)}

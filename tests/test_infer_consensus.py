@@ -11,9 +11,9 @@ import pytest
 from flashbrdf.brdf import merl
 from flashbrdf.brdf.bins import valid_bins_3d
 from flashbrdf.infer import DSGPLVMMethod
+from flashbrdf.brdf.metrics import lab_log_features, rho_from_lab_log
 from flashbrdf.infer.consensus import (CONSENSUS_WEIGHTS, ConsensusSpace, consensus_table,
-                                       from_metric_features, member_spread, metric_features,
-                                       weights_per_bin)
+                                       member_spread, weights_per_bin)
 from flashbrdf.infer.estimator import LinearSpace
 from flashbrdf.infer.warning import DISAGREEMENT_WARN_DE, disagreement, prediction_warning
 from tests.test_infer_baselines import SIX_AP_SPECS, coloured_ap_set
@@ -49,7 +49,7 @@ def test_weights_are_convex_and_bilinear_between_the_knots():
 
 def test_equal_members_give_themselves_back_and_the_map_inverts():
     t = _tables(1, 1)[0]
-    np.testing.assert_allclose(from_metric_features(metric_features(t)), t, rtol=1e-9)
+    np.testing.assert_allclose(rho_from_lab_log(lab_log_features(t)), t, rtol=1e-9)
     np.testing.assert_allclose(consensus_table(np.stack([t, t, t])), t, rtol=1e-9)
 
 
@@ -59,9 +59,9 @@ def test_the_consensus_error_is_at_most_the_weighted_error_of_its_members_bin_by
     strictly smaller wherever two members weigh."""
     members, truth = _tables(2, 3), _tables(3, 1)[0]
     cons = consensus_table(members)
-    f_true = metric_features(truth)
-    err = np.linalg.norm(metric_features(cons) - f_true, axis=-1)           # (90, 90)
-    each = np.linalg.norm(metric_features(members) - f_true, axis=-1)       # (3, 90, 90)
+    f_true = lab_log_features(truth)
+    err = np.linalg.norm(lab_log_features(cons) - f_true, axis=-1)           # (90, 90)
+    each = np.linalg.norm(lab_log_features(members) - f_true, axis=-1)       # (3, 90, 90)
     bound = np.einsum("hdm,mhd->hd", weights_per_bin(), each)
     assert (err <= bound + 1e-9).all()
     # equality needs the members' errors to point the same way; random members never do, so where
