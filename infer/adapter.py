@@ -242,7 +242,7 @@ class DSGPLVMMethod(InferenceMethod):
             table, variance = super().predict(flash_slice, view)
         if self.anchor and view == "2d":  # 3D: anchored in combination()
             rho = check_slice(flash_slice)
-            table = blend_toward_row(anchor_to_slice(table, rho), rho, self.row_blend_deg)
+            table = self._anchored(table, rho)
             if self.members_ is not None:
                 members = self.member_tables(rho, table)
                 stack = np.stack(list(members.values()))
@@ -266,11 +266,14 @@ class DSGPLVMMethod(InferenceMethod):
             return cached[1]
         if own_table is None:
             with one_blas_thread():
-                own_table = InferenceMethod.predict(self, rho, "2d")[0]
-            own_table = blend_toward_row(anchor_to_slice(own_table, rho), rho, self.row_blend_deg)
+                own_table = self._anchored(InferenceMethod.predict(self, rho, "2d")[0], rho)
         members = {"dsgplvm": own_table} | self.members_.tables(rho)
         self._members_cache = (key, members)
         return members
+
+    def _anchored(self, table_2d, rho):
+        """The DS-GPLVM's own 2D table anchored to the slice and blended toward its row."""
+        return blend_toward_row(anchor_to_slice(table_2d, rho), rho, self.row_blend_deg)
 
     def _predict_2d(self, rho, parts=None):
         """parts: _weight_parts for the 2D view, when already at hand."""
@@ -325,9 +328,9 @@ class DSGPLVMMethod(InferenceMethod):
             log_c = anchor_log_correction(table_2d[:, 0], rho)
             space = space if log_c is None else AnchoredSpace(space, log_c)
             space = RowBlendSpace(space, rho, self.row_blend_deg)
-            if self.members_ is not None:
+            if self.members_ is not None:  # its own member is the 2D table just predicted
                 with one_blas_thread():
-                    members = self.member_tables(rho)
+                    members = self.member_tables(rho, self._anchored(table_2d, rho))
                 log_c = consensus_log_correction(members["dsgplvm"],
                                                  consensus_table(np.stack(list(members.values()))))
                 space = ConsensusSpace(space, log_c)
