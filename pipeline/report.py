@@ -255,11 +255,12 @@ def level_note(summary):
 
 def write_report(out_dir, *, stages, references=(), observed=None, predictions=None, warnings=(),
                  title="flashbrdf report", notes=(), max_reference_figures=24, x_key=None,
-                 x_label=None, extra=None, sections=()):
+                 x_label=None, extra=None, sections=(), materials=None):
     """Write OUT_DIR/report.md, OUT_DIR/report.json and OUT_DIR/figures/*.png; return the JSON dict.
 
     extra: more JSON fields for report.json (e.g. "materials"); sections: markdown lines put
-    after the notes and warnings (figures they name must already be in OUT_DIR)."""
+    after the notes and warnings (figures they name must already be in OUT_DIR); materials:
+    each material's slice and predictions for report.html (pipeline.report_html)."""
     out_dir = Path(out_dir)
     fig_dir = out_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
@@ -311,7 +312,8 @@ def write_report(out_dir, *, stages, references=(), observed=None, predictions=N
     })
     write_text(out_dir / "report.json", json.dumps(report, indent=1) + "\n")
     write_text(out_dir / "report.md", _markdown(report, n_photos, sections))
-    write_report_html(out_dir, report, references, observed, predictions, how_to_read=HOW_TO_READ,
+    write_report_html(out_dir, report, references, observed, predictions, materials=materials,
+                      how_to_read=HOW_TO_READ,
                       level_note=level_note(report["summary"]) if report["summary"] else None)
     return report
 

@@ -194,21 +194,6 @@ def uint8_b64(array):
 
 # ---- BRDF tables --------------------------------------------------------------------------
 
-def merl_table_2d(path):
-    """rho(theta_h, theta_d) (90, 90, 3) float32 in 1/sr from a MERL .binary: the mean over the
-    valid phi_d bins (brdf.views.table_2d of brdf.merl.read_merl), NaN where none. Read without
-    read_merl's checks (the file is one `run` just wrote), which makes it ~4x faster."""
-    from flashbrdf.brdf.merl import MERL_SCALE, MERL_SHAPE
-    raw = np.fromfile(path, dtype="<f8", offset=12).reshape(3, MERL_SHAPE[0] * MERL_SHAPE[1],
-                                                             MERL_SHAPE[2])
-    valid = raw >= 0
-    total = np.where(valid, raw, 0.0).sum(axis=2)
-    count = valid.sum(axis=2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = total / count * MERL_SCALE[:, None]
-    return mean.T.reshape(MERL_SHAPE[0], MERL_SHAPE[1], 3).astype(np.float32)
-
-
 def uniform_value(values):
     """The one value of a non-empty array whose values all agree (to 1e-9 relative), else None:
     an uncertainty that is one number in every bin (one isotropic GP per view) is said, not

@@ -7,9 +7,9 @@ split, ΔE overlay, one exposure control over the linear data, linear values on 
 Principled fit of `run --export`) and, with several materials, the label image and each
 material's slice and share.
 
-write_report_html takes values (pipeline/report.py:write_report calls it last); what `run` does
-not pass it (the label image, per-material slices and tables, export/principled.json) it reads
-from the files `run` wrote into OUT_DIR. The images are encoded by pipeline/report_photos.py.
+write_report_html takes values (pipeline/report.py:write_report calls it last), the label image
+and each material's slice and tables included; only the Principled fit (export/principled.json)
+is read from OUT_DIR. The images are encoded by pipeline/report_photos.py.
 """
 
 import html
@@ -18,12 +18,9 @@ import re
 import time
 from pathlib import Path
 
-import cv2
 import numpy as np
 
 from flashbrdf.files.atomic import write_text
-from flashbrdf.files.errors import InputError
-from flashbrdf.brdf.views import read_slice_csv
 from flashbrdf.pipeline import report_data as data
 from flashbrdf.pipeline import report_photos
 from flashbrdf.pipeline.report_text import PAGE_DIR, PAGE_NAME, finite, summary_html
@@ -33,21 +30,25 @@ LABELS_MAX_SIDE = 512     # the label image is shown at most this large (nearest
 
 
 def write_report_html(out_dir, report, references=(), observed=None, predictions=None, *,
-                      level_note=None, how_to_read=None, budget=data.IMAGE_BUDGET_BYTES):
+                      materials=None, level_note=None, how_to_read=None,
+                      budget=data.IMAGE_BUDGET_BYTES):
     """Write OUT_DIR/report.html; return {"path", "bytes", "seconds", "image_factor",
     "image_bytes"}.
 
     report: the dict write_report wrote to report.json; references: its reference rows with
     arrays (or image paths) "render", "reference", "delta_e_map", "mask"; observed: {"rho",
     "n", "spread"} or None; predictions: {method: {"table", "variance", "variance_label"}} or
-    None; level_note, how_to_read: report.md's texts (markdown), shown in the summary."""
+    None; materials: with several materials, {"labels": (H, W) int label image, "each": {k:
+    {"observed": like observed, "predictions": like predictions}}} (what `run` has in memory:
+    nothing is read back from OUT_DIR); level_note, how_to_read: report.md's texts
+    (markdown), shown in the summary."""
     start = time.perf_counter()
     out_dir = Path(out_dir)
     rows = list(references or ())
     methods = list(dict.fromkeys(str(r["method"]) for r in rows))
     photos, blocks, image_info = report_photos.encode_photos(report_photos.gather(rows),
                                                              methods, budget)
-    brdf = _brdf_datasets(out_dir, report, observed, predictions)
+    brdf = _brdf_datasets(observed, predictions, materials)
     meta = {
         "title": report.get("title", "flashbrdf report"),
         "methods": methods,
@@ -61,7 +62,7 @@ def write_report_html(out_dir, report, references=(), observed=None, predictions
                  for name in ("inferno", "magma", "viridis")},
         "brdf": brdf,
         "principled": _principled(out_dir),
-        "materials": _materials(out_dir, report),
+        "materials": _materials(report, materials),
         "images": image_info,
     }
     meta["exposure"]["initial"] = round(meta["exposure"]["initial"], 1)
@@ -104,34 +105,21 @@ def _fill(template, values):
     return "".join(values.get(p, "{{" + p + "}}") if k % 2 else p for k, p in enumerate(pieces))
 
 
-# ---- the BRDF and the materials, from the arguments or from OUT_DIR -------------------------
+# ---- the BRDF and the materials, from the arguments --------------------------------------
 
-def _brdf_datasets(out_dir, report, observed, predictions):
+def _brdf_datasets(observed, predictions, materials=None):
     """[{"name", "material" (label or None), "observed", "methods": {method: brdf_entry}}]:
-    the whole object's (write_report's arguments) and, with several materials, each
-    material's (OUT_DIR/materials/material_<k>.csv and <method>/material_<k>/brdf.binary)."""
-    datasets = []
-    if predictions:
-        entries = {}
-        for method, p in predictions.items():
-            p = p if isinstance(p, dict) else {"table": p}
-            entries[str(method)] = data.brdf_entry(p["table"], p.get("variance"),
-                                                   p.get("variance_label", "uncertainty"))
-        datasets.append({"name": "the whole object", "material": None,
-                         "observed": _observed_entry(observed), "methods": entries})
-    materials = report.get("materials") or []
-    if len(materials) > 1:
-        for m in materials:
-            entries = {}
-            for method, file in (m.get("brdf") or {}).items():
-                path = out_dir / file
-                if path.is_file():
-                    entries[str(method)] = data.brdf_entry(
-                        data.merl_table_2d(path), variance_note=f"{method}: run keeps no "
-                        "per-material uncertainty in OUT_DIR (only each table).")
-            datasets.append({"name": f"material {m['label']}", "material": int(m["label"]),
-                             "observed": _slice_file(out_dir / m["slice"]),
-                             "methods": entries})
+    the whole object's and, with several materials, each material's."""
+    def entries(predictions):
+        return {str(method): data.brdf_entry(p["table"], p.get("variance"),
+                                             p.get("variance_label", "uncertainty"))
+                for method, p in (predictions or {}).items()}
+    datasets = [{"name": "the whole object", "material": None,
+                 "observed": _observed_entry(observed), "methods": entries(predictions)}]
+    for k, each in sorted(((materials or {}).get("each") or {}).items()):
+        datasets.append({"name": f"material {k}", "material": int(k),
+                         "observed": _observed_entry(each.get("observed")),
+                         "methods": entries(each.get("predictions"))})
     return [d for d in datasets if d["methods"]]
 
 
@@ -141,27 +129,21 @@ def _observed_entry(observed):
     return data.slice_entry(observed["rho"], observed["n"], observed.get("spread"))
 
 
-def _slice_file(path):
-    try:
-        rho, n = read_slice_csv(path)
-    except InputError:
-        return None
-    return data.slice_entry(rho, n)
-
-
-def _materials(out_dir, report):
+def _materials(report, materials):
     """The label image (nearest-sampled to LABELS_MAX_SIDE) and each material's share, or None
     for one material."""
-    materials = report.get("materials") or []
-    labels = cv2.imread(str(out_dir / "labels.png"), cv2.IMREAD_UNCHANGED)
-    if len(materials) < 2 or labels is None or labels.ndim != 2:
+    entries_json = report.get("materials") or []
+    labels = None if materials is None else materials.get("labels")
+    if len(entries_json) < 2 or labels is None or np.ndim(labels) != 2:
         return None
+    labels = np.asarray(labels)
     step = max(1, -(-max(labels.shape) // LABELS_MAX_SIDE))
     shown = np.clip(labels[::step, ::step], 0, 255)
-    total = sum(int(m.get("pixels", 0)) for m in materials) or 1
+    total = sum(int(m.get("pixels", 0)) for m in entries_json) or 1
+    each = materials.get("each") or {}
     entries = []
-    for m in materials:
-        observed = _slice_file(out_dir / m["slice"])
+    for m in entries_json:
+        observed = (each.get(int(m["label"])) or {}).get("observed")
         entries.append({"label": int(m["label"]), "pixels": int(m.get("pixels", 0)),
                         "share": int(m.get("pixels", 0)) / total,
                         "bins_filled": None if observed is None else
@@ -170,7 +152,7 @@ def _materials(out_dir, report):
     return {"labels": {"width": int(shown.shape[1]), "height": int(shown.shape[0]),
                        "step": step, "data": data.uint8_b64(shown)},
             "entries": entries,
-            "reason": f"Segmentation of the flash photo into {len(materials)} materials"
+            "reason": f"Segmentation of the flash photo into {len(entries_json)} materials"
                       + (f": {reason}" if reason else "") + "."}
 
 

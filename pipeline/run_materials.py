@@ -122,6 +122,7 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
     fig_dir.mkdir(parents=True, exist_ok=True)
     sections = label_section(labels, fig_dir, segmentation.criterion)
     theta_h_deg = np.degrees(theta_h_centres())
+    page = {"labels": labels, "each": {}}  # what report.html shows of each material
     for k in sorted(rhos):
         result = slices[k]
         observed = None if result is None else {"rho": result.rho, "n": result.n,
@@ -136,10 +137,14 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
                      f"{entry['pixels']} pixels, {entry['bins_filled']} of 90 θh bins filled"
                      + note + f"; slice `materials/material_{k}.csv`.", "",
                      f"![material {k} slice](figures/material_{k}_slice.png)", ""]
+        page["each"][k] = {"observed": observed, "predictions": {}}
         for m in settings.methods:
             prediction = tables[m][k]
             label = "predictive variance (" + getattr(fitted[m], "feature_label",
                                                       "features") + ")"
+            page["each"][k]["predictions"][m] = {"table": prediction.table,
+                                                 "variance": prediction.variance,
+                                                 "variance_label": label}
             name = f"material_{k}_brdf_{m}.png"
             figs.brdf_images(fig_dir / name, f"{m}, material {k}", table_2d_view(prediction.table),
                              variance_2d_view(prediction.variance), label)
@@ -160,7 +165,7 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
         sections += lines
     return stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                       warnings=warnings, notes=notes, title=settings.title, extra=extra,
-                      sections=sections)
+                      sections=sections, materials=page)
 
 
 def run_albedo_map(stages, out, samples, segmentation, faces, scene, notes):

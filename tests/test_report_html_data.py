@@ -4,12 +4,10 @@ shapes, the exposure maths, the ΔE overlay, the encoding's precision and the pa
 import base64
 import json
 
-import cv2
 import numpy as np
 import pytest
 
-from flashbrdf.brdf.merl import write_merl
-from flashbrdf.brdf.views import table_3d_from_2d, write_slice_csv
+from flashbrdf.brdf.views import table_3d_from_2d
 from flashbrdf.pipeline import report_data as data
 from flashbrdf.pipeline.report import write_report
 from flashbrdf.pipeline.report_html import page_data, write_report_html
@@ -184,32 +182,28 @@ def test_write_report_writes_the_page_with_tables_slice_and_summary(tmp_path):
     assert "report.html" not in (tmp_path / "report.md").read_text()
 
 
-def test_materials_and_the_principled_fit_are_read_from_out_dir(tmp_path):
+def test_materials_are_shown_and_the_principled_fit_read_from_out_dir(tmp_path):
     labels = np.zeros((30, 40), np.uint16)
     labels[5:25, 5:20], labels[5:25, 20:35] = 1, 2
-    cv2.imwrite(str(tmp_path / "labels.png"), labels)
     rho, _ = _tables()
-    (tmp_path / "materials").mkdir()
-    materials = []
+    materials, each = [], {}
     for k in (1, 2):
-        write_slice_csv(tmp_path / "materials" / f"material_{k}.csv", rho[:, 0] * k,
-                        np.full(90, 10 * k))
-        (tmp_path / "pca" / f"material_{k}").mkdir(parents=True)
-        write_merl(tmp_path / "pca" / f"material_{k}" / "brdf.binary",
-                   np.nan_to_num(table_3d_from_2d(rho * k), nan=-1.0))
         materials.append({"label": k, "pixels": int((labels == k).sum()),
                           "slice": f"materials/material_{k}.csv",
                           "brdf": {"pca": f"pca/material_{k}/brdf.binary"}})
+        each[k] = {"observed": {"rho": rho[:, 0] * k, "n": np.full(90, 10 * k)},
+                   "predictions": {"pca": {"table": table_3d_from_2d(rho * k)}}}
     (tmp_path / "export").mkdir()
     (tmp_path / "export" / "principled.json").write_text(json.dumps(
         {"base_color": [0.5, 0.2, 0.1], "roughness": 0.3, "fit": {"lab_log_2d": 4.5,
                                                                   "render_delta_e_log": None}}))
     report = {"title": "t", "summary": {}, "materials": materials,
               "segmentation": {"reason": "chosen"}}
-    write_report_html(tmp_path, report)
+    write_report_html(tmp_path, report, materials={"labels": labels, "each": each})
     meta, _ = page_data(tmp_path / "report.html")
     entries = meta["materials"]["entries"]
     assert [e["pixels"] for e in entries] == [300, 300]
+    assert [e["bins_filled"] for e in entries] == [90, 90]
     assert sum(e["share"] for e in entries) == pytest.approx(1.0)
     shown = np.frombuffer(base64.b64decode(meta["materials"]["labels"]["data"]),
                           np.uint8).reshape(30, 40)

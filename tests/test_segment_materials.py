@@ -103,6 +103,14 @@ def test_relit_with_inferred_brdfs_is_within_1_3_of_the_known_ones(two_materials
     # measured 2026-12-01: known 0.44 (the reference's photon noise), inferred 0.51
     assert inferred <= 1.3 * known_de, (inferred, known_de)
     assert "![labels](figures/labels.png)" in (out / "report.md").read_text()
+    # report.html shows each material's BRDF from run's own predictions, their variance too
+    from flashbrdf.pipeline.report_html import page_data
+    meta, _ = page_data(out / "report.html")
+    per_material = [d for d in meta["brdf"] if d["material"] is not None]
+    assert [d["material"] for d in per_material] == [1, 2]
+    assert all("variance" in d["methods"]["dsgplvm"] or "variance_constant" in
+               d["methods"]["dsgplvm"] for d in per_material)
+    assert [e["label"] for e in meta["materials"]["entries"]] == [1, 2]
     # the test can fail: the two tables swapped are far off
     swapped = tmp_path / "swapped"
     paths = ",".join(str(two_materials["paths"][k]) for k in (1, 0))
