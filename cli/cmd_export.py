@@ -8,6 +8,8 @@ output folder that is, holds or lies inside the input) exits 2.
 import sys
 from pathlib import Path
 
+from flashbrdf.cli.options import add_force
+
 
 def add_parsers(sub):
     s = sub.add_parser("export", help="a MERL table for Mitsuba 3, Blender and glTF")
@@ -19,8 +21,7 @@ def add_parsers(sub):
                    help="a lat-long map: render a sphere with the table and with its Principled "
                         "fit under it, and record their Delta E in principled.json (default: no "
                         "render check)")
-    s.add_argument("--force", action="store_true",
-                   help="replace OUT_DIR if an earlier flashbrdf command made it")
+    add_force(s)
     s.set_defaults(handler=export)
 
 
