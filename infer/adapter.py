@@ -15,7 +15,7 @@ import numpy as np
 from flashbrdf.brdf import colour
 from flashbrdf.brdf.bins import scatter_valid, valid_flat_3d, valid_mask_2d
 from flashbrdf.brdf.merl import N_THETA_D, N_THETA_H
-from flashbrdf.infer.consensus import (ConsensusMembers, ConsensusSpace, consensus_log_correction,
+from flashbrdf.infer.consensus import (ConsensusMembers, consensus_log_correction,
                                        consensus_table, member_spread)
 from flashbrdf.infer.anchoring import AnchoredSpace, anchor_log_correction, anchor_to_slice
 from flashbrdf.infer.blas import one_blas_thread
@@ -333,7 +333,7 @@ class DSGPLVMMethod(InferenceMethod):
                     members = self.member_tables(rho, self._anchored(table_2d, rho))
                 log_c = consensus_log_correction(members["dsgplvm"],
                                                  consensus_table(np.stack(list(members.values()))))
-                space = ConsensusSpace(space, log_c)
+                space = AnchoredSpace(space, log_c)
         return np.asarray(weights, float), space, var
 
 

@@ -94,8 +94,10 @@ def anchor_to_slice(table, flash_slice, smoothing_bins=None):
 
 
 class AnchoredSpace(LinearSpace):
-    """Another method's combination space whose inverse also applies a θh correction ln c (90, 3)
-    (anchor_log_correction), so streamed 3D predictions are anchored like the 2D ones."""
+    """Another method's combination space whose inverse also applies a log correction ln c, so
+    streamed 3D predictions are corrected like the 2D ones: per θh (90, 3) (the anchoring,
+    anchor_log_correction) or per (θh, θd) (90, 90, 3) (the consensus,
+    infer.consensus.consensus_log_correction); each 3D bin takes its own bin's."""
 
     def __init__(self, base, log_c):
         self.base, self.log_c = base, log_c
@@ -105,5 +107,6 @@ class AnchoredSpace(LinearSpace):
         return self.base.forward(rho, sel)
 
     def inverse(self, mapped, sel=slice(None)):
-        return apply_log_correction(self.base.inverse(mapped, sel),
-                                    self.log_c[valid_bins_3d()[0][sel]])
+        ih, jd, _ = valid_bins_3d()
+        log_c = self.log_c[ih[sel]] if self.log_c.ndim == 2 else self.log_c[ih[sel], jd[sel]]
+        return apply_log_correction(self.base.inverse(mapped, sel), log_c)

@@ -20,12 +20,9 @@ comes from weights chosen on the other kinds' held-out predictions only).
 import numpy as np
 
 from flashbrdf.brdf import merl
-from flashbrdf.brdf.bins import valid_bins_3d
 from flashbrdf.brdf.colour import FEATURE_OFFSET
 from flashbrdf.brdf.metrics import lab_log_features, rho_from_lab_log
-from flashbrdf.infer.anchoring import apply_log_correction
 from flashbrdf.infer.baselines import PCA, Noll
-from flashbrdf.infer.estimator import LinearSpace
 
 THETA_H_KNOTS_DEG = (5.0, 25.0, 65.0)
 THETA_D_KNOTS_DEG = (15.0, 45.0, 67.5, 82.5)
@@ -100,24 +97,6 @@ class ConsensusMembers:
         """{"noll": (90, 90, 3), "pca": (90, 90, 3)} 2D predictions in 1/sr for a checked slice."""
         return {"noll": self.noll.predict(flash_slice, "2d")[0],
                 "pca": self.pca.predict(flash_slice, "2d")[0]}
-
-
-class ConsensusSpace(LinearSpace):
-    """Another combination space whose inverse also moves each 3D bin by the (θh, θd) log
-    correction that takes the DS-GPLVM's 2D prediction to the consensus (log_c (90, 90, 3) in
-    ln(ρ + e), e = brdf.colour.FEATURE_OFFSET): a streamed 3D prediction keeps the DS-GPLVM's φd
-    structure and takes the consensus' (θh, θd) level."""
-
-    def __init__(self, base, log_c):
-        self.base, self.log_c = base, np.nan_to_num(log_c)
-        self.clip_to_training = base.clip_to_training
-
-    def forward(self, rho, sel=slice(None)):
-        return self.base.forward(rho, sel)
-
-    def inverse(self, mapped, sel=slice(None)):
-        ih, jd, _ = valid_bins_3d()
-        return apply_log_correction(self.base.inverse(mapped, sel), self.log_c[ih[sel], jd[sel]])
 
 
 def consensus_log_correction(table_2d, consensus_2d):

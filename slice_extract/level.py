@@ -20,6 +20,7 @@ import numpy as np
 
 from flashbrdf import capture
 from flashbrdf.files.errors import InputError
+from flashbrdf.slice_extract.visibility import hit_depth, pixel_surfaces
 
 MIN_TARGET_SAMPLES = 50
 TARGET_MIN_COS = 0.5   # a grey card is Lambertian near normal incidence, less so at grazing
@@ -46,17 +47,10 @@ def trace_target(intersector, camera, object_depth, chunk):
     """capture.Surface batches of `camera`'s pixels whose ray meets the target before the object
     (object_depth (H, W), inf where the object is missed), and the (H, W) mask of those pixels."""
     mask = np.zeros(camera.shape, bool)
-    r0, r1, c0, c1 = capture.pixel_box(camera, intersector.mesh.bounds)
-    rows, cols = (a.ravel() for a in np.indices((r1 - r0, c1 - c0)))
-    rows, cols = rows + r0, cols + c0
     surfaces = []
-    for s in range(0, len(rows), chunk):
-        surface = capture.surface_at_pixels(intersector, camera, rows[s:s + chunk],
-                                            cols[s:s + chunk], dtype=np.float32)
-        offset = surface.points - camera.centre_world
-        depth = (offset @ camera.forward if camera.model == "orthographic"
-                 else np.sqrt(np.einsum("ij,ij->i", offset, offset)))
-        front = depth < object_depth[surface.rows, surface.cols]
+    for surface in pixel_surfaces(camera, intersector, chunk):
+        front = (hit_depth(camera, surface.points)
+                 < object_depth[surface.rows, surface.cols])
         keep = [None if v is None else v[front] for v in
                 (surface.rows, surface.cols, surface.points, surface.normals, surface.view_dirs,
                  surface.face)]

@@ -17,23 +17,29 @@ def trace_camera(scene, camera, intersector, chunk):
     if intersector is None:
         surfaces = [capture.surface_from_normal_map(scene.geometry, camera)]
     else:
-        r0, r1, c0, c1 = capture.pixel_box(camera, intersector.mesh.bounds)
-        rows, cols = (a.ravel() for a in np.indices((r1 - r0, c1 - c0)))
-        rows += r0
-        cols += c0
-        surfaces = [capture.surface_at_pixels(intersector, camera, rows[s:s + chunk],
-                                              cols[s:s + chunk], dtype=np.float32)
-                    for s in range(0, len(rows), chunk)]
+        surfaces = list(pixel_surfaces(camera, intersector, chunk))
     depth = None if intersector is None else np.full(camera.shape, np.inf, np.float32)
     for surface in surfaces:
         flat = surface.rows * camera.width + surface.cols
         mask.ravel()[flat] = True
         if depth is not None:
-            depth.ravel()[flat] = _depth(camera, surface.points)
+            depth.ravel()[flat] = hit_depth(camera, surface.points)
     return surfaces, mask, depth
 
 
-def _depth(camera, points):
+def pixel_surfaces(camera, intersector, chunk):
+    """capture.Surface of the hits, batch by batch of `chunk` pixels, over every pixel of
+    `camera` that can see the mesh's bounding box (capture.pixel_box); float32 directions."""
+    r0, r1, c0, c1 = capture.pixel_box(camera, intersector.mesh.bounds)
+    rows, cols = (a.ravel() for a in np.indices((r1 - r0, c1 - c0)))
+    rows += r0
+    cols += c0
+    for s in range(0, len(rows), chunk):
+        yield capture.surface_at_pixels(intersector, camera, rows[s:s + chunk],
+                                        cols[s:s + chunk], dtype=np.float32)
+
+
+def hit_depth(camera, points):
     """Distance (N,) float32 of world points from a pinhole camera's centre, or along an
     orthographic camera's forward axis."""
     offset = points - camera.centre_world

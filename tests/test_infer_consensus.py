@@ -12,7 +12,8 @@ from flashbrdf.brdf import merl
 from flashbrdf.brdf.bins import valid_bins_3d
 from flashbrdf.infer import DSGPLVMMethod
 from flashbrdf.brdf.metrics import lab_log_features, rho_from_lab_log
-from flashbrdf.infer.consensus import (CONSENSUS_WEIGHTS, ConsensusSpace, consensus_table,
+from flashbrdf.infer.anchoring import AnchoredSpace
+from flashbrdf.infer.consensus import (CONSENSUS_WEIGHTS, consensus_table,
                                        member_spread, weights_per_bin)
 from flashbrdf.infer.estimator import LinearSpace
 from flashbrdf.infer.warning import DISAGREEMENT_WARN_DE, disagreement, prediction_warning
@@ -92,7 +93,7 @@ def test_spread_is_the_weighted_variance_of_two_members():
 def test_the_3d_space_applies_the_2d_correction_per_theta_h_theta_d():
     log_c = np.zeros((90, 90, 3))
     log_c[10, 20] = np.log(2.0)
-    space = ConsensusSpace(LinearSpace(), log_c)
+    space = AnchoredSpace(LinearSpace(), log_c)
     ih, jd, _ = valid_bins_3d()
     sel = np.flatnonzero((ih == 10) & (jd == 20))[:3]
     sel = np.concatenate([sel, np.flatnonzero((ih == 11) & (jd == 20))[:3]])
