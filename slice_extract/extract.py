@@ -172,6 +172,8 @@ class FlashSamples:
     first_photo_samples: dict = None
     face: np.ndarray = None  # (N,) int32 mesh face of each sample, -1 for normal-map geometry
     level: dict = None       # slice.json's "level": absolute (target, calibrated) or relative
+    mesh: object = None      # the scene's trimesh as traced (None for normal-map geometry):
+    #                          segmentation and material borders read it, not the file again
 
     def first_photo(self):
         """(rho (M, 3), theta_h (M,), pixels (M,), censored (M,)) of every sample of the first
@@ -304,7 +306,7 @@ def collect_samples(scene, options=None):
                            flashes[0].camera.shape, first.object_mask, first.face_image,
                            first.radiance, per_photo, clock.t, start, first.normals_at,
                            first.samples if store.subsampled else None, pooled["face"],
-                           level_report)
+                           level_report, None if intersector is None else intersector.mesh)
     return samples
 
 
@@ -403,7 +405,7 @@ def extract_material_slices(samples, labels, where="--labels", face_labels=None)
         face_labels = np.asarray(face_labels)
         faces = samples.face[~by_pixel]
         of_sample[~by_pixel] = face_labels[faces]
-        interior[~by_pixel] = ~_border_faces(samples.scene, face_labels)[faces]
+        interior[~by_pixel] = ~_border_faces(samples, face_labels)[faces]
     bins = merl_bin_index(samples.theta_h, 0.0, 0.0)[0]
     slices = {}
     for k in range(1, count + 1):
@@ -422,9 +424,10 @@ def extract_material_slices(samples, labels, where="--labels", face_labels=None)
     return slices
 
 
-def _border_faces(scene, face_labels):
+def _border_faces(samples, face_labels):
     """(F,) bool: mesh faces that share an edge with a face of another material."""
-    mesh, _ = capture.load_mesh(scene.geometry.mesh)
+    mesh = samples.mesh if samples.mesh is not None else \
+        capture.load_mesh(samples.scene.geometry.mesh)[0]
     if len(face_labels) != len(mesh.faces):
         raise InputError("LABELS.faces.npy", f"has {len(face_labels)} labels but the mesh has "
                                              f"{len(mesh.faces)} faces")

@@ -77,6 +77,7 @@ def segment_scene(samples, materials="auto", options=None):
     segmentation = segment_samples(samples, materials, options)
     faces = None
     if samples.face_image is not None:
-        mesh, _ = load_mesh(samples.scene.geometry.mesh)
+        mesh = samples.mesh if samples.mesh is not None else \
+            load_mesh(samples.scene.geometry.mesh)[0]
         faces = face_labels(segmentation.labels, samples.face_image, mesh.triangles_center)
     return segmentation, faces
