@@ -20,6 +20,7 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   surface_from_mesh(mesh_or_intersector, camera, pixel_mask=None) -> Surface
   surface_at_pixels(mesh_or_intersector, camera, rows, cols) -> Surface (hits only)
   pixel_box(camera, bounds) -> (row0, row1, col0, col1): pixels that can see a world box
+  mesh_pixels(camera, vertices, faces) -> rows, cols: the pixels whose ray can hit a face
   surface_from_normal_map(geometry_or_scene, camera=None, pixel_mask=None) -> Surface (no points)
   load_normal_map(geometry, camera) -> normals_camera (H, W, 3), mask (H, W)
   load_photo(path, encoding=None, saturation=None, shape=None, return_clipped=False)
@@ -32,14 +33,15 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   camera_key(camera) -> hashable           # what same_view compares, exactly
   embree_rays(camera, rows, cols, shift) -> float32 origins - shift, directions (not unit)
   iter_flash_images(scene_or_dir) -> FlashImage(photo, radiance, usable, clipped), one at a time
+    (the next decoded in a thread meanwhile)
   load_flash_images(scene_or_dir) -> [FlashImage, ...]
       # ambient removed, divided by scale
   read_float_image(path) -> (H, W, 3) float32 via OpenImageIO
   srgb_to_linear(values) -> linear
 """
 
-from flashbrdf.capture.camera import (camera_rays, embree_rays, pixel_box, pixel_rays, project_points,
-                            view_directions)
+from flashbrdf.capture.camera import (camera_rays, embree_rays, mesh_pixels, pixel_box,
+                                      pixel_rays, project_points, view_directions)
 from flashbrdf.capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex,
                                         load_mesh, occluded, scene_intersector,
                                         surface_at_pixels, surface_from_mesh)
@@ -55,7 +57,7 @@ __all__ = [
     "Camera", "FlashImage", "Geometry", "Hits", "Light", "MeshIntersector", "Photo", "Scene",
     "Surface", "camera_key", "camera_rays", "embree_rays", "intersect", "is_convex", "load_brackets",
     "iter_flash_images", "load_flash_images", "load_mesh", "load_normal_map", "load_photo", "load_photo_entry",
-    "load_reference_entry", "load_scene", "photo_exists", "same_view", "occluded", "pixel_box", "pixel_rays", "project_points",
+    "load_reference_entry", "load_scene", "mesh_pixels", "photo_exists", "same_view", "occluded", "pixel_box", "pixel_rays", "project_points",
     "read_float_image", "scene_intersector", "srgb_to_linear", "surface_at_pixels", "surface_from_mesh",
     "surface_from_normal_map", "view_directions",
 ]

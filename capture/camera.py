@@ -187,3 +187,106 @@ def pixel_box(camera, bounds, margin=2):
     c1, r1 = np.ceil(uv.max(0)) + margin + 1
     return (clip(r0, camera.height), clip(r1, camera.height), clip(c0, camera.width),
             clip(c1, camera.width))
+
+
+def mesh_pixels(camera, vertices, faces, cell_px=8):
+    """The pixels whose ray can hit a face of the mesh: rows, cols (N,) int64, row-major.
+
+    First the pixels that can see the mesh's bounding box (pixel_box). Then, in undistorted
+    pixel coordinates (u = fx X/Z + cx for a pinhole, before the lens; the contract's u for an
+    orthographic camera), a face projects inside the bounding rectangle of its corners: cells
+    of cell_px pixels touched by some face's rectangle, and the cells next to them (for float32
+    rays), are marked, and a pixel is kept when its undistorted centre (the cached lens grid the
+    rays are built from) falls in a marked cell. Every hit is kept, and the rays that could only
+    miss (two thirds of a box the object fills loosely) are never cast. When the mesh is not
+    wholly in front of a pinhole camera, every pixel of the box is returned.
+    vertices (V, 3) WORLD; faces (F, 3) int.
+    """
+    vertices = np.asarray(vertices, np.float64)
+    box = pixel_box(camera, np.stack([vertices.min(0), vertices.max(0)]))
+    r0, r1, c0, c1 = box
+    if r1 <= r0 or c1 <= c0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    found = _cell_pixels(camera, vertices, faces, box, cell_px)
+    if found is None:
+        rows, cols = (a.ravel() for a in np.indices((r1 - r0, c1 - c0)))
+        found = rows + r0, cols + c0
+    return found
+
+
+def _cell_pixels(camera, vertices, faces, box, cell_px):
+    """mesh_pixels' pixels within box, or None when a face reaches behind a pinhole camera.
+
+    The box is cut into blocks of cell_px x cell_px pixels; a block's undistorted footprint is
+    the rectangle of its corner pixels' undistorted centres (the lens map is smooth: within a
+    block it departs from that rectangle by far less than the one-cell margin). A block is
+    traced when its footprint meets a marked cell (a summed-area table answers each block in
+    four look-ups), so no per-pixel work is done before the rays."""
+    r0, r1, c0, c1 = box
+    faces = np.asarray(faces)
+    local = camera.to_camera(vertices)
+    if camera.model == "orthographic":
+        u = local[:, 0] / camera.pixel_size + (camera.width - 1) / 2
+        v = local[:, 1] / camera.pixel_size + (camera.height - 1) / 2
+    else:
+        if np.any(local[faces, 2] <= 1e-9):
+            return None
+        u = camera.fx * local[:, 0] / local[:, 2] + camera.cx
+        v = camera.fy * local[:, 1] / local[:, 2] + camera.cy
+    foot_lo, foot_hi = _block_footprints(camera, box, cell_px)  # (2, blocks_v, blocks_u) each
+    lo = (float(foot_lo[0].min()), float(foot_lo[1].min()))
+    hi = (float(foot_hi[0].max()), float(foot_hi[1].max()))
+    n_u, n_v = (int((hi[k] - lo[k]) // cell_px) + 1 for k in range(2))
+    # cells per vertex (clipped one past the grid on each side, so that a face beyond it stays
+    # beyond), then each face's cell rectangle from its corners' cells: int32 gathers
+    cell_u = np.clip(np.floor((u - lo[0]) / cell_px), -1, n_u).astype(np.int32)
+    cell_v = np.clip(np.floor((v - lo[1]) / cell_px), -1, n_v).astype(np.int32)
+    corner_u, corner_v = cell_u[faces], cell_v[faces]
+    start_u, stop_u = corner_u.min(1), corner_u.max(1) + 1
+    start_v, stop_v = corner_v.min(1), corner_v.max(1) + 1
+    seen = (stop_u > 0) & (start_u < n_u) & (stop_v > 0) & (start_v < n_v)
+    start = np.stack([np.maximum(start_u[seen], 0), np.maximum(start_v[seen], 0)], axis=1)
+    stop = np.stack([np.minimum(stop_u[seen], n_u), np.minimum(stop_v[seen], n_v)], axis=1)
+    start, stop = start.astype(np.int64), stop.astype(np.int64)
+    # each face's cell rectangle as +1/-1 corners of a 2D difference array: one pass for all
+    corners = np.concatenate([start[:, 1] * (n_u + 1) + start[:, 0],
+                              start[:, 1] * (n_u + 1) + stop[:, 0],
+                              stop[:, 1] * (n_u + 1) + start[:, 0],
+                              stop[:, 1] * (n_u + 1) + stop[:, 0]])
+    signs = np.repeat(np.array([1.0, -1.0, -1.0, 1.0]), len(start))
+    counts = np.bincount(corners, weights=signs, minlength=(n_v + 1) * (n_u + 1))
+    marked = np.cumsum(np.cumsum(counts.reshape(n_v + 1, n_u + 1), 0), 1)[:n_v, :n_u] > 0.5
+    marked = cv2.dilate(marked.view(np.uint8), np.ones((3, 3), np.uint8))
+    table = np.zeros((n_v + 1, n_u + 1), np.int64)  # summed-area table of the marked cells
+    table[1:, 1:] = np.cumsum(np.cumsum(marked, 0), 1)
+    first = [np.clip(((foot_lo[k] - lo[k]) // cell_px).astype(np.int64), 0, n - 1)
+             for k, n in ((0, n_u), (1, n_v))]
+    last = [np.clip(((foot_hi[k] - lo[k]) // cell_px).astype(np.int64), 0, n - 1) + 1
+            for k, n in ((0, n_u), (1, n_v))]
+    marked_in_footprint = (table[last[1], last[0]] - table[first[1], last[0]]
+                           - table[last[1], first[0]] + table[first[1], first[0]])
+    blocks = marked_in_footprint > 0
+    inside = np.ascontiguousarray(
+        np.repeat(np.repeat(blocks, cell_px, 0), cell_px, 1)[:r1 - r0, :c1 - c0])
+    rows, cols = np.divmod(np.flatnonzero(inside), c1 - c0)
+    return rows + r0, cols + c0
+
+
+def _block_footprints(camera, box, cell_px):
+    """Undistorted pixel coordinates spanned by each cell_px block of box: lo, hi (2, blocks_v,
+    blocks_u) float64 as (u, v), from the blocks' corner pixels (the pixels themselves without
+    a lens)."""
+    r0, r1, c0, c1 = box
+    rows, cols = np.arange(r0, r1, cell_px), np.arange(c0, c1, cell_px)
+    rows_end, cols_end = np.minimum(rows + cell_px - 1, r1 - 1), np.minimum(cols + cell_px - 1,
+                                                                            c1 - 1)
+    if camera.model != "pinhole" or camera.distortion is None:
+        grid_v, grid_u = np.meshgrid(rows, cols, indexing="ij")
+        end_v, end_u = np.meshgrid(rows_end, cols_end, indexing="ij")
+        return (np.stack([grid_u, grid_v]).astype(np.float64),
+                np.stack([end_u, end_v]).astype(np.float64))
+    grid_x, grid_y = _lens_grid(camera)
+    at = [np.ix_(rr, cc) for rr in (rows, rows_end) for cc in (cols, cols_end)]
+    u = np.stack([grid_x[i] for i in at]).astype(np.float64) * camera.fx + camera.cx
+    v = np.stack([grid_y[i] for i in at]).astype(np.float64) * camera.fy + camera.cy
+    return np.stack([u.min(0), v.min(0)]), np.stack([u.max(0), v.max(0)])

@@ -20,7 +20,7 @@ from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
 from flashbrdf.files.errors import InputError
-from flashbrdf.capture.camera import embree_rays, pixel_box
+from flashbrdf.capture.camera import embree_rays, mesh_pixels
 from flashbrdf.capture.scene import Scene
 
 _CHUNK = 1 << 21  # rays per Embree call: bounds temporary memory to ~100 MB
@@ -321,16 +321,15 @@ def is_convex(mesh):
 def surface_from_mesh(target, camera, pixel_mask=None):
     """Trace the camera's pixels (those in pixel_mask (H, W) bool, default all) against the mesh.
 
-    Returns a Surface holding only the pixels whose ray hits. Only pixels inside the projection
-    of the mesh's bounding box are traced (capture.pixel_box): the others cannot hit.
+    Returns a Surface holding only the pixels whose ray hits. Only pixels whose ray can reach a
+    face are traced (capture.mesh_pixels): the others cannot hit.
     """
     mi = _as_intersector(target)
-    r0, r1, c0, c1 = pixel_box(camera, mi.mesh.bounds)
-    if pixel_mask is None:
-        rows, cols = (a.ravel() for a in np.indices((r1 - r0, c1 - c0)))
-    else:
-        rows, cols = np.nonzero(pixel_mask[r0:r1, c0:c1])
-    return surface_at_pixels(mi, camera, rows + r0, cols + c0)
+    rows, cols = mesh_pixels(camera, mi.mesh.vertices, mi.mesh.faces)
+    if pixel_mask is not None:
+        wanted = pixel_mask[rows, cols]
+        rows, cols = rows[wanted], cols[wanted]
+    return surface_at_pixels(mi, camera, rows, cols)
 
 
 def surface_at_pixels(target, camera, rows, cols, dtype=np.float64):

@@ -102,10 +102,15 @@ def _ambient(scene, photo):
     return total, usable, scales.pop()
 
 
-def iter_flash_images(scene):
+def iter_flash_images(scene, prefetch=True):
     """The flash photos of a scene one at a time, ambient subtracted and divided by their scale:
     a FlashImage each, so that a capture of many full-resolution photos never holds more than
-    one (and its view's ambient) in memory.
+    two (and their views' ambient) in memory.
+
+    With prefetch (and more than one flash photo), the next photo is decoded in a background
+    thread while the caller works on this one: image decoding (OpenImageIO, OpenCV) and Embree
+    release the GIL, so on two cores the ~1 s a 24-MP EXR takes to decode hides behind the
+    tracing. An error in a photo is raised where that photo is asked for, as without prefetch.
 
     scene: capture.Scene or a scene folder. InputError when the scene has no flash photo.
     """
@@ -114,12 +119,11 @@ def iter_flash_images(scene):
     flashes = scene.photos_with_role("flash")
     if not flashes:
         raise InputError(f"{scene.json_path}: photos", "no photo has role 'flash'")
-    ambient, ambient_camera = None, None
-    for photo in flashes:
+    ambient_of = _AmbientCache(scene)
+
+    def prepared(photo):
         rgb, usable, clipped = load_photo_entry(photo, return_clipped=True)
-        if scene.photos_with_role("ambient") and (
-                ambient_camera is None or not same_view(ambient_camera, photo.camera)):
-            ambient, ambient_camera = _ambient(scene, photo), photo.camera
+        ambient = ambient_of(photo)
         if ambient is not None:
             amb, amb_ok, amb_scale = ambient
             factor = 1.0 if amb_scale is None else photo.scale / amb_scale
@@ -128,7 +132,35 @@ def iter_flash_images(scene):
             clipped &= amb_ok
         if photo.scale != 1.0:
             rgb /= np.float32(photo.scale)
-        yield FlashImage(photo, rgb, usable, clipped)
+        return FlashImage(photo, rgb, usable, clipped)
+
+    if not prefetch or len(flashes) == 1:
+        for photo in flashes:
+            yield prepared(photo)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+    # one worker: photos are prepared in order (the ambient cache follows the views)
+    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="flash-photo") as pool:
+        pending = pool.submit(prepared, flashes[0])
+        for following in flashes[1:] + [None]:
+            image = pending.result()  # the previous image is let go here, before the next read
+            pending = None if following is None else pool.submit(prepared, following)
+            yield image
+
+
+class _AmbientCache:
+    """The ambient (rgb, usable, scale) of a flash photo's view (_ambient), read again only when
+    the view changes; None when the scene has no ambient photo."""
+
+    def __init__(self, scene):
+        self.scene, self.camera, self.ambient = scene, None, None
+
+    def __call__(self, photo):
+        if not self.scene.photos_with_role("ambient"):
+            return None
+        if self.camera is None or not same_view(self.camera, photo.camera):
+            self.ambient, self.camera = _ambient(self.scene, photo), photo.camera
+        return self.ambient
 
 
 def load_flash_images(scene):

@@ -254,14 +254,16 @@ def collect_samples(scene, options=None):
             del depth
             traced_camera = camera
         stats = dict(photo=image.photo.stem, usable=int(image.usable.sum()),
-                     clipped=int(image.clipped.sum()), on_surface=0, **dict.fromkeys(REASONS, 0))
+                     clipped=int(image.clipped.sum()), on_surface=0, **dict.fromkeys(REASONS, 0),
+                     not_needed=0)
         t = clock.add("trace", t)
         skip = not needs_shadows or convex or lights[k].at_viewpoint
         parts = []
         for surface in surfaces:
             got = photo_samples(image.radiance, image.usable, surface, lights[k], options,
-                                None if skip else intersector, image.clipped, edge)
+                                None if skip else intersector, image.clipped, edge, store.sieve)
             stats["on_surface"] += got.n_usable
+            stats["not_needed"] += got.not_needed
             for reason, count in got.rejected.items():
                 stats[reason] += count
             parts.append(got)
@@ -279,6 +281,8 @@ def collect_samples(scene, options=None):
                             else np.full(len(part["theta_h"]), -1, np.int32))
         if part is not None:
             part["photo"] = np.full(len(part["theta_h"]), k)
+            if parts[0].key is not None:
+                part["key"] = np.concatenate([p.key for p in parts])
         if k == 0:  # segmentation reads the first photo whole, whatever the store keeps
             first = _FirstPhoto(part, object_mask, image.radiance, surfaces, camera,
                                 normal_map, scene, intersector)

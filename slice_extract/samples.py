@@ -83,17 +83,22 @@ class PhotoSamples:
     n_usable: int
     pixels: np.ndarray = None  # (M,) flat pixel index (row * width + col) of each sample
     face: np.ndarray = None    # (M,) mesh face of each sample, or None (normal-map geometry)
+    key: np.ndarray = None     # (M,) float32 subsampling keys from `sieve`, or None
+    not_needed: int = 0        # samples the sieve dropped: their bin already holds enough
 
 
 def photo_samples(radiance, usable, surface, light, options, intersector=None, clipped=None,
-                  edge=None):
+                  edge=None, sieve=None):
     """BRDF samples from one photo over one Surface patch (pixels that see the object).
 
     radiance (H, W, 3) pixel-model units; usable (H, W) bool; clipped (H, W) bool or None:
     too-bright pixels, kept as censored samples so that bins know where a highlight was lost;
     surface: capture.Surface; light: LightSetup; options: ExtractOptions; intersector:
     capture.MeshIntersector for shadow rays, or None to skip them (convex mesh, light at the
-    viewpoint, normal-map geometry); edge (H, W) bool or None: silhouette pixels to reject.
+    viewpoint, normal-map geometry); edge (H, W) bool or None: silhouette pixels to reject;
+    sieve: None, or sieve(theta_h (M,)) -> None or (wanted (M,) bool, keys (K,) float32 of the
+    wanted) (SampleStore.sieve): samples a full bin could never keep are dropped before the shadow
+    rays, the costliest step, and are counted in not_needed, not as rejected.
     Returns PhotoSamples.
     """
     # flat indices + np.take: several times faster than 2D fancy indexing on big images
@@ -149,12 +154,20 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
     drop(~near, "theta_d")
     if not near.all():
         idx, theta_h, theta_d, cens_now = idx[near], theta_h[near], theta_d[near], cens_now[near]
+    sieved = None if sieve is None else sieve(theta_h)
+    key, not_needed = None, 0
+    if sieved is not None:
+        wanted, key = sieved
+        not_needed = len(idx) - len(key)
+        idx, theta_h, theta_d = idx[wanted], theta_h[wanted], theta_d[wanted]
+        cens_now = cens_now[wanted]
     if intersector is not None and len(idx):
         blocked = occluded(intersector, np.take(points, idx, axis=0), np.take(wi, idx, axis=0),
                            None if r2 is None else np.sqrt(np.take(r2, idx)))
         drop(blocked, "shadowed")
         idx, theta_h, theta_d = idx[~blocked], theta_h[~blocked], theta_d[~blocked]
         cens_now = cens_now[~blocked]
+        key = None if key is None else key[~blocked]
     pixels = np.take(flat, idx)
     face = None if face is None else np.take(face, idx).astype(np.int32)
     pixel = np.take(radiance.reshape(-1, 3), pixels, axis=0).astype(np.float64)
@@ -162,4 +175,5 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
     factor = 1.0 / cos_i if r2 is None else np.take(r2, idx) / cos_i
     rho = pixel * (factor[:, None] / light.power)
     rho[cens_now] = np.inf
-    return PhotoSamples(theta_h, theta_d, rho, cens_now, rejected, n_usable, pixels, face)
+    return PhotoSamples(theta_h, theta_d, rho, cens_now, rejected, n_usable, pixels, face, key,
+                        not_needed)

@@ -1,6 +1,5 @@
 """DS-GPLVM model: training robustness, extreme and incomplete slices, generalisation, persistence."""
 
-import copy
 
 import numpy as np
 import pytest

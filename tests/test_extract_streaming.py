@@ -81,6 +81,69 @@ def test_store_keeps_exactly_each_bins_smallest_keys_over_all_photos():
     assert np.isfinite(store.key_limit).sum() > 0  # the filter on arrival was in use
 
 
+@pytest.mark.parametrize("distinct_keys", [40, 1 << 30])
+def test_store_cut_matches_one_stable_sort_with_tied_keys(distinct_keys):
+    """The cut finds each bin's boundary through a key histogram: it keeps what one stable
+    sort by (bin, key, arrival) keeps, also when keys tie (40 distinct values: every bin's
+    boundary level is all ties) and when bins hold fewer samples than the cap."""
+    options = replace(ExtractOptions(), sample_budget=1000, max_samples_per_bin=300)
+    store = SampleStore(options)
+    rng = np.random.default_rng(7)
+    theta_h = np.concatenate([rng.uniform(0.3, 0.32, 2000), rng.uniform(1.2, 1.5, 200)])
+    keys = (rng.integers(0, distinct_keys, len(theta_h)) / distinct_keys).astype(np.float32)
+    for k, chunk in enumerate(np.array_split(np.arange(len(theta_h)), 4)):
+        part = _part(theta_h[chunk], k)
+        part["pixels"], part["key"] = chunk, keys[chunk]
+        store.add(part)
+    bins = merl_bin_index(theta_h.astype(np.float32), 0.0, 0.0)[0]
+    order = np.lexsort((np.arange(len(keys)), keys, bins))
+    rank = np.arange(len(order)) - np.searchsorted(bins[order], bins[order])
+    expected = np.sort(order[rank < 300])
+    assert store.subsampled
+    assert np.array_equal(np.sort(store.pooled()["pixels"]), expected)
+
+
+def test_sieved_photos_keep_each_bins_smallest_keys_among_the_unshadowed():
+    """The sieve draws each later photo's keys before its shadow rays and drops what a full bin
+    could never keep; shadowed samples then leave with their keys. After every photo the store
+    holds exactly what a single sort over every unshadowed sample would keep (per bin, the
+    `cap` smallest keys), so the subset stays uniform over what could be kept."""
+    options = replace(ExtractOptions(), sample_budget=3000, max_samples_per_bin=400)
+    store = SampleStore(options, seed=5)
+    rng = np.random.default_rng(2)
+    parts = [_part(rng.uniform(0.2, 0.5, 1500), k) for k in range(25)]
+    keys = np.random.default_rng(5).random(1500 * 25, np.float32)  # the store's draws, in order
+    theta_h = np.concatenate([p["theta_h"] for p in parts]).astype(np.float32)
+    bins = merl_bin_index(theta_h, 0.0, 0.0)[0]
+    lit = np.ones(1500 * 25, bool)
+    sieved_away = 0
+    for k, part in enumerate(parts):
+        ids = np.arange(1500) + 1500 * k
+        part["pixels"] = ids
+        sieved = store.sieve(part["theta_h"])
+        if sieved is not None:
+            wanted, part_keys = sieved
+            assert np.array_equal(part_keys, keys[ids][wanted])
+            sieved_away += int((~wanted).sum())
+            lit[ids[ids % 3 == 0]] = False  # a third of this photo is in shadow
+            survive = wanted & lit[ids]
+            part = {name: values[survive] for name, values in part.items()}
+            part["key"] = part_keys[lit[ids][wanted]]
+        store.add(part)
+        if not store.subsampled:
+            continue
+        seen = np.flatnonzero(lit[:1500 * (k + 1)])
+        expected = set()
+        for b in np.unique(bins[seen]):
+            mine = seen[bins[seen] == b]
+            expected.update(mine[np.argsort(keys[mine], kind="stable")[:400]].tolist())
+        assert set(store.pooled()["pixels"].tolist()) == expected, k
+    # ~1,400 unshadowed samples per bin for a cap of 400: a key passes the sieve about
+    # (400 + 400 ln(1400 / 400)) / 1400 ~ 64% of the time, so ~36% of the 22 sieved photos'
+    # 33,000 samples never reach the shadow rays; 30% leaves room for the bins' spread
+    assert sieved_away > 0.30 * 22 * 1500
+
+
 def test_depth_edges_mark_both_sides_of_a_jump_only():
     camera = SimpleNamespace(shape=(6, 8), model="pinhole", fx=1000.0, fy=1000.0)
     depth = np.full((6, 8), np.inf, np.float32)
@@ -109,10 +172,33 @@ def test_many_photos_subsampled_give_the_slice_all_of_them_give(tmp_path):
     samples = collect_samples(folder, options)
     capped = bin_samples(samples)
     assert samples.first_photo_samples is not None  # segmentation still sees photo 0 whole
+    # the later photos were sieved: what full bins could never keep skipped the shadow rays
+    assert samples.per_photo[0]["not_needed"] == 0 < samples.per_photo[2]["not_needed"]
     assert capped.n.max() <= options.max_samples_per_bin
     both = np.isfinite(whole.rho).all(axis=1) & np.isfinite(capped.rho).all(axis=1)
     assert both.sum() >= 0.9 * np.isfinite(whole.rho).all(axis=1).sum()
     assert np.max(np.abs(capped.rho[both] / whole.rho[both] - 1)) < 0.01
+
+
+def test_prefetched_photos_are_the_photos_read_in_turn(tmp_path):
+    """The next photo is decoded in a thread while this one is worked on: the same images,
+    in the same order, and a bad later photo is raised when it is asked for, not before."""
+    from flashbrdf.capture import iter_flash_images, load_scene
+    from flashbrdf.files.errors import InputError
+    folder = write_synthetic_scene(tmp_path, sphere_mesh(), ggx_lambert(), pinhole_camera(40, 40),
+                                   [point_light([x, 0, 0]) for x in (0.0, 0.01, 0.02)])
+    scene = load_scene(folder)
+    plain = list(iter_flash_images(scene, prefetch=False))
+    ahead = list(iter_flash_images(scene))
+    assert [a.photo.file for a in ahead] == [p.photo.file for p in plain]
+    assert all(np.array_equal(a.radiance, p.radiance) and np.array_equal(a.usable, p.usable)
+               for a, p in zip(ahead, plain))
+    plain[2].photo.file.write_bytes(b"not an image")
+    images = iter_flash_images(scene)
+    assert next(images).photo.file == plain[0].photo.file
+    next(images)
+    with pytest.raises(InputError, match=plain[2].photo.file.name):
+        next(images)
 
 
 def test_a_multiview_flash_photo_without_its_views_ambient_is_refused(tmp_path):

@@ -7,7 +7,7 @@ import pytest
 from flashbrdf.infer import PCA, Ashikhmin, Chandraker, Noll, Oracle, TrainingSet
 from flashbrdf.brdf.shadowing import denominator
 from flashbrdf.infer.baselines.ashikhmin import schlick
-from flashbrdf.brdf.bins import cos_in_out_valid, mean_over_phi_d, scatter_valid, valid_bins_3d
+from flashbrdf.brdf.bins import cos_in_out_valid, mean_over_phi_d, valid_bins_3d
 from flashbrdf.brdf import merl
 
 

@@ -1,7 +1,6 @@
 """The observed-row blend (infer.row_blend): exact at θd = 0, gone at grazing θd, missing bins kept."""
 
 import numpy as np
-import pytest
 
 from flashbrdf.brdf.colour import FEATURE_OFFSET as E
 from flashbrdf.brdf.bins import cos_in_out_valid, scatter_valid, valid_bins_3d
