@@ -98,6 +98,9 @@ def contract_camera(camera_id, pose, cameras=CAMERAS):
     elif model == "PINHOLE":
         fx, fy, cx, cy = p
         distortion = []
+    elif model == "SIMPLE_PINHOLE":
+        fx = fy = p[0]
+        cx, cy, distortion = p[1], p[2], []
     else:
         raise ValueError(f"no truth for {model}")
     cam = {"model": "pinhole", "width": width, "height": height, "fx": fx, "fy": fy,
@@ -217,10 +220,12 @@ def write_colmap_model(folder, names, camera_ids, poses, points, seen, cameras=C
 
 
 def make_colmap_capture(out, views=10, photons=None, seed=0, points=1500, cameras=CAMERAS,
-                        offset=FLASH_OFFSET, keypoint_noise_px=0.3, size_scale=1):
+                        offset=FLASH_OFFSET, keypoint_noise_px=0.3, size_scale=1, renderer=None):
     """Render the capture and write everything listed in the module docstring into `out`.
 
     size_scale: multiplies every camera's size and intrinsics (a larger capture, same views).
+    renderer: None (flashbrdf's renderer, the GGX of ggx_model), or a callable(truth scene
+    folder) -> {stem: (H, W, 3) float32} (another renderer; brdf is then None).
     Returns a dict: out, images, mesh, sparse (text model), sparse_bin, truth (scene folder),
     brdf (render.GGX), names, camera_ids, poses, points (N, 3), cameras (COLMAP, as written).
     """
@@ -239,8 +244,9 @@ def make_colmap_capture(out, views=10, photons=None, seed=0, points=1500, camera
     poses = view_poses(views)
     cams = [contract_camera(c, pose, cameras) for c, pose in zip(camera_ids, poses)]
     truth = _write_truth_scene(out / "truth", names, cams, offset)
-    brdf = ggx_model()
-    for stem, image in render_photos(truth, brdf, photons, seed).items():
+    brdf = ggx_model() if renderer is None else None
+    images = render_photos(truth, brdf, photons, seed) if renderer is None else renderer(truth)
+    for stem, image in images.items():
         from flashbrdf.render import write_exr
         write_exr(out / "images" / f"{stem}.exr", image)
     scene = capture.load_scene(truth)
