@@ -41,9 +41,24 @@ BSDFS = {
 }
 
 
-def mitsuba_renderer(bsdf, spp, gaussian, seed=0):
+def card_mesh(path, centre=(0.17, 0.0, -0.13), size=0.09):
+    """A flat square card facing +z (two triangles) beside and below the object, written to
+    path as PLY: the grey card of a level-target capture."""
+    import trimesh
+    cx, cy, cz = centre
+    h = size / 2
+    corners = [[cx - h, cy - h, cz], [cx + h, cy - h, cz], [cx + h, cy + h, cz],
+               [cx - h, cy + h, cz]]
+    card = trimesh.Trimesh(corners, [[0, 1, 2], [0, 2, 3]], process=False)
+    card.export(path)
+    return path
+
+
+def mitsuba_renderer(bsdf, spp, gaussian, seed=0, card=None, scale=1.0):
     """renderer(truth scene folder) -> {stem: (H, W, 3) float32}: every flash photo of the
-    scene rendered by Mitsuba 3 (direct light from the point flash, shadows included)."""
+    scene rendered by Mitsuba 3 (direct light from the point flash, shadows included). card:
+    None or (PLY path, reflectance): a diffuse card in the scene too; scale: the flash's true
+    intensity over the one scene.json states."""
     def render(truth_dir):
         import mitsuba as mi
         from flashbrdf import capture
@@ -73,8 +88,11 @@ def mitsuba_renderer(bsdf, spp, gaussian, seed=0):
                            "sampler": {"type": "independent", "sample_count": spp}},
                 "object": {"type": "ply", "filename": str(scene.geometry.mesh), "bsdf": bsdf},
                 "flash": {"type": "point", "position": flash.tolist(),
-                          "intensity": {"type": "rgb",
-                                        "value": np.asarray(photo.light.intensity_rgb).tolist()}}}
+                          "intensity": {"type": "rgb", "value": (
+                              scale * np.asarray(photo.light.intensity_rgb)).tolist()}}}
+            if card is not None:
+                description["card"] = {"type": "ply", "filename": str(card[0]), "bsdf": {
+                    "type": "diffuse", "reflectance": {"type": "rgb", "value": card[1]}}}
             image = np.array(mi.render(mi.load_dict(description), seed=seed + k), np.float32)
             images[photo.stem] = image[..., :3]
         return images
@@ -115,6 +133,32 @@ def slice_scores(slice_csv, truth):
             "bins": int(ok.sum())}
 
 
+def level_case(work, bsdf, views, spp, scale=3.7, reflectance=0.18):
+    """The flash 3.7x brighter than stated and a grey card of reflectance 0.18 in the scene:
+    the slice from import-colmap --target card.ply --reflectance 0.18, against the truth, and
+    the flash intensity the card gives."""
+    work.mkdir(parents=True)
+    card = card_mesh(work / "card.ply")
+    capture = make_colmap_capture(work / "capture", views=views, cameras=CAMERAS, points=1500,
+                                  renderer=mitsuba_renderer(bsdf, spp, False, card=(
+                                      card, [reflectance] * 3), scale=scale))
+    truth = true_slice(bsdf)
+    offset = ",".join(str(v) for v in FLASH_OFFSET)
+    scores = {}
+    for label, extra in (("no level", []),
+                         ("grey card", ["--target", card, "--reflectance", reflectance])):
+        scene = work / label.replace(" ", "_")
+        run_cli(["import-colmap", capture["sparse_bin"], "--images", capture["images"],
+                 "--mesh", capture["mesh"], "--out", scene, "--flash-offset", offset, *extra])
+        run_cli(["extract", scene, "--out", work / f"{scene.name}.csv"])
+        scores[label] = slice_scores(work / f"{scene.name}.csv", truth)
+        level = json.loads((work / f"{scene.name}.json").read_text())["level"]
+        scores[label]["flash_intensity_rgb"] = level.get("flash_intensity_rgb")
+        scores[label]["absolute"] = level.get("absolute")
+    scores["true intensity"] = scale
+    return scores
+
+
 def one_case(work, name, bsdf, gaussian, views, spp):
     capture = make_colmap_capture(work, views=views, cameras=CAMERAS, points=1500,
                                   renderer=mitsuba_renderer(bsdf, spp, gaussian))
@@ -150,6 +194,9 @@ def main(argv=None):
                 results["cases"][case] = one_case(Path(tmp) / case.replace(", ", "_").replace(
                     " ", "_"), name, bsdf, gaussian, args.views, args.spp)
                 print(case, json.dumps(results["cases"][case]), flush=True)
+        results["level"] = level_case(Path(tmp) / "level", BSDFS["plastic"], args.views,
+                                      args.spp)
+        print("level", json.dumps(results["level"]), flush=True)
     results["seconds"] = round(time.perf_counter() - start, 1)
     write_json(RESULTS / "mitsuba_colmap.json", results)
     columns = list(next(iter(results["cases"].values())))
@@ -164,6 +211,16 @@ def main(argv=None):
         lines.append(f"| {case} | " + " | ".join(
             f"{100 * scores[c]['median']:.2f}% / {100 * scores[c]['p90']:.2f}% ({scores[c]['bins']})"
             for c in columns) + " |")
+    level = results["level"]
+    card = level["grey card"]
+    lines += ["", "Level: the plastic again, its flash 3.7x brighter than scene.json states, a grey "
+              "card of reflectance 0.18 (a separate mesh, `--target card.ply --reflectance 0.18`) "
+              "beside the object. Without it the slice is off by the factor "
+              f"({100 * level['no level']['median']:.0f}% median, and says its level is "
+              "relative); with it the median bin is within "
+              f"{100 * card['median']:.2f}% (90th percentile {100 * card['p90']:.2f}%), and the "
+              "flash intensity it gives is " + ", ".join(
+                  f"{v:.3f}" for v in card["flash_intensity_rgb"][0]) + " (true 3.7)."]
     (RESULTS / "mitsuba_colmap.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
