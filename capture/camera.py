@@ -196,11 +196,12 @@ def mesh_pixels(camera, vertices, faces, cell_px=8):
     pixel coordinates (u = fx X/Z + cx for a pinhole, before the lens; the contract's u for an
     orthographic camera), a face projects inside the bounding rectangle of its corners: cells
     of cell_px pixels touched by some face's rectangle, and the cells next to them (for float32
-    rays), are marked, and a pixel is kept when its undistorted centre (the cached lens grid the
-    rays are built from) falls in a marked cell. Every hit is kept, and the rays that could only
-    miss (two thirds of a box the object fills loosely) are never cast. When the mesh is not
-    wholly in front of a pinhole camera, every pixel of the box is returned.
-    vertices (V, 3) WORLD; faces (F, 3) int.
+    rays), are marked. The frame is cut into blocks of cell_px x cell_px pixels, and a block is
+    traced whole when the rectangle its pixels' undistorted centres span (the cached lens grid
+    the rays are built from) meets a marked cell. Every hit is kept, and the rays that could
+    only miss (two thirds of a box the object fills loosely) are never cast. When the mesh is
+    not wholly in front of a pinhole camera, or the lens maps the box far beyond the frame,
+    every pixel of the box is returned. vertices (V, 3) WORLD; faces (F, 3) int.
     """
     vertices = np.asarray(vertices, np.float64)
     box = pixel_box(camera, np.stack([vertices.min(0), vertices.max(0)]))
@@ -215,13 +216,9 @@ def mesh_pixels(camera, vertices, faces, cell_px=8):
 
 
 def _cell_pixels(camera, vertices, faces, box, cell_px):
-    """mesh_pixels' pixels within box, or None when a face reaches behind a pinhole camera.
-
-    The box is cut into blocks of cell_px x cell_px pixels; a block's undistorted footprint is
-    the rectangle of its corner pixels' undistorted centres (the lens map is smooth: within a
-    block it departs from that rectangle by far less than the one-cell margin). A block is
-    traced when its footprint meets a marked cell (a summed-area table answers each block in
-    four look-ups), so no per-pixel work is done before the rays."""
+    """mesh_pixels' pixels within box, or None (trace the whole box): a face reaches behind a
+    pinhole camera, or the cells would far outnumber the blocks. A summed-area table of the
+    marked cells answers each block in four look-ups: no per-pixel work before the rays."""
     r0, r1, c0, c1 = box
     faces = np.asarray(faces)
     local = camera.to_camera(vertices)
@@ -233,10 +230,23 @@ def _cell_pixels(camera, vertices, faces, box, cell_px):
             return None
         u = camera.fx * local[:, 0] / local[:, 2] + camera.cx
         v = camera.fy * local[:, 1] / local[:, 2] + camera.cy
-    foot_lo, foot_hi = _block_footprints(camera, box, cell_px)  # (2, blocks_v, blocks_u) each
-    lo = (float(foot_lo[0].min()), float(foot_lo[1].min()))
-    hi = (float(foot_hi[0].max()), float(foot_hi[1].max()))
+    # blocks on one grid over the frame (so that a lens' block extents are cached once)
+    block_rows = slice(r0 // cell_px, -(-r1 // cell_px))
+    block_cols = slice(c0 // cell_px, -(-c1 // cell_px))
+    foot_lo, foot_hi = (f[:, block_rows, block_cols] for f in _block_footprints(camera, cell_px))
+    used = np.zeros(len(u), bool)
+    used[faces.ravel()] = True
+    # the cell grid spans what both the blocks and the faces reach: a lens' grid can hold far
+    # values where its undistortion did not converge
+    lo = (max(float(foot_lo[0].min()), float(u[used].min())),
+          max(float(foot_lo[1].min()), float(v[used].min())))
+    hi = (min(float(foot_hi[0].max()), float(u[used].max())),
+          min(float(foot_hi[1].max()), float(v[used].max())))
+    if hi[0] < lo[0] or hi[1] < lo[1]:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     n_u, n_v = (int((hi[k] - lo[k]) // cell_px) + 1 for k in range(2))
+    if n_u * n_v > 4 * foot_lo[0].size + 4096:
+        return None
     # cells per vertex (clipped one past the grid on each side, so that a face beyond it stays
     # beyond), then each face's cell rectangle from its corners' cells: int32 gathers
     cell_u = np.clip(np.floor((u - lo[0]) / cell_px), -1, n_u).astype(np.int32)
@@ -266,27 +276,42 @@ def _cell_pixels(camera, vertices, faces, box, cell_px):
     marked_in_footprint = (table[last[1], last[0]] - table[first[1], last[0]]
                            - table[last[1], first[0]] + table[first[1], first[0]])
     blocks = marked_in_footprint > 0
-    inside = np.ascontiguousarray(
-        np.repeat(np.repeat(blocks, cell_px, 0), cell_px, 1)[:r1 - r0, :c1 - c0])
+    top, left = block_rows.start * cell_px, block_cols.start * cell_px
+    inside = np.ascontiguousarray(np.repeat(np.repeat(blocks, cell_px, 0), cell_px, 1)[
+        r0 - top:r1 - top, c0 - left:c1 - left])
     rows, cols = np.divmod(np.flatnonzero(inside), c1 - c0)
     return rows + r0, cols + c0
 
 
-def _block_footprints(camera, box, cell_px):
-    """Undistorted pixel coordinates spanned by each cell_px block of box: lo, hi (2, blocks_v,
-    blocks_u) float64 as (u, v), from the blocks' corner pixels (the pixels themselves without
-    a lens)."""
-    r0, r1, c0, c1 = box
-    rows, cols = np.arange(r0, r1, cell_px), np.arange(c0, c1, cell_px)
-    rows_end, cols_end = np.minimum(rows + cell_px - 1, r1 - 1), np.minimum(cols + cell_px - 1,
-                                                                            c1 - 1)
+def _block_footprints(camera, cell_px):
+    """Undistorted pixel coordinates spanned by each cell_px block of the frame: lo, hi
+    (2, blocks_v, blocks_u) as (u, v). Without a lens, the blocks' own pixel ranges; through
+    one, the exact extent of the block's pixels in the cached lens grid (not its corners': where
+    the lens' undistortion does not converge, the grid is not smooth)."""
+    blocks_v, blocks_u = -(-camera.height // cell_px), -(-camera.width // cell_px)
     if camera.model != "pinhole" or camera.distortion is None:
-        grid_v, grid_u = np.meshgrid(rows, cols, indexing="ij")
-        end_v, end_u = np.meshgrid(rows_end, cols_end, indexing="ij")
-        return (np.stack([grid_u, grid_v]).astype(np.float64),
-                np.stack([end_u, end_v]).astype(np.float64))
-    grid_x, grid_y = _lens_grid(camera)
-    at = [np.ix_(rr, cc) for rr in (rows, rows_end) for cc in (cols, cols_end)]
-    u = np.stack([grid_x[i] for i in at]).astype(np.float64) * camera.fx + camera.cx
-    v = np.stack([grid_y[i] for i in at]).astype(np.float64) * camera.fy + camera.cy
-    return np.stack([u.min(0), v.min(0)]), np.stack([u.max(0), v.max(0)])
+        starts_v, starts_u = np.meshgrid(np.arange(blocks_v) * cell_px,
+                                         np.arange(blocks_u) * cell_px, indexing="ij")
+        lo = np.stack([starts_u, starts_v]).astype(np.float64)
+        hi = np.stack([np.minimum(starts_u + cell_px - 1, camera.width - 1),
+                       np.minimum(starts_v + cell_px - 1, camera.height - 1)]).astype(np.float64)
+        return lo, hi
+    return _lens_block_extents(camera.width, camera.height, camera.intrinsics.tobytes(),
+                               np.asarray(camera.distortion, np.float64).tobytes(), cell_px)
+
+
+@functools.lru_cache(maxsize=1)
+def _lens_block_extents(width, height, intrinsics, distortion, cell_px):
+    """_block_footprints through a lens: min and max of the lens grid over each block, in
+    undistorted pixel coordinates, once per lens (one pass over the cached grid)."""
+    k = np.frombuffer(intrinsics).reshape(3, 3)
+    grid = _undistorted_grid(width, height, intrinsics, distortion)
+    blocks_v, blocks_u = -(-height // cell_px), -(-width // cell_px)
+    lo, hi = [], []
+    for axis, (focal, centre) in enumerate(((k[0, 0], k[0, 2]), (k[1, 1], k[1, 2]))):
+        padded = np.pad(grid[axis], ((0, blocks_v * cell_px - height),
+                                     (0, blocks_u * cell_px - width)), mode="edge")
+        padded = padded.reshape(blocks_v, cell_px, blocks_u, cell_px)
+        lo.append(padded.min(axis=(1, 3)).astype(np.float64) * focal + centre)
+        hi.append(padded.max(axis=(1, 3)).astype(np.float64) * focal + centre)
+    return np.stack(lo), np.stack(hi)

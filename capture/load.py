@@ -7,6 +7,7 @@ a pixel is usable only if usable in the flash photo and in every ambient photo. 
 clamped: noise can make (flash - ambient) negative, which keeps per-bin estimates unbiased.
 """
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -134,18 +135,23 @@ def iter_flash_images(scene, prefetch=True):
             rgb /= np.float32(photo.scale)
         return FlashImage(photo, rgb, usable, clipped)
 
-    if not prefetch or len(flashes) == 1:
+    # a batch worker given one thread ($FLASHBRDF_THREADS=1, as the renderer and infer read it)
+    # gets no second one here
+    if not prefetch or len(flashes) == 1 or os.environ.get("FLASHBRDF_THREADS") == "1":
         for photo in flashes:
             yield prepared(photo)
         return
     from concurrent.futures import ThreadPoolExecutor
     # one worker: photos are prepared in order (the ambient cache follows the views)
-    with ThreadPoolExecutor(max_workers=1, thread_name_prefix="flash-photo") as pool:
+    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="flash-photo")
+    try:
         pending = pool.submit(prepared, flashes[0])
         for following in flashes[1:] + [None]:
             image = pending.result()  # the previous image is let go here, before the next read
             pending = None if following is None else pool.submit(prepared, following)
             yield image
+    finally:  # stopped early (an error, Ctrl-C): a decode under way is waited for, not more
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 class _AmbientCache:

@@ -15,13 +15,17 @@ def add_parsers(sub):
     s.add_argument("--min-cos", type=float, help="reject cos(theta_i|o) below this (default 0.1)")
     s.add_argument("--silhouette-px", type=int, metavar="PX",
                    help="reject pixels this close to the object's outline (default 1)")
+    s.add_argument("--refine-poses", action="store_true",
+                   help="first refine each flash view's principal point against the pooled "
+                        "slice (a pose a pixel off blurs the highlight; up to 3 more passes)")
     add_force(s, "with --labels: " + FORCE_HELP)
     s.set_defaults(handler=extract)
 
 
 def extract(args):
     from flashbrdf.pipeline import capture_jobs
-    options = capture_jobs.extract_options(args.max_theta_d, args.min_cos, args.silhouette_px)
+    options = capture_jobs.extract_options(args.max_theta_d, args.min_cos, args.silhouette_px,
+                                           args.refine_poses)
     if args.labels:
         capture_jobs.extract_materials(args.scene_dir, args.labels, args.out, options,
                                        force=args.force)

@@ -47,6 +47,9 @@ def add_run_options(parser):
     parser.add_argument("--albedo-map", action="store_true",
                         help="estimate a per-pixel diffuse albedo map (OUT_DIR/albedo.exr) and "
                              "render with it (textured materials)")
+    parser.add_argument("--refine-poses", action="store_true",
+                        help="refine each flash view's principal point against the pooled slice "
+                             "before extracting (extract --refine-poses)")
     parser.add_argument("--no-anchor", action="store_true", help=ANCHOR_HELP)
     parser.add_argument("--envmap", metavar="FILE",
                         help="a lat-long map to render the object and a sphere of each material "
@@ -62,7 +65,8 @@ def run_options(args):
     """run's options as values (pipeline.run.run_capture's keywords)."""
     return {"model": args.model, "methods": args.methods, "spp": args.spp,
             "materials": args.materials, "albedo_map": args.albedo_map,
-            "anchor": not args.no_anchor, "export": args.export, "envmap": args.envmap}
+            "anchor": not args.no_anchor, "export": args.export, "envmap": args.envmap,
+            "refine_poses": args.refine_poses}
 
 
 def add_engine_options(parser, what, default):

@@ -52,7 +52,7 @@ from flashbrdf.files.outputs import check_writable_folder
 MARKER = ".batch_complete.json"
 LOG_DIR = "logs"
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map", "export",
-               "envmap")
+               "envmap", "refine_poses")
 OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md", INDEX_NAME)  # what a batch writes in OUT_DIR
 
 
@@ -80,7 +80,10 @@ def completed_row(folder, requested=None):
         return None
     if not isinstance(row, dict) or row.get("status") != "ok":
         return None
-    if requested is not None and row.get("run_options") != requested:
+    asked = row.get("run_options")
+    if isinstance(asked, dict):  # a marker from before --refine-poses ran without it
+        asked = {"refine_poses": False} | asked
+    if requested is not None and asked != requested:
         return None
     return row
 
@@ -195,7 +198,7 @@ def run_capture(scene_dir, out_dir, options):
     """The Dask task: `run` one capture into OUT_DIR/<name>/, all or nothing. -> summary row dict.
 
     options: the run options (RUN_OPTIONS: model, methods, spp, no_anchor, materials,
-    albedo_map, export, envmap). Raises on unexpected errors (Dask
+    albedo_map, export, envmap, refine_poses). Raises on unexpected errors (Dask
     retries once); bad input in the capture is returned as a failed row.
     """
     from flashbrdf.pipeline.run import run_capture as run
@@ -217,6 +220,7 @@ def run_capture(scene_dir, out_dir, options):
                 methods=options["methods"], spp=options["spp"], materials=options["materials"],
                 albedo_map=options["albedo_map"], anchor=not options["no_anchor"],
                 export=options["export"], envmap=options.get("envmap"),
+                refine_poses=options.get("refine_poses", False),
                 final_out=str(out_dir / name),
                 read_methods=cached_load_methods)
             seconds = time.perf_counter() - start
@@ -397,7 +401,7 @@ def _prepare(out, captures):
 
 def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model=None,
           methods="dsgplvm", spp=64, anchor=True, materials="auto", albedo_map=False,
-          export=False, envmap=None):
+          export=False, envmap=None, refine_poses=False):
     """`flashbrdf batch`: `run` on every capture of captures_dir into out/<capture>/, and the
     summary. Returns the exit status: 0 all ok, 1 any failed."""
     captures = find_captures(captures_dir)
@@ -411,7 +415,8 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
     options = {"model": None if model is None else str(Path(model).absolute()),
                "methods": methods, "spp": spp, "no_anchor": not anchor, "materials": materials,
                "albedo_map": bool(albedo_map), "export": bool(export),
-               "envmap": None if envmap is None else str(Path(envmap).absolute())}
+               "envmap": None if envmap is None else str(Path(envmap).absolute()),
+               "refine_poses": bool(refine_poses)}
     requested = dict(options)  # what a capture's output depends on, as asked
     rows, todo = {}, []
     for c in captures:

@@ -20,7 +20,7 @@ from flashbrdf.slice_extract.segment import segment_scene
 from flashbrdf.slice_extract.slice_files import write_extraction, write_material_slices
 
 
-def extract_options(max_theta_d=None, min_cos=None, silhouette_px=None):
+def extract_options(max_theta_d=None, min_cos=None, silhouette_px=None, refine_poses=False):
     """ExtractOptions from `extract`'s options (None: the default); InputError out of range."""
     if max_theta_d is not None and not 0 < max_theta_d <= 90:
         raise InputError("--max-theta-d", f"expected degrees in (0, 90], got {max_theta_d}")
@@ -31,7 +31,8 @@ def extract_options(max_theta_d=None, min_cos=None, silhouette_px=None):
     return ExtractOptions(
         silhouette_px=ExtractOptions.silhouette_px if silhouette_px is None else silhouette_px,
         max_theta_d_deg=ExtractOptions.max_theta_d_deg if max_theta_d is None else max_theta_d,
-        min_cos=ExtractOptions.min_cos if min_cos is None else min_cos)
+        min_cos=ExtractOptions.min_cos if min_cos is None else min_cos,
+        refine_poses=bool(refine_poses))
 
 
 def extract(scene_dir, out, options=None):

@@ -55,6 +55,7 @@ class RunSettings:
     export: bool
     final_out: Path
     envmap: object = None  # a lat-long map to render the previews under (pipeline.previews)
+    refine_poses: bool = False  # extract --refine-poses (slice_extract.pose_refine)
 
     @property
     def title(self):
@@ -63,19 +64,20 @@ class RunSettings:
 
 def run_capture(scene_dir, out, *, model=None, methods="dsgplvm", spp=64, materials="auto",
                 albedo_map=False, anchor=True, export=False, force=False, final_out=None,
-                read_methods=None, envmap=None):
+                read_methods=None, envmap=None, refine_poses=False):
     """`flashbrdf run` into the folder `out` (built aside, renamed on success). methods: "a,b" or
     a list; model: a model file or None (the default model, when a method needs one). final_out:
     where `out` ends up when the caller renames it again (batch). read_methods(names,
     model_path, anchor) -> {name: fitted method} replaces the model read (batch passes its
     per-worker cache). envmap: a lat-long map to render the object and a sphere of each
     material under (pipeline.previews); without reference photos they are rendered anyway, under
-    the project's own studio map. Returns the report dict."""
+    the project's own studio map. refine_poses: refine the flash cameras first (extract
+    --refine-poses). Returns the report dict."""
     names = method_names(methods)
     settings = RunSettings(str(scene_dir), tuple(names), model_path(model, names),
                            samples_per_pixel(spp), materials_option(materials), bool(albedo_map),
                            bool(anchor), bool(export), Path(final_out or out),
-                           None if envmap is None else str(envmap))
+                           None if envmap is None else str(envmap), bool(refine_poses))
     scene = capture.load_scene(scene_dir)
     check_outputs(inputs=[scene_dir, *scene.input_files(), settings.model_path, envmap],
                   outputs=[out], folders=[out])
@@ -99,7 +101,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     notes = []
     fitted = stages.run("load model", read_methods, list(settings.methods), settings.model_path,
                         settings.anchor)
-    options = ExtractOptions()
+    options = ExtractOptions(refine_poses=settings.refine_poses)
     samples = stages.run("extract", collect_samples, scene, options)
     segmentation, faces = stages.run("segment", segment_scene, samples, settings.materials)
     with_albedo = (run_albedo_map(stages, out, samples, segmentation, faces, scene, notes)

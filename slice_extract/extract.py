@@ -32,6 +32,7 @@ from flashbrdf.slice_extract.visibility import (camera_normals, depth_edge_mask,
                                                trace_camera)
 from flashbrdf.slice_extract.level import (TARGET_MIN_COS, calibrated_record, relative_record,
                                           target_level, trace_target)
+from flashbrdf.slice_extract.pose_refine import refine_flash_cameras
 from flashbrdf.slice_extract.samples import REASONS, light_setup, photo_samples
 from flashbrdf.slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
                                    material_interior)
@@ -57,6 +58,9 @@ class ExtractOptions:
     # atan(depth_edge_slope) ~ 87 deg) is rejected like the outline: a pose a pixel off puts
     # the surface behind, or the background, there (0: off)
     depth_edge_slope: float = 20.0
+    # refine each flash view's principal point against the pooled slice first (pose_refine.py):
+    # a pose a pixel off blurs the specular lobe; costs up to 3 more passes over the photos
+    refine_poses: bool = False
 
 
 @dataclass(eq=False)
@@ -202,8 +206,10 @@ class FlashSamples:
 def collect_samples(scene, options=None):
     """Trace the flash photos and compute every usable pixel's sample; returns FlashSamples.
 
-    Photos are read one at a time (capture.iter_flash_images) and each camera is traced once, so
-    memory holds one photo, one camera's traced surface and the pooled samples (SampleStore).
+    Photos are read one at a time (capture.iter_flash_images, which decodes the next one
+    meanwhile) and each camera is traced once, so memory holds three photos (the first, kept for
+    segmentation, this one and the next), one camera's traced surface and the pooled samples
+    (SampleStore).
     scene: scene folder path or capture.Scene; options: ExtractOptions. InputError (exit 2) for
     bad input.
     """
@@ -211,6 +217,10 @@ def collect_samples(scene, options=None):
     clock, start, t0 = _Clock(), time.perf_counter(), time.perf_counter()
     if not isinstance(scene, capture.Scene):
         scene = capture.load_scene(scene)
+    poses = None
+    if options.refine_poses:
+        plain = replace(options, refine_poses=False)
+        scene, poses = refine_flash_cameras(scene, lambda s: _measured(s, plain))
     normal_map = scene.geometry.mesh is None
     flashes = scene.photos_with_role("flash")
     for photo in flashes:
@@ -255,7 +265,7 @@ def collect_samples(scene, options=None):
             traced_camera = camera
         stats = dict(photo=image.photo.stem, usable=int(image.usable.sum()),
                      clipped=int(image.clipped.sum()), on_surface=0, **dict.fromkeys(REASONS, 0),
-                     not_needed=0)
+                     not_needed=0, **({} if poses is None else {"pose": poses[image.photo.stem]}))
         t = clock.add("trace", t)
         skip = not needs_shadows or convex or lights[k].at_viewpoint
         parts = []
@@ -328,6 +338,12 @@ class _FirstPhoto:
             self.face_image = np.full(camera.shape, -1, dtype=np.int32)
             for surface in surfaces:
                 self.face_image[surface.rows, surface.cols] = surface.face
+
+
+def _measured(scene, options):
+    """(FlashSamples, binned rho (90, 3)): one extraction pass, for refine_flash_cameras."""
+    samples = collect_samples(scene, options)
+    return samples, bin_samples(samples).rho
 
 
 def bin_samples(samples):
@@ -472,7 +488,7 @@ def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin
     return {"scene": str(scene.json_path),
             "options": {k: getattr(options, k) for k in ("max_theta_d_deg", "min_cos",
                                                          "silhouette_px", "outlier_k",
-                                                         "estimator")},
+                                                         "estimator", "refine_poses")},
             "coverage": coverage, "rejected": {k: int(v) for k, v in rejected.items()},
             "theta_d_deg": _stats_deg(theta_d[inlier]), "photos": per_photo,
             "n": [int(v) for v in n], "timings_s": {k: round(v, 4) for k, v in timings.items()}}

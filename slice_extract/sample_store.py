@@ -44,15 +44,18 @@ class SampleStore:
         if not self.subsampled:
             return None
         keys = self.rng.random(len(theta_h), np.float32)
-        wanted = keys < self.key_limit[merl_bin_index(theta_h, 0.0, 0.0)[0]]
+        wanted = self._could_keep(keys, theta_h)
         return wanted, keys[wanted]
+
+    def _could_keep(self, keys, theta_h):
+        """(N,) bool: keys under their theta_h bin's limit (the others can never be kept)."""
+        return keys < self.key_limit[merl_bin_index(theta_h, 0.0, 0.0)[0]]
 
     def add(self, part):
         """part: {field: array} of one photo's samples (SAMPLE_FIELDS, and "key" when sieved)."""
         if self.subsampled and "key" not in part:
             part = self._compact(part)
-            bins = merl_bin_index(part["theta_h"], 0.0, 0.0)[0]
-            wanted = part["key"] < self.key_limit[bins]
+            wanted = self._could_keep(part["key"], part["theta_h"])
             if not wanted.all():
                 part = {name: values[wanted] for name, values in part.items()}
         elif self.subsampled:  # sieved: its keys already passed their bins' limits

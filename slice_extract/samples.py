@@ -13,6 +13,8 @@ Rejections, in this order (each pixel counted once, under the first reason that 
   theta_d     theta_d above max_theta_d (the light is too far from the camera for a theta_d ~ 0
               sample);
   shadowed    the segment to the light hits the mesh (not tested for normal-map geometry).
+Once a capture's pooled samples are subsampled (SampleStore), a sample its full bin could never
+keep is dropped before the shadow test and counted as not_needed, not as shadowed.
 """
 
 from dataclasses import dataclass
@@ -158,7 +160,7 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
     key, not_needed = None, 0
     if sieved is not None:
         wanted, key = sieved
-        not_needed = len(idx) - len(key)
+        not_needed = int(np.count_nonzero(~wanted & ~cens_now))  # usable ones, as REASONS
         idx, theta_h, theta_d = idx[wanted], theta_h[wanted], theta_d[wanted]
         cens_now = cens_now[wanted]
     if intersector is not None and len(idx):

@@ -1,0 +1,160 @@
+"""Flash cameras refined against the photos (`extract --refine-poses`): a pose a pixel off blurs
+the specular lobe, because every pixel then takes the normal of a surface point beside its own.
+
+Each view's error shows as a shift between its photo and what the pooled slice predicts there:
+the measured rho of a pixel against the slice's rho at the pixel's theta_h. For a small error
+the photo's content sits at x + d where the traced geometry sits at x, so, to first order,
+    ln rho_measured(x) + grad ln I(x) . d = ln rho_slice(theta_h(x))
+and d (pixels, 2) is the least-squares solution over the view's samples (Lucas-Kanade on the
+log-luminance, against a prediction pooled over every view, so that the views' random errors do
+not align each other with themselves). A pinhole camera whose rays are those of pixel x - d is
+the same camera with its principal point moved by +d: the correction is a principal-point shift
+(for 1-2 px it moves the lens distortion's centre by as much, a change far below a pixel). The
+slice is measured again with the corrected cameras, up to `iterations` times.
+
+A view keeps no correction (and says why) when its samples cannot fix a shift (a diffuse or
+dark photo: no gradient across it), or when the total exceeds max_shift_px: that is not a pose
+a pixel off but a wrong model, which a shift would only hide. Orthographic views are left as
+they are.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+
+from flashbrdf import capture
+from flashbrdf.brdf.merl import theta_h_centres
+
+MAX_SHIFT_PX = 2.0
+MIN_SAMPLES = 200
+# a shift is fixed only where the log-luminance varies across the view: the smaller eigenvalue
+# of sum(g g^T) per sample, in (ln units / px)^2
+MIN_GRADIENT = 1e-4
+MAX_RESIDUAL = 0.5  # ln units: pixels off by more than x1.6 are outliers, not a shift
+CONVERGED_PX = 0.05
+
+
+def refine_flash_cameras(scene, measure, iterations=3):
+    """(scene with refined flash cameras, record): record[photo stem] = {"shift_px": [du, dv]
+    total principal-point shift, "refined": bool, "note": why not, when not}.
+
+    scene: capture.Scene; measure(scene) -> (FlashSamples, rho (90, 3) binned slice): one
+    extraction pass (slice_extract.extract supplies it: this module runs no extraction itself).
+    """
+    views = _views(scene)
+    total = {key: np.zeros(2) for key in views}
+    notes = {}
+    current = scene
+    for _ in range(iterations):
+        samples, slice_rho = measure(current)
+        step = view_shifts(current, samples, slice_rho, views)
+        for key, (d, note) in step.items():
+            if note is not None:
+                notes[key] = note
+                continue
+            total[key] += d
+            if np.hypot(*total[key]) > MAX_SHIFT_PX:
+                notes[key] = (f"a shift of {np.hypot(*total[key]):.1f} px: more than "
+                              f"{MAX_SHIFT_PX:g} px is not a pose a pixel off")
+        for key in notes:
+            total[key] = np.zeros(2)
+        current = _shifted(scene, views, total)
+        if all(note is not None or np.hypot(*d) < CONVERGED_PX for d, note in step.values()):
+            break
+    record = {}
+    for key, photos in views.items():
+        for photo in photos:
+            record[photo.stem] = {"shift_px": [round(float(v), 4) for v in total[key]],
+                                  "refined": key not in notes}
+            if key in notes:
+                record[photo.stem]["note"] = notes[key]
+    return current, record
+
+
+def _views(scene):
+    """{camera key: [flash photos taken from that view]}: one shift per view (photos of one
+    view share their rays). Keys are the original cameras': shifted cameras keep them."""
+    views = {}
+    for photo in scene.photos_with_role("flash"):
+        views.setdefault(capture.camera_key(photo.camera), []).append(photo)
+    return views
+
+
+def _view_of(views):
+    """{photo index in scene.photos: camera key}."""
+    return {photo.index: key for key, photos in views.items() for photo in photos}
+
+
+def _shifted(scene, views, total):
+    """The scene with each pinhole view's principal point moved by its total shift."""
+    view_of = _view_of(views)
+    moved = {}
+    for key, photos in views.items():
+        camera = photos[0].camera
+        if camera.model == "pinhole" and np.any(total[key]):
+            moved[key] = replace(camera, cx=camera.cx + total[key][0],
+                                 cy=camera.cy + total[key][1])
+    photos = [replace(p, camera=moved[view_of[p.index]]) if view_of.get(p.index) in moved else p
+              for p in scene.photos]
+    return replace(scene, photos=photos)
+
+
+def view_shifts(scene, samples, slice_rho, views):
+    """{camera key: (d (2,) px, None) or (None, note)}: each view's least-squares shift between
+    its photo and the pooled slice's prediction at its samples (module docstring)."""
+    centres = theta_h_centres()
+    filled = np.all(np.isfinite(slice_rho), axis=1)
+    level = np.where(filled, np.where(filled[:, None], slice_rho, 0.0).mean(axis=1), np.nan)
+    known = filled & (level > 0)
+    view_of = _view_of(views)
+    normal = {key: [] for key in views}
+    for k, image in enumerate(capture.iter_flash_images(scene)):
+        camera = image.photo.camera
+        if camera.model != "pinhole":
+            continue
+        mine = samples.photo == k
+        if known.sum() < 2 or not mine.any():
+            continue
+        rho = samples.rho[mine].mean(axis=1)
+        predicted = np.exp(np.interp(samples.theta_h[mine], centres[known], np.log(level[known])))
+        gradient, usable = _log_gradient(image, samples.pixels[mine])
+        residual = np.log(np.where(rho > 0, rho, np.nan)) - np.log(predicted)
+        keep = usable & np.isfinite(residual) & (np.abs(residual) < MAX_RESIDUAL)
+        normal[view_of[image.photo.index]].append((gradient[keep], residual[keep]))
+    shifts = {}
+    for key in views:
+        if views[key][0].camera.model != "pinhole":
+            shifts[key] = (None, "orthographic: not refined")
+            continue
+        parts = normal[key]
+        g = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 2))
+        r = np.concatenate([p[1] for p in parts]) if parts else np.zeros(0)
+        if len(r) < MIN_SAMPLES:
+            shifts[key] = (None, f"{len(r)} samples with a gradient: too few to fix a shift")
+            continue
+        hessian = g.T @ g / len(r)
+        if np.linalg.eigvalsh(hessian)[0] < MIN_GRADIENT:
+            shifts[key] = (None, "the photo barely varies across the view: no shift to fix")
+            continue
+        shifts[key] = (-np.linalg.solve(hessian, g.T @ r / len(r)), None)
+    return shifts
+
+
+def _log_gradient(image, pixels):
+    """(N, 2) central-difference gradient of ln(mean RGB radiance) per px along (u, v) at flat
+    pixel indices, and (N,) bool: all four neighbours usable, inside the frame, positive."""
+    height, width = image.usable.shape
+    rows, cols = np.divmod(np.asarray(pixels, np.int64), width)
+    inside = (rows > 0) & (rows < height - 1) & (cols > 0) & (cols < width - 1)
+    rows, cols = np.where(inside, rows, 1), np.where(inside, cols, 1)
+    flat = rows * width + cols
+    luminance = image.radiance.reshape(-1, 3)
+    usable = image.usable.ravel()
+    values, ok = [], inside.copy()
+    for step in (1, -1, width, -width):
+        neighbour = flat + step
+        value = luminance[neighbour].mean(axis=1).astype(np.float64)
+        ok &= usable[neighbour] & (value > 0)
+        values.append(np.log(np.where(value > 0, value, 1.0)))
+    gradient = np.stack([values[0] - values[1], values[2] - values[3]], axis=1) / 2
+    return gradient, ok

@@ -1,0 +1,72 @@
+"""extract --refine-poses: each flash view's principal point refined against the pooled slice,
+so that a photogrammetry pose a pixel off no longer blurs the specular lobe."""
+
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from benchmarks.colmap_import import perturbed_model
+from colmap_synthetic import FLASH_OFFSET, ggx_model, make_colmap_capture, true_slice
+from flashbrdf.capture.importers.colmap import import_colmap
+from flashbrdf.cli.main import main
+from flashbrdf.slice_extract import ExtractOptions, extract_slice
+
+REFINE = replace(ExtractOptions(), refine_poses=True)
+
+
+@pytest.fixture(scope="module")
+def capture(tmp_path_factory):
+    """8 views of 240x180 (OPENCV and SIMPLE_RADIAL cameras, principal points off centre) of
+    the GGX torus and sphere, noise-free."""
+    return make_colmap_capture(tmp_path_factory.mktemp("pose") / "capture", views=8, points=800)
+
+
+def _error(result):
+    ok = result.n >= 20
+    truth = true_slice(ggx_model())
+    return float(np.median(np.max(np.abs(result.rho[ok] / truth[ok] - 1), axis=1)))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_pose_a_pixel_off_is_refined_back_to_the_truths_error(capture, tmp_path, seed):
+    """Every view turned by 1/f rad (about 1 px) across its optical axis: the slice's median
+    error grows from the true cameras' 0.10% to 0.8-1.2% at this size (the lobe blurred by
+    1.3-3 degrees). Refined, it is within 1.15x the truth's over three draws; 1.5x bounds it,
+    under the issue's 2x."""
+    model = perturbed_model(capture["sparse"], tmp_path / "sparse_1px", 1.0, seed)
+    import_colmap(model, capture["images"], capture["mesh"], tmp_path / "scene",
+                  flash_offset=FLASH_OFFSET)
+    scene = tmp_path / "scene"
+    truth_error = _error(extract_slice(capture["truth"]))
+    assert _error(extract_slice(scene)) > 4 * truth_error
+    refined = extract_slice(scene, REFINE)
+    assert _error(refined) < 1.5 * truth_error
+    shifts = [p["pose"]["shift_px"] for p in refined.report["photos"]]
+    assert all(p["pose"]["refined"] for p in refined.report["photos"])
+    assert all(0.3 < np.hypot(*d) < 1.5 for d in shifts)  # each view moved by about a pixel
+
+
+def test_true_cameras_stay_where_they_are(capture):
+    """With the true cameras the shifts are noise (under 0.05 px) and the slice does not move
+    (every bin within 0.05%)."""
+    plain, refined = extract_slice(capture["truth"]), extract_slice(capture["truth"], REFINE)
+    assert all(np.hypot(*p["pose"]["shift_px"]) < 0.05 for p in refined.report["photos"])
+    both = np.isfinite(plain.rho).all(axis=1)
+    assert np.max(np.abs(refined.rho[both] / plain.rho[both] - 1)) < 5e-4
+
+
+def test_the_command_line_records_each_views_shift(capture, tmp_path):
+    assert main(["extract", str(capture["truth"]), "--out", str(tmp_path / "s.csv"),
+                 "--refine-poses"]) == 0
+    photos = json.loads((tmp_path / "s.json").read_text())["photos"]
+    assert len(photos) == 8 and all(set(p["pose"]) >= {"shift_px", "refined"} for p in photos)
+
+
+def test_run_refines_when_asked(capture, tmp_path):
+    assert main(["run", str(capture["truth"]), "--out", str(tmp_path / "out"), "--methods",
+                 "chandraker", "--refine-poses", "--spp", "4"]) == 0
+    report = json.loads((tmp_path / "out" / "slice.json").read_text())
+    assert report["options"]["refine_poses"] is True
+    assert all(p["pose"]["refined"] for p in report["photos"])
