@@ -275,7 +275,10 @@ def _cell_pixels(camera, vertices, faces, box, cell_px):
             for k, n in ((0, n_u), (1, n_v))]
     marked_in_footprint = (table[last[1], last[0]] - table[first[1], last[0]]
                            - table[last[1], first[0]] + table[first[1], first[0]])
-    blocks = marked_in_footprint > 0
+    # a block wholly past the grid (beyond every face) would read the edge cells: it sees none
+    beyond = ((foot_hi[0] < lo[0]) | (foot_lo[0] > hi[0]) | (foot_hi[1] < lo[1])
+              | (foot_lo[1] > hi[1]))
+    blocks = (marked_in_footprint > 0) & ~beyond
     top, left = block_rows.start * cell_px, block_cols.start * cell_px
     inside = np.ascontiguousarray(np.repeat(np.repeat(blocks, cell_px, 0), cell_px, 1)[
         r0 - top:r1 - top, c0 - left:c1 - left])

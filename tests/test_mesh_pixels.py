@@ -55,6 +55,11 @@ def test_every_hit_is_kept_and_most_misses_are_not_cast(name):
     # hits and a band of one to three 8-px cells around the outline
     assert len(kept) < 0.8 * (r1 - r0) * (c1 - c0)
     assert np.all(np.diff(kept_rows * camera.width + kept_cols) > 0)  # row-major, no repeat
+    # nothing far from the object: a cell's alignment, its one-cell margin and the 8-px block
+    # reach at most 3 x 8 px past the faces' projection (undistorted: a lens adds its own slack)
+    reach = 24 + (0 if camera.distortion is None else 8) + 1
+    assert kept_rows.min() >= hits.rows.min() - reach and kept_rows.max() <= hits.rows.max() + reach
+    assert kept_cols.min() >= hits.cols.min() - reach and kept_cols.max() <= hits.cols.max() + reach
 
 
 def test_a_mesh_reaching_behind_the_camera_traces_the_whole_box():
