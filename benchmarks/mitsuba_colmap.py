@@ -12,7 +12,9 @@ principal point off centre (Mitsuba's perspective sensor has no lens distortion 
 pixels). Each BSDF is rendered twice: with a box pixel filter, and with Mitsuba's default
 Gaussian. Scores, per slice: the median and 90th percentile over bins with n >= 20 of the
 largest per-channel relative error against the true slice, for the scene imported from the
-text and the binary model and for the scene written by hand from the true cameras.
+text and the binary model, for the scene written by hand from the true cameras, and for the
+model with every view turned by ~1 px (as benchmarks.colmap_import), extracted as it is and with
+--refine-poses.
 Writes benchmarks/results/mitsuba_colmap.{json,md}.
 """
 
@@ -27,6 +29,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks._real_common import RESULTS, write_json
+from benchmarks.colmap_import import perturbed_model
 from tests.colmap_synthetic import FLASH_OFFSET, make_colmap_capture
 
 N_MIN = 20
@@ -174,6 +177,15 @@ def one_case(work, name, bsdf, gaussian, views, spp):
                  capture["mesh"], "--out", scene, "--flash-offset", offset])
         run_cli(["extract", scene, "--out", work / f"{model.name}.csv"])
         scores[label] = slice_scores(work / f"{model.name}.csv", truth)
+    # every view turned by 1/f rad across its axis (~1 px), as benchmarks.colmap_import does
+    model = perturbed_model(capture["sparse"], work / "sparse_1px", 1.0, seed=0)
+    scene = work / "scene_1px"
+    run_cli(["import-colmap", model, "--images", capture["images"], "--mesh", capture["mesh"],
+             "--out", scene, "--flash-offset", offset])
+    for label, extra in (("pose 1 px", []), ("pose 1 px, --refine-poses", ["--refine-poses"])):
+        out = work / f"1px{len(extra)}.csv"
+        run_cli(["extract", scene, "--out", out, *extra])
+        scores[label] = slice_scores(out, truth)
     return scores
 
 

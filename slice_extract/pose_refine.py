@@ -13,9 +13,9 @@ the same camera with its principal point moved by +d: the correction is a princi
 slice is measured again with the corrected cameras, up to `iterations` times.
 
 A view keeps no correction (and says why) when its samples cannot fix a shift (a diffuse or
-dark photo: no gradient across it), or when the total exceeds max_shift_px: that is not a pose
-a pixel off but a wrong model, which a shift would only hide. Orthographic views are left as
-they are.
+dark photo: no gradient across it), when the total exceeds MAX_SHIFT_PX (not a pose a pixel off
+but a wrong model, which a shift would only hide), or when it is under MIN_SHIFT_PX (noise: right
+cameras stay exactly as they were). Orthographic views are left as they are.
 """
 
 from dataclasses import replace
@@ -26,6 +26,9 @@ from flashbrdf import capture
 from flashbrdf.brdf.merl import theta_h_centres
 
 MAX_SHIFT_PX = 2.0
+# a total under this is left out: on exact cameras the fit finds up to ~0.1 px from how the
+# pixel filter spreads a highlight (Mitsuba's Gaussian), and such a shift only adds its own error
+MIN_SHIFT_PX = 0.1
 MIN_SAMPLES = 200
 # a shift is fixed only where the log-luminance varies across the view: the smaller eigenvalue
 # of sum(g g^T) per sample, in (ln units / px)^2
@@ -61,6 +64,11 @@ def refine_flash_cameras(scene, measure, iterations=3):
         current = _shifted(scene, views, total)
         if all(note is not None or np.hypot(*d) < CONVERGED_PX for d, note in step.values()):
             break
+    for key in total:
+        if key not in notes and np.hypot(*total[key]) < MIN_SHIFT_PX:
+            notes[key] = f"{np.hypot(*total[key]):.3f} px: under {MIN_SHIFT_PX:g} px, kept as it is"
+            total[key] = np.zeros(2)
+    current = _shifted(scene, views, total)
     record = {}
     for key, photos in views.items():
         for photo in photos:

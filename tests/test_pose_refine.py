@@ -49,12 +49,13 @@ def test_a_pose_a_pixel_off_is_refined_back_to_the_truths_error(capture, tmp_pat
 
 
 def test_true_cameras_stay_where_they_are(capture):
-    """With the true cameras the shifts are noise (under 0.05 px) and the slice does not move
-    (every bin within 0.05%)."""
+    """With the true cameras the fitted shifts are noise (~0.002 px here, up to ~0.1 px under a
+    Gaussian pixel filter), under the 0.1 px a view must move: every camera is kept, and the
+    slice is the one extracted without refinement, to the bit."""
     plain, refined = extract_slice(capture["truth"]), extract_slice(capture["truth"], REFINE)
-    assert all(np.hypot(*p["pose"]["shift_px"]) < 0.05 for p in refined.report["photos"])
-    both = np.isfinite(plain.rho).all(axis=1)
-    assert np.max(np.abs(refined.rho[both] / plain.rho[both] - 1)) < 5e-4
+    assert not any(p["pose"]["refined"] for p in refined.report["photos"])
+    assert all(p["pose"]["shift_px"] == [0.0, 0.0] for p in refined.report["photos"])
+    assert np.array_equal(refined.rho, plain.rho, equal_nan=True)
 
 
 def test_the_command_line_records_each_views_shift(capture, tmp_path):
@@ -65,7 +66,10 @@ def test_the_command_line_records_each_views_shift(capture, tmp_path):
 
 
 def test_run_refines_when_asked(capture, tmp_path):
-    assert main(["run", str(capture["truth"]), "--out", str(tmp_path / "out"), "--methods",
+    model = perturbed_model(capture["sparse"], tmp_path / "sparse_1px", 1.0, 2)
+    import_colmap(model, capture["images"], capture["mesh"], tmp_path / "scene",
+                  flash_offset=FLASH_OFFSET)
+    assert main(["run", str(tmp_path / "scene"), "--out", str(tmp_path / "out"), "--methods",
                  "chandraker", "--refine-poses", "--spp", "4"]) == 0
     report = json.loads((tmp_path / "out" / "slice.json").read_text())
     assert report["options"]["refine_poses"] is True
