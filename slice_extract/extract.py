@@ -218,9 +218,10 @@ def collect_samples(scene, options=None):
     if not isinstance(scene, capture.Scene):
         scene = capture.load_scene(scene)
     poses = None
-    if options.refine_poses:
+    if options.refine_poses:  # its passes are timed apart, not as load_scene
         plain = replace(options, refine_poses=False)
         scene, poses = refine_flash_cameras(scene, lambda s: _measured(s, plain))
+        t0 = clock.add("refine_poses", t0)
     normal_map = scene.geometry.mesh is None
     flashes = scene.photos_with_role("flash")
     for photo in flashes:
