@@ -12,8 +12,8 @@ the same camera with its principal point moved by +d: the correction is a princi
 (for 1-2 px it moves the lens distortion's centre by as much, a change far below a pixel). The
 slice is measured again with the corrected cameras, up to `iterations` times.
 
-A view keeps no correction (and says why) when its samples cannot fix a shift (a diffuse or
-dark photo: no gradient across it), when the total exceeds MAX_SHIFT_PX (not a pose a pixel off
+A view keeps no correction (and says why) when its samples cannot fix a shift to 0.05 px (the
+least-squares standard error: a flat or noisy photo), when the total exceeds MAX_SHIFT_PX (not a pose a pixel off
 but a wrong model, which a shift would only hide), or when it is under MIN_SHIFT_PX (noise: right
 cameras stay exactly as they were). Orthographic views are left as they are.
 """
@@ -30,9 +30,9 @@ MAX_SHIFT_PX = 2.0
 # pixel filter spreads a highlight (Mitsuba's Gaussian), and such a shift only adds its own error
 MIN_SHIFT_PX = 0.1
 MIN_SAMPLES = 200
-# a shift is fixed only where the log-luminance varies across the view: the smaller eigenvalue
-# of sum(g g^T) per sample, in (ln units / px)^2
-MIN_GRADIENT = 1e-4
+# a shift is fixed only when the view's samples pin it down: its standard error (the fit's
+# residual over the log-luminance gradients, whatever the resolution) under this many px
+MAX_SHIFT_ERROR_PX = 0.05
 MAX_RESIDUAL = 0.5  # ln units: pixels off by more than x1.6 are outliers, not a shift
 CONVERGED_PX = 0.05
 
@@ -140,11 +140,18 @@ def view_shifts(scene, samples, slice_rho, views):
         if len(r) < MIN_SAMPLES:
             shifts[key] = (None, f"{len(r)} samples with a gradient: too few to fix a shift")
             continue
-        hessian = g.T @ g / len(r)
-        if np.linalg.eigvalsh(hessian)[0] < MIN_GRADIENT:
-            shifts[key] = (None, "the photo barely varies across the view: no shift to fix")
+        normal_matrix = g.T @ g
+        if np.linalg.eigvalsh(normal_matrix)[0] <= 0:
+            shifts[key] = (None, "the photo does not vary across the view: no shift to fix")
             continue
-        shifts[key] = (-np.linalg.solve(hessian, g.T @ r / len(r)), None)
+        d = -np.linalg.solve(normal_matrix, g.T @ r)
+        # least squares' covariance: residual variance x (G^T G)^-1
+        variance = np.mean((r + g @ d) ** 2) * np.linalg.eigvalsh(np.linalg.inv(normal_matrix))[-1]
+        if np.sqrt(variance) > MAX_SHIFT_ERROR_PX:
+            shifts[key] = (None, f"the view's samples fix a shift only to +-{np.sqrt(variance):.2f}"
+                                 " px: camera kept")
+            continue
+        shifts[key] = (d, None)
     return shifts
 
 
