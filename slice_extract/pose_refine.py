@@ -7,19 +7,21 @@ the photo's content sits at x + d where the traced geometry sits at x, so, to fi
     ln rho_measured(x) + grad ln I(x) . d = ln rho_slice(theta_h(x))
 and d (pixels, 2) is the least-squares solution over the view's samples (Lucas-Kanade on the
 log-luminance, against a prediction pooled over every view, so that the views' random errors do
-not align each other with themselves). A pinhole camera whose rays are those of pixel x - d is
-the same camera with its principal point moved by +d: the correction is a principal-point shift
-(for 1-2 px it moves the lens distortion's centre by as much, a change far below a pixel). The
+not align each other with themselves). The camera is then turned about its centre by d / f
+across its optical axis, its flash with it: its pixel x sees what pixel x - d saw, to first
+order (the intrinsics stay, and with them the lens' cached undistortion grid). The
 slice is measured again with the corrected cameras, up to `iterations` times.
 
 A view keeps no correction (and says why) when its samples cannot fix a shift to 0.05 px (the
-least-squares standard error: a flat or noisy photo), when the total exceeds MAX_SHIFT_PX (not a pose a pixel off
-but a wrong model, which a shift would only hide), or when it is under MIN_SHIFT_PX (noise: right
-cameras stay exactly as they were). Orthographic views are left as they are.
+least-squares standard error: a flat or noisy photo), when the total exceeds MAX_SHIFT_PX (not a
+pose a pixel off but a wrong model, which a shift would only hide), or when it is under
+MIN_SHIFT_PX (noise: right cameras stay exactly as they were). Orthographic views are left as
+they are.
 """
 
 from dataclasses import replace
 
+import cv2
 import numpy as np
 
 from flashbrdf import capture
@@ -39,7 +41,8 @@ CONVERGED_PX = 0.05
 
 def refine_flash_cameras(scene, measure, iterations=3):
     """(scene with refined flash cameras, record): record[photo stem] = {"shift_px": [du, dv]
-    total principal-point shift, "refined": bool, "note": why not, when not}.
+    total image shift (applied as a turn of the camera, _turned), "refined": bool, "note": why
+    not, when not}.
 
     scene: capture.Scene; measure(scene) -> (FlashSamples, rho (90, 3) binned slice): one
     extraction pass (slice_extract.extract supplies it: this module runs no extraction itself).
@@ -51,6 +54,7 @@ def refine_flash_cameras(scene, measure, iterations=3):
     for _ in range(iterations):
         samples, slice_rho = measure(current)
         step = view_shifts(current, samples, slice_rho, views)
+        del samples  # before the next pass: two passes' samples would double the peak memory
         for key, (d, note) in step.items():
             if note is not None:
                 notes[key] = note
@@ -94,17 +98,24 @@ def _view_of(views):
 
 
 def _shifted(scene, views, total):
-    """The scene with each pinhole view's principal point moved by its total shift."""
+    """The scene with each pinhole view turned by its total shift (_turned)."""
     view_of = _view_of(views)
-    moved = {}
-    for key, photos in views.items():
-        camera = photos[0].camera
-        if camera.model == "pinhole" and np.any(total[key]):
-            moved[key] = replace(camera, cx=camera.cx + total[key][0],
-                                 cy=camera.cy + total[key][1])
+    moved = {key: _turned(photos[0].camera, total[key]) for key, photos in views.items()
+             if photos[0].camera.model == "pinhole" and np.any(total[key])}
     photos = [replace(p, camera=moved[view_of[p.index]]) if view_of.get(p.index) in moved else p
               for p in scene.photos]
     return replace(scene, photos=photos)
+
+
+def _turned(camera, shift):
+    """The pinhole camera turned about its centre, its flash with it (a flash position is in
+    the camera frame), so that its pixel x sees what its pixel x - shift saw: to first order a
+    turn by shift / f across the optical axis. The intrinsics stay, so every view keeps sharing
+    its lens' cached undistortion grid."""
+    turn, _ = cv2.Rodrigues(np.array([shift[1] / camera.fy, -shift[0] / camera.fx, 0.0]))
+    pose = np.array(camera.world_from_camera, dtype=np.float64)
+    pose[:3, :3] = pose[:3, :3] @ turn
+    return replace(camera, world_from_camera=pose)
 
 
 def view_shifts(scene, samples, slice_rho, views):
