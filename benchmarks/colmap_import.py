@@ -121,9 +121,9 @@ def write_report(rows, args):
               "(--silhouette-px 2, 3) makes it worse (0.38%, 0.46% against 0.32%). The blur "
               "shrinks with f: at 960x720 the same 1 px costs half the angle and the ratio falls "
               "to 1.4-1.6x.",
-              "- `--refine-poses` (slice_extract/pose_refine.py) fits each view's principal-point "
-              "shift against the slice pooled over every view (Lucas-Kanade on the log-luminance), "
-              "then extracts again with the corrected cameras; it costs up to 3 more passes "
+              "- `--refine-poses` (slice_extract/pose_refine.py) fits each view's image shift "
+              "against the slice pooled over every view (Lucas-Kanade on the log-luminance), turns "
+              "the camera by shift / f and extracts again; it costs up to 3 more passes "
               f"({rows[-1]['refined_extract_s']} s against {rows[-1]['extract_s']} s for the last "
               "row's capture).",
               "- the truth's own error (0.10-0.12%) is the spread of theta_h inside a bin, not "

@@ -16,7 +16,7 @@ def add_parsers(sub):
     s.add_argument("--silhouette-px", type=int, metavar="PX",
                    help="reject pixels this close to the object's outline (default 1)")
     s.add_argument("--refine-poses", action="store_true",
-                   help="first refine each flash view's principal point against the pooled "
+                   help="first refine each flash view's pose against the pooled "
                         "slice (a pose a pixel off blurs the highlight; up to 3 more passes)")
     add_force(s, "with --labels: " + FORCE_HELP)
     s.set_defaults(handler=extract)

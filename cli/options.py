@@ -48,7 +48,7 @@ def add_run_options(parser):
                         help="estimate a per-pixel diffuse albedo map (OUT_DIR/albedo.exr) and "
                              "render with it (textured materials)")
     parser.add_argument("--refine-poses", action="store_true",
-                        help="refine each flash view's principal point against the pooled slice "
+                        help="refine each flash view's pose against the pooled slice "
                              "before extracting (extract --refine-poses)")
     parser.add_argument("--no-anchor", action="store_true", help=ANCHOR_HELP)
     parser.add_argument("--envmap", metavar="FILE",

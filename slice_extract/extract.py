@@ -58,7 +58,7 @@ class ExtractOptions:
     # atan(depth_edge_slope) ~ 87 deg) is rejected like the outline: a pose a pixel off puts
     # the surface behind, or the background, there (0: off)
     depth_edge_slope: float = 20.0
-    # refine each flash view's principal point against the pooled slice first (pose_refine.py):
+    # refine each flash view's pose against the pooled slice first (pose_refine.py):
     # a pose a pixel off blurs the specular lobe; costs up to 3 more passes over the photos
     refine_poses: bool = False
 
