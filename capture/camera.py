@@ -177,16 +177,23 @@ def pixel_box(camera, bounds, margin=2):
         normalised = local[:, :2] / local[:, 2:]
         (x0, y0), (x1, y1) = normalised.min(0), normalised.max(0)
         x, y = _lens_grid(camera)
-        inside = (x >= x0) & (x <= x1) & (y >= y0) & (y <= y1)
-        rows, cols = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
-        if not rows.size:
-            return (0, 0, 0, 0)
-        return (clip(rows[0] - margin, camera.height), clip(rows[-1] + margin + 1, camera.height),
-                clip(cols[0] - margin, camera.width), clip(cols[-1] + margin + 1, camera.width))
+        box = mask_box((x >= x0) & (x <= x1) & (y >= y0) & (y <= y1), margin)
+        return (0, 0, 0, 0) if box is None else box
     c0, r0 = np.floor(uv.min(0)) - margin
     c1, r1 = np.ceil(uv.max(0)) + margin + 1
     return (clip(r0, camera.height), clip(r1, camera.height), clip(c0, camera.width),
             clip(c1, camera.width))
+
+
+def mask_box(mask, margin=0):
+    """(row0, row1, col0, col1), half-open ints: the smallest box holding every True pixel of
+    mask (H, W) bool, grown by margin pixels and cut to the frame; None when none is True."""
+    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
+    if not rows.size:
+        return None
+    height, width = mask.shape
+    return (int(max(rows[0] - margin, 0)), int(min(rows[-1] + margin + 1, height)),
+            int(max(cols[0] - margin, 0)), int(min(cols[-1] + margin + 1, width)))
 
 
 def mesh_pixels(camera, vertices, faces, cell_px=8):

@@ -78,14 +78,10 @@ def depth_edge_mask(depth, camera, slope, width_px):
 
 
 def object_box(mask, margin):
-    """(rows, cols) slices of the smallest box holding every True pixel of mask (H, W), grown
-    by margin pixels and cut to the frame, or None when mask is empty. A 24-MP photo's object
-    often fills a third of it: per-pixel work on the box alone costs a third."""
-    rows, cols = np.flatnonzero(mask.any(axis=1)), np.flatnonzero(mask.any(axis=0))
-    if not len(rows):
-        return None
-    return (slice(max(rows[0] - margin, 0), rows[-1] + margin + 1),
-            slice(max(cols[0] - margin, 0), cols[-1] + margin + 1))
+    """(rows, cols) slices of capture.mask_box(mask, margin), or None when mask is empty: a
+    24-MP photo's object often fills a third of it, and per-pixel work on the box costs a third."""
+    box = capture.mask_box(mask, margin)
+    return None if box is None else (slice(box[0], box[1]), slice(box[2], box[3]))
 
 
 def camera_normals(scene, camera, intersector):
