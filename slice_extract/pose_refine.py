@@ -49,9 +49,11 @@ def refine_flash_cameras(scene, measure, iterations=3):
     """
     views = _views(scene)
     total = {key: np.zeros(2) for key in views}
-    notes = {}
+    notes = {key: "orthographic: not refined" for key, photos in views.items()
+             if photos[0].camera.model != "pinhole"}
     current = scene
-    for _ in range(iterations):
+    # nothing to refine (every view orthographic, e.g. DiLiGenT): no pass, the extraction is one
+    for _ in range(iterations if len(notes) < len(views) else 0):
         samples, slice_rho = measure(current)
         step = view_shifts(current, samples, slice_rho, views)
         del samples  # before the next pass: two passes' samples would double the peak memory
@@ -102,6 +104,8 @@ def _shifted(scene, views, total):
     view_of = _view_of(views)
     moved = {key: _turned(photos[0].camera, total[key]) for key, photos in views.items()
              if photos[0].camera.model == "pinhole" and np.any(total[key])}
+    if not moved:
+        return scene
     photos = [replace(p, camera=moved[view_of[p.index]]) if view_of.get(p.index) in moved else p
               for p in scene.photos]
     return replace(scene, photos=photos)

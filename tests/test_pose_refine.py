@@ -77,3 +77,20 @@ def test_run_refines_when_asked(capture, tmp_path):
     report = json.loads((tmp_path / "out" / "slice.json").read_text())
     assert report["options"]["refine_poses"] is True
     assert all(p["pose"]["refined"] for p in report["photos"])
+
+
+def test_a_scene_of_orthographic_views_is_not_measured_again(tmp_path):
+    """Nothing to refine: no extraction pass is spent on it, and each view says why."""
+    from flashbrdf import capture as capture_stage
+    from flashbrdf.slice_extract.pose_refine import refine_flash_cameras
+    from synthetic import (directional_light, ggx_lambert, orthographic_camera, sphere_mesh,
+                           write_synthetic_scene)
+    folder = write_synthetic_scene(tmp_path, sphere_mesh(), ggx_lambert(),
+                                   orthographic_camera(40, 40), [directional_light()])
+    scene = capture_stage.load_scene(folder)
+
+    def measure(_):
+        raise AssertionError("a pass was run")
+    refined, record = refine_flash_cameras(scene, measure)
+    assert refined is scene
+    assert all(r["note"].startswith("orthographic") and not r["refined"] for r in record.values())
