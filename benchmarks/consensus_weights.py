@@ -2,7 +2,12 @@
 kind hold-out, nested so that no kind's figure comes from a choice it took part in.
 
     nice -n 10 python -m benchmarks.consensus_weights --merl-dir MERL --test-dir RGL
-        [--fold-groups benchmarks/rgl_kinds.json] [--work DIR] [--out benchmarks/results]
+        [--fold-groups benchmarks/rgl_kinds.json | --random-folds 5] [--seed 0] [--work DIR]
+        [--out benchmarks/results]
+
+--random-folds N scores seeded random folds instead of kinds (the partition of
+benchmarks.generalisation's "merl+test-folds" setting at the same --seed): every held-out material
+then has others of its kind in training, as a new material of a kind the model knows would.
 
 1. For each kind k, every method is trained as `flashbrdf train` trains it on MERL plus the other
    kinds (benchmarks/generalisation.py: fit_all, fold_training) and predicts kind k's materials:
@@ -31,16 +36,21 @@ import numpy as np
 from scipy.optimize import minimize
 from scipy.stats import norm
 
-from flashbrdf.brdf import colour, merl  # noqa: E402
-from flashbrdf.infer import TrainingSet  # noqa: E402
-from flashbrdf.infer.consensus import (CONSENSUS_MEMBERS, CONSENSUS_WEIGHTS,  # noqa: E402
-                                       THETA_D_KNOTS_DEG, THETA_H_KNOTS_DEG, consensus_table,
-                                       member_spread, weights_per_bin)
-from flashbrdf.brdf.metrics import lab_log_features  # noqa: E402
-from flashbrdf.infer.estimator import InferenceMethod  # noqa: E402
-from flashbrdf.infer.warning import (DISAGREEMENT_WARN_DE, disagreement,  # noqa: E402
-                                    prediction_warning)
-from benchmarks.generalisation import BANDS_DEG, band_errors, fit_all, fold_training, kind_folds  # noqa: E402
+from benchmarks.generalisation import BANDS_DEG, band_errors, fit_all, fold_training, kind_folds
+from flashbrdf.brdf import colour, merl
+from flashbrdf.brdf.metrics import lab_log_features
+from flashbrdf.infer import TrainingSet
+from flashbrdf.infer.consensus import (
+    CONSENSUS_MEMBERS,
+    CONSENSUS_WEIGHTS,
+    THETA_D_KNOTS_DEG,
+    THETA_H_KNOTS_DEG,
+    consensus_table,
+    member_spread,
+    weights_per_bin,
+)
+from flashbrdf.infer.estimator import InferenceMethod
+from flashbrdf.infer.warning import DISAGREEMENT_WARN_DE, disagreement, prediction_warning
 
 BASELINES = ("pca", "noll", "chandraker", "ashikhmin")
 LOST_RATIO = 1.2
@@ -229,7 +239,8 @@ def warning_rates(records, kind_of_name, kinds, nested=True, threshold=None):
 
 def markdown(result):
     kinds = result["kinds"]
-    lines = ["# Consensus weights and warning threshold: RGL (NBRDF proxy) kind hold-out, nested", "",
+    lines = ["# Consensus weights and warning threshold: RGL (NBRDF proxy) "
+             + result.get("partition", "kind hold-out") + ", nested", "",
              f"`{result['command']}`", "",
              "Knot weights (per θh knot " + ", ".join(f"{k:g}°" for k in THETA_H_KNOTS_DEG)
              + ": rows θd knots " + ", ".join(f"{k:g}°" for k in THETA_D_KNOTS_DEG)
@@ -245,6 +256,8 @@ def markdown(result):
               + "; nested: " + "; ".join(f"{k} " + ", ".join(f"{x:.2f}" for x in v)
                                          for k, v in result["variance_factors_nested"].items())]
     for setting in ("kinds_nested", "kinds_shipped_constants", "merl_only_nested"):
+        if setting not in result:       # --no-merl-only
+            continue
         s = result[setting]["summary"]
         a = s["all"]
         lines += ["", f"## {setting}", "", result[setting]["what"], "",
@@ -305,6 +318,8 @@ def main(argv=None):
     p.add_argument("--merl-dir", required=True)
     p.add_argument("--test-dir", required=True)
     p.add_argument("--fold-groups", default=str(Path(__file__).parent / "rgl_kinds.json"))
+    p.add_argument("--random-folds", type=int, default=0,
+                   help="score this many seeded random folds (--seed) instead of the kinds")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--work", default="/tmp/consensus_weights")
     p.add_argument("--no-merl-only", action="store_true")
@@ -312,8 +327,13 @@ def main(argv=None):
     args = p.parse_args(argv)
     Path(args.work).mkdir(parents=True, exist_ok=True)
     merl_set, test = TrainingSet.from_merl_dir(args.merl_dir), TrainingSet.from_merl_dir(args.test_dir)
-    groups = json.loads(Path(args.fold_groups).read_text())
-    kinds, folds = list(groups), kind_folds(test.names, groups)
+    if args.random_folds:
+        folds = np.array_split(np.random.default_rng(args.seed).permutation(len(test)),
+                               args.random_folds)
+        kinds = [f"fold {k}" for k in range(len(folds))]
+    else:
+        groups = json.loads(Path(args.fold_groups).read_text())
+        kinds, folds = list(groups), kind_folds(test.names, groups)
     kind_of = {int(i): k for k, f in enumerate(folds) for i in f}
     methods = ("dsgplvm",) + BASELINES
     preds = {}
@@ -334,6 +354,8 @@ def main(argv=None):
                       for k in range(len(folds))}
     result = {"command": "nice -n 10 python -m benchmarks.consensus_weights "
               + " ".join(sys.argv[1:] if argv is None else argv), "kinds": kinds,
+              "partition": (f"random folds (seed {args.seed})" if args.random_folds
+                            else "kind hold-out"),
               "knots_all": knots_all.tolist(),
               "knots_nested": {kinds[k]: v.tolist() for k, v in nested.items()},
               "variance_factors_all": factors_all.tolist(),
