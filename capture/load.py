@@ -7,15 +7,15 @@ a pixel is usable only if usable in the flash photo and in every ambient photo. 
 clamped: noise can make (flash - ambient) negative, which keeps per-bin estimates unbiased.
 """
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.files.errors import InputError
 from flashbrdf.capture.photo import load_brackets, load_photo, load_photo_measured
 from flashbrdf.capture.scene import Scene, load_scene
+from flashbrdf.files.errors import InputError
+from flashbrdf.files.threads import thread_budget
 
 
 @dataclass(frozen=True, eq=False)
@@ -135,9 +135,8 @@ def iter_flash_images(scene, prefetch=True):
             rgb /= np.float32(photo.scale)
         return FlashImage(photo, rgb, usable, clipped)
 
-    # a batch worker given one thread ($FLASHBRDF_THREADS=1, as the renderer and infer read it)
-    # gets no second one here
-    if not prefetch or len(flashes) == 1 or os.environ.get("FLASHBRDF_THREADS") == "1":
+    # a batch worker given one thread ($FLASHBRDF_THREADS=1) gets no second one here
+    if not prefetch or len(flashes) == 1 or thread_budget(2) == 1:
         for photo in flashes:
             yield prepared(photo)
         return

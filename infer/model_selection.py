@@ -5,7 +5,6 @@ Methods are scored by the mean LAB-log error (brdf.metrics) of their 2D predicti
 materials; grids are scikit-learn ParameterGrids over the methods' constructor arguments.
 """
 
-import os
 import time
 
 import numpy as np
@@ -14,6 +13,7 @@ from sklearn.model_selection import ParameterGrid
 
 from flashbrdf.brdf import metrics
 from flashbrdf.files.errors import InputError
+from flashbrdf.files.threads import thread_budget
 from flashbrdf.infer import make_method
 from flashbrdf.infer.training_set import MIN_TRAINING_TABLES
 from flashbrdf.infer.uncertainty import calibration_factor
@@ -93,7 +93,7 @@ def _tune_closed_form(training, train, valid):
 def training_workers():
     """Processes for the validation fits of `train`: $FLASHBRDF_THREADS (a worker's share of the
     cores, as in infer.estimator), else one per core, at most 2."""
-    return max(1, int(os.environ.get("FLASHBRDF_THREADS") or min(os.cpu_count() or 1, 2)))
+    return thread_budget(2)
 
 
 def check_training_size(n_tables, where):

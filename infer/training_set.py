@@ -3,7 +3,6 @@ one at a time (MERL files or stored rows). Values in 1/sr, NaN where MERL has no
 """
 
 import hashlib
-import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -12,12 +11,12 @@ import numpy as np
 from flashbrdf.brdf import merl, views
 from flashbrdf.brdf.bins import valid_bins_3d, valid_flat_3d
 from flashbrdf.files.errors import InputError
+from flashbrdf.files.threads import thread_budget
 
 
 def default_threads():
-    """Threads for per-table work: $FLASHBRDF_THREADS (a batch worker sets 1), else one per
-    core, at most 4."""
-    return max(1, int(os.environ.get("FLASHBRDF_THREADS") or min(os.cpu_count() or 1, 4)))
+    """Threads for per-table work: files.threads.thread_budget, at most 4 unless set."""
+    return thread_budget(4)
 
 
 def _read_views(path, keep_3d, bins_3d):

@@ -15,12 +15,12 @@ max_distance None = unbounded). occluded=None: convex geometry, nothing is occlu
 """
 
 import concurrent.futures
-import os
 
 import numpy as np
 from tqdm import tqdm
 
 from flashbrdf.brdf.frame import Frame
+from flashbrdf.files.threads import thread_budget
 from flashbrdf.render.envmap import EnvMap
 
 # Pixel-samples per work item: keeps each thread's temporaries around 100-200 MB.
@@ -29,11 +29,6 @@ SAMPLES_PER_CHUNK = 1 << 17
 
 def _dot(a, b):
     return np.einsum("...k,...k->...", a, b)
-
-
-def _default_threads():
-    """$FLASHBRDF_THREADS (as infer; a batch worker sets 1), else 2 or the cores if fewer."""
-    return max(1, int(os.environ.get("FLASHBRDF_THREADS") or min(2, os.cpu_count() or 1)))
 
 
 def render_point_light(points, normals, view, brdf, light_position, intensity_rgb, occluded=None):
@@ -134,7 +129,7 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
                                         heuristic, strategies)
         return stop - start
 
-    threads = threads or _default_threads()
+    threads = threads or thread_budget(2)
     bar = None
     if progress:
         bar = tqdm(total=n_points, desc=progress, unit="px", disable=None, leave=False)
