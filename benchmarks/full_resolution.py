@@ -76,8 +76,7 @@ def make_capture(work, views, width, height):
 def box_pixels(camera, mesh):
     """Every pixel whose centre can see the mesh's bounding box (capture.pixel_box)."""
     from flashbrdf import capture
-    r0, r1, c0, c1 = capture.pixel_box(camera, mesh.bounds)
-    return (a.ravel() + o for a, o in zip(np.indices((r1 - r0, c1 - c0)), (r0, c0)))
+    return capture.box_pixels(capture.pixel_box(camera, mesh.bounds))
 
 
 def traced_pixels(camera, mesh):

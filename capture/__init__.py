@@ -21,6 +21,7 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   surface_at_pixels(mesh_or_intersector, camera, rows, cols) -> Surface (hits only)
   pixel_box(camera, bounds) -> (row0, row1, col0, col1): pixels that can see a world box
   mesh_pixels(camera, vertices, faces) -> rows, cols: the pixels whose ray can hit a face
+  box_pixels(box) -> rows, cols: every pixel of a (row0, row1, col0, col1) box
   mask_box(mask, margin=0) -> (row0, row1, col0, col1) of its True pixels, or None
   surface_from_normal_map(geometry_or_scene, camera=None, pixel_mask=None) -> Surface (no points)
   load_normal_map(geometry, camera) -> normals_camera (H, W, 3), mask (H, W)
@@ -41,7 +42,7 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   srgb_to_linear(values) -> linear
 """
 
-from flashbrdf.capture.camera import (camera_rays, embree_rays, mask_box, mesh_pixels,
+from flashbrdf.capture.camera import (box_pixels, camera_rays, embree_rays, mask_box, mesh_pixels,
                                       pixel_box, pixel_rays, project_points, view_directions)
 from flashbrdf.capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex,
                                         load_mesh, occluded, scene_intersector,
@@ -56,7 +57,7 @@ from flashbrdf.capture.scene import Camera, Geometry, Light, Photo, Scene, load_
 
 __all__ = [
     "Camera", "FlashImage", "Geometry", "Hits", "Light", "MeshIntersector", "Photo", "Scene",
-    "Surface", "camera_key", "camera_rays", "embree_rays", "intersect", "is_convex", "load_brackets",
+    "Surface", "box_pixels", "camera_key", "camera_rays", "embree_rays", "intersect", "is_convex", "load_brackets",
     "iter_flash_images", "load_flash_images", "load_mesh", "load_normal_map", "load_photo", "load_photo_entry",
     "load_reference_entry", "load_scene", "mask_box", "mesh_pixels", "photo_exists", "same_view", "occluded", "pixel_box", "pixel_rays", "project_points",
     "read_float_image", "scene_intersector", "srgb_to_linear", "surface_at_pixels", "surface_from_mesh",

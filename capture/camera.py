@@ -216,10 +216,14 @@ def mesh_pixels(camera, vertices, faces, cell_px=8):
     if r1 <= r0 or c1 <= c0:
         return np.zeros(0, np.int64), np.zeros(0, np.int64)
     found = _cell_pixels(camera, vertices, faces, box, cell_px)
-    if found is None:
-        rows, cols = (a.ravel() for a in np.indices((r1 - r0, c1 - c0)))
-        found = rows + r0, cols + c0
-    return found
+    return box_pixels(box) if found is None else found
+
+
+def box_pixels(box):
+    """Every pixel of box (row0, row1, col0, col1), half-open: rows, cols (N,) int64, row-major."""
+    r0, r1, c0, c1 = box
+    rows, cols = np.divmod(np.arange((r1 - r0) * (c1 - c0), dtype=np.int64), max(c1 - c0, 1))
+    return rows + r0, cols + c0
 
 
 def _cell_pixels(camera, vertices, faces, box, cell_px):
