@@ -26,15 +26,16 @@ from flashbrdf import capture
 from flashbrdf.brdf.angles import merl_bin_index
 from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import N_THETA_H
-from flashbrdf.brdf.views import MAX_SLICE_VALUE, slice_coverage
+from flashbrdf.brdf.views import MAX_SLICE_VALUE
 from flashbrdf.slice_extract.binning import robust_bins
 from flashbrdf.slice_extract.sample_store import SAMPLE_FIELDS, SampleStore
 from flashbrdf.slice_extract.visibility import (camera_normals, depth_edge_mask, silhouette_mask,
                                                trace_camera)
 from flashbrdf.slice_extract.level import (TARGET_MIN_COS, calibrated_record, relative_record,
                                           target_level, trace_target)
-from flashbrdf.slice_extract.pose_refine import refine_flash_cameras
+from flashbrdf.slice_extract.pose_refine import log_gradient, refine_flash_cameras
 from flashbrdf.slice_extract.samples import REASONS, light_setup, photo_samples
+from flashbrdf.slice_extract.slice_files import extraction_report
 from flashbrdf.slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
                                    material_interior)
 from flashbrdf.files.progress import photo_progress
@@ -62,6 +63,9 @@ class ExtractOptions:
     # refine each flash view's pose against the pooled slice first (pose_refine.py):
     # a pose a pixel off blurs the specular lobe; costs up to 3 more passes over the photos
     refine_poses: bool = False
+    # each sample also carries grad ln I at its pixel (pose_refine.log_gradient), for the
+    # refinement's passes: they then read every photo once
+    log_gradients: bool = False
 
 
 @dataclass(eq=False)
@@ -89,14 +93,6 @@ class SliceResult:
 class NotABRDFError(InputError):
     """The photos give values no BRDF has (above MAX_SLICE_VALUE): bad input for the whole
     capture, never one material's missing coverage."""
-
-
-def _stats_deg(values):
-    if len(values) == 0:
-        return None
-    d = np.degrees(values)
-    return {"min": float(d.min()), "median": float(np.median(d)), "mean": float(d.mean()),
-            "p95": float(np.percentile(d, 95)), "max": float(d.max())}
 
 
 class _Clock:
@@ -179,6 +175,7 @@ class FlashSamples:
     level: dict = None       # slice.json's "level": absolute (target, calibrated) or relative
     mesh: object = None      # the scene's trimesh as traced (None for normal-map geometry):
     #                          segmentation and material borders read it, not the file again
+    log_gradient: np.ndarray = None  # (N, 2) grad ln I per sample, with options.log_gradients
 
     def first_photo(self):
         """(rho (M, 3), theta_h (M,), pixels (M,), censored (M,)) of every sample of the first
@@ -199,7 +196,7 @@ class FlashSamples:
     def subset(self, keep):
         """The same samples restricted to keep (N,) bool (e.g. one material)."""
         pick = {k: getattr(self, k)[keep] for k in ("theta_h", "theta_d", "rho", "censored",
-                                                     "pixels", "photo", "face")
+                                                     "pixels", "photo", "face", "log_gradient")
                 if getattr(self, k) is not None}
         return FlashSamples(**{**self.__dict__, **pick})
 
@@ -219,7 +216,7 @@ def collect_samples(scene, options=None):
         scene = capture.load_scene(scene)
     poses = None
     if options.refine_poses:  # its passes are timed apart, not as load_scene
-        plain = replace(options, refine_poses=False)
+        plain = replace(options, refine_poses=False, log_gradients=True)
         scene, poses = refine_flash_cameras(scene, lambda s: _measured(s, plain))
         t0 = clock.add("refine_poses", t0)
     normal_map = scene.geometry.mesh is None
@@ -294,6 +291,8 @@ def collect_samples(scene, options=None):
             part["photo"] = np.full(len(part["theta_h"]), k)
             if parts[0].key is not None:
                 part["key"] = np.concatenate([p.key for p in parts])
+            if options.log_gradients:
+                part["log_gradient"] = log_gradient(image, part["pixels"])
         if k == 0:  # segmentation reads the first photo whole, whatever the store keeps
             first = _FirstPhoto(part, object_mask, image.radiance, surfaces, camera,
                                 normal_map, scene, intersector)
@@ -321,7 +320,8 @@ def collect_samples(scene, options=None):
                            flashes[0].camera.shape, first.object_mask, first.face_image,
                            first.radiance, per_photo, clock.t, start, first.normals_at,
                            first.samples if store.subsampled else None, pooled["face"],
-                           level_report, None if intersector is None else intersector.mesh)
+                           level_report, None if intersector is None else intersector.mesh,
+                           pooled.get("log_gradient"))
     return samples
 
 
@@ -342,11 +342,12 @@ class _FirstPhoto:
 
 
 def _measured(scene, options):
-    """One pass for refine_flash_cameras: (the pooled samples' pixels, photo, theta_h, rho;
-    binned rho (90, 3)). The rest (the first photo: ~0.7 GB at 24 MP) is let go."""
+    """One pass for refine_flash_cameras: (the pooled samples' photo, theta_h, rho and
+    log_gradient; binned rho (90, 3)). The rest (the first photo: ~0.7 GB at 24 MP) is let go."""
     samples = collect_samples(scene, options)
-    return (SimpleNamespace(pixels=samples.pixels, photo=samples.photo, theta_h=samples.theta_h,
-                            rho=samples.rho), bin_samples(samples).rho)
+    gradient = samples.log_gradient if samples.log_gradient is not None else np.zeros((0, 2))
+    return (SimpleNamespace(photo=samples.photo, theta_h=samples.theta_h, rho=samples.rho,
+                            log_gradient=gradient), bin_samples(samples).rho)
 
 
 def bin_samples(samples):
@@ -379,8 +380,9 @@ def bin_samples(samples):
                             "(check their pixel values, scale and the light's intensity)")
     clock.add("binning", t)
     clock.t["total"] = time.perf_counter() - samples.started
-    report = _report(scene, options, samples.per_photo, theta_h, theta_d, inlier, n, clock.t,
-                     np.bincount(bins[censored], minlength=N_THETA_H), censored)
+    report = extraction_report(scene, options, samples.per_photo, theta_h, theta_d, inlier, n,
+                               clock.t, np.bincount(bins[censored], minlength=N_THETA_H),
+                               censored)
     report["clamped_negative_bins"] = int(negative.any(axis=1).sum())
     report["level"] = samples.level
     return SliceResult(estimate, n, spread, report)
@@ -469,32 +471,3 @@ def interior_samples(mine, interior, bins, min_bin=BORDER_MIN_BIN):
     inner = mine & interior
     thin = np.bincount(bins[inner], minlength=N_THETA_H) < min_bin
     return inner | (mine & thin[bins])
-
-
-def _report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin_clipped,
-            censored):
-    total_pixels = sum(p.camera.width * p.camera.height for p in scene.photos_with_role("flash"))
-    rejected = {"unusable": total_pixels - sum(p["usable"] + p["clipped"] for p in per_photo),
-                "clipped": sum(p["clipped"] for p in per_photo),
-                "miss": sum(p["usable"] - p["on_surface"] for p in per_photo)}
-    rejected.update({k: sum(p[k] for p in per_photo) for k in REASONS})
-    rejected["outlier"] = int(np.count_nonzero(~inlier & ~censored))
-    used = theta_h[inlier]
-    filled = slice_coverage(n > 0)
-    coverage = {
-        "theta_h_deg_observed": [float(np.degrees(used.min())), float(np.degrees(used.max()))],
-        **{k: filled[k] for k in ("bins_filled", "first_bin", "last_bin", "theta_h_deg_filled",
-                                  "empty_bins")},
-        "clipped_per_bin": {int(i): int(bin_clipped[i]) for i in np.flatnonzero(bin_clipped)},
-        "pixels_total": int(total_pixels), "pixels_used": int(inlier.sum()),
-    }
-    return {"scene": str(scene.json_path),
-            "options": {k: getattr(options, k) for k in ("max_theta_d_deg", "min_cos",
-                                                         "silhouette_px", "outlier_k",
-                                                         "estimator", "refine_poses")},
-            "coverage": coverage, "rejected": {k: int(v) for k, v in rejected.items()},
-            "theta_d_deg": _stats_deg(theta_d[inlier]), "photos": per_photo,
-            "n": [int(v) for v in n], "timings_s": {k: round(v, 4) for k, v in timings.items()}}
-
-
-

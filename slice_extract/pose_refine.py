@@ -124,26 +124,28 @@ def _turned(camera, shift):
 
 def view_shifts(scene, samples, slice_rho, views):
     """{camera key: (d (2,) px, None) or (None, note)}: each view's least-squares shift between
-    its photo and the pooled slice's prediction at its samples (module docstring)."""
+    its photo and the pooled slice's prediction at its samples (module docstring).
+
+    samples carry, beside pixels, photo, theta_h and rho, each sample's log_gradient (N, 2)
+    (`log_gradient`, NaN where not usable), taken by the extraction pass that read the photo:
+    a refinement round decodes every photo once."""
     centres = theta_h_centres()
     filled = np.all(np.isfinite(slice_rho), axis=1)
     level = np.where(filled, np.where(filled[:, None], slice_rho, 0.0).mean(axis=1), np.nan)
     known = filled & (level > 0)
     view_of = _view_of(views)
     normal = {key: [] for key in views}
-    for k, image in enumerate(capture.iter_flash_images(scene)):
-        camera = image.photo.camera
-        if camera.model != "pinhole":
-            continue
+    for k, photo in enumerate(scene.photos_with_role("flash")):
         mine = samples.photo == k
-        if known.sum() < 2 or not mine.any():
+        if photo.camera.model != "pinhole" or known.sum() < 2 or not mine.any():
             continue
         rho = samples.rho[mine].mean(axis=1)
         predicted = np.exp(np.interp(samples.theta_h[mine], centres[known], np.log(level[known])))
-        gradient, usable = _log_gradient(image, samples.pixels[mine])
+        gradient = np.asarray(samples.log_gradient[mine], dtype=np.float64)
+        usable = np.all(np.isfinite(gradient), axis=1)
         residual = np.log(np.where(rho > 0, rho, np.nan)) - np.log(predicted)
         keep = usable & np.isfinite(residual) & (np.abs(residual) < MAX_RESIDUAL)
-        normal[view_of[image.photo.index]].append((gradient[keep], residual[keep]))
+        normal[view_of[photo.index]].append((gradient[keep], residual[keep]))
     shifts = {}
     for key in views:
         if views[key][0].camera.model != "pinhole":
@@ -170,9 +172,10 @@ def view_shifts(scene, samples, slice_rho, views):
     return shifts
 
 
-def _log_gradient(image, pixels):
-    """(N, 2) central-difference gradient of ln(mean RGB radiance) per px along (u, v) at flat
-    pixel indices, and (N,) bool: all four neighbours usable, inside the frame, positive."""
+def log_gradient(image, pixels):
+    """(N, 2) float32 central-difference gradient of ln(mean RGB radiance) per px along (u, v) at
+    flat pixel indices of a loaded photo (capture.iter_flash_images), NaN where a neighbour is
+    outside the frame, unusable or not positive."""
     height, width = image.usable.shape
     rows, cols = np.divmod(np.asarray(pixels, np.int64), width)
     inside = (rows > 0) & (rows < height - 1) & (cols > 0) & (cols < width - 1)
@@ -187,4 +190,4 @@ def _log_gradient(image, pixels):
         ok &= usable[neighbour] & (value > 0)
         values.append(np.log(np.where(value > 0, value, 1.0)))
     gradient = np.stack([values[0] - values[1], values[2] - values[3]], axis=1) / 2
-    return gradient, ok
+    return np.where(ok[:, None], gradient, np.nan).astype(np.float32)

@@ -15,7 +15,8 @@ SAMPLE_FIELDS = ("theta_h", "theta_d", "rho", "censored", "pixels", "face", "pho
 
 # once subsampling starts the store keeps what binning reads, compactly (binning works in float32)
 COMPACT = {"theta_h": np.float32, "theta_d": np.float32, "rho": np.float32, "pixels": np.int32,
-           "face": np.int32, "photo": np.int32, "key": np.float32}
+           "face": np.int32, "photo": np.int32, "key": np.float32,
+           "log_gradient": np.float32}
 
 
 class SampleStore:

@@ -9,9 +9,10 @@ from pathlib import Path
 import numpy as np
 
 from flashbrdf.brdf.merl import N_THETA_H
-from flashbrdf.brdf.views import LEVEL_COMMENT, write_slice_csv
+from flashbrdf.brdf.views import LEVEL_COMMENT, slice_coverage, write_slice_csv
 from flashbrdf.files.atomic import write_text
 from flashbrdf.files.outputs import sidecar_json
+from flashbrdf.slice_extract.samples import REASONS
 
 SPARSE_BINS = 10  # a material slice with fewer filled theta_h bins than this is flagged sparse
 # a material slice whose filled bins all lie below this theta_h is flagged "narrow": it never
@@ -124,3 +125,39 @@ def write_extraction(out, scene_dir, result, options, final_path=None):
         out.unlink(missing_ok=True)  # never leave half of the output behind
         raise
     return rho
+
+
+def extraction_report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin_clipped,
+            censored):
+    """SLICE.json's body: what was observed, rejected (by reason), the theta_d spread of the
+    inliers, the options, every photo's record and the timings (s)."""
+    total_pixels = sum(p.camera.width * p.camera.height for p in scene.photos_with_role("flash"))
+    rejected = {"unusable": total_pixels - sum(p["usable"] + p["clipped"] for p in per_photo),
+                "clipped": sum(p["clipped"] for p in per_photo),
+                "miss": sum(p["usable"] - p["on_surface"] for p in per_photo)}
+    rejected.update({k: sum(p[k] for p in per_photo) for k in REASONS})
+    rejected["outlier"] = int(np.count_nonzero(~inlier & ~censored))
+    used = theta_h[inlier]
+    filled = slice_coverage(n > 0)
+    coverage = {
+        "theta_h_deg_observed": [float(np.degrees(used.min())), float(np.degrees(used.max()))],
+        **{k: filled[k] for k in ("bins_filled", "first_bin", "last_bin", "theta_h_deg_filled",
+                                  "empty_bins")},
+        "clipped_per_bin": {int(i): int(bin_clipped[i]) for i in np.flatnonzero(bin_clipped)},
+        "pixels_total": int(total_pixels), "pixels_used": int(inlier.sum()),
+    }
+    return {"scene": str(scene.json_path),
+            "options": {k: getattr(options, k) for k in ("max_theta_d_deg", "min_cos",
+                                                         "silhouette_px", "outlier_k",
+                                                         "estimator", "refine_poses")},
+            "coverage": coverage, "rejected": {k: int(v) for k, v in rejected.items()},
+            "theta_d_deg": _stats_deg(theta_d[inlier]), "photos": per_photo,
+            "n": [int(v) for v in n], "timings_s": {k: round(v, 4) for k, v in timings.items()}}
+
+
+def _stats_deg(values):
+    if len(values) == 0:
+        return None
+    d = np.degrees(values)
+    return {"min": float(d.min()), "median": float(np.median(d)), "mean": float(d.mean()),
+            "p95": float(np.percentile(d, 95)), "max": float(d.max())}

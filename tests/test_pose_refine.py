@@ -94,3 +94,24 @@ def test_a_scene_of_orthographic_views_is_not_measured_again(tmp_path):
     refined, record = refine_flash_cameras(scene, measure)
     assert refined is scene
     assert all(r["note"].startswith("orthographic") and not r["refined"] for r in record.values())
+
+
+def test_each_refinement_pass_decodes_every_photo_once(capture, tmp_path, monkeypatch):
+    """The shifts' image gradients come with the pass's samples: a pass that read each of the 8
+    photos again for them would decode 16 per pass, not 8."""
+    from flashbrdf.capture import load
+    from flashbrdf.slice_extract import extract
+    model = perturbed_model(capture["sparse"], tmp_path / "sparse_1px", 1.0, 0)
+    import_colmap(model, capture["images"], capture["mesh"], tmp_path / "scene",
+                  flash_offset=FLASH_OFFSET)
+    decodes, passes = [], []
+    decode, collect = load.load_photo_entry, extract.collect_samples
+    monkeypatch.setattr(load, "load_photo_entry",
+                        lambda *a, **k: decodes.append(1) or decode(*a, **k))
+    monkeypatch.setattr(extract, "collect_samples",
+                        lambda *a, **k: passes.append(1) or collect(*a, **k))
+    refined = extract.extract_slice(tmp_path / "scene", REFINE)
+    assert all(p["pose"]["refined"] for p in refined.report["photos"])
+    # the refinement's rounds (at least 2: a pixel-sized shift is not fixed in one) and the last
+    assert len(passes) >= 3
+    assert len(decodes) == 8 * len(passes)
