@@ -15,6 +15,7 @@ import socket
 import warnings
 
 from flashbrdf.files.errors import InputError
+from flashbrdf.files.threads import thread_budget
 
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                     "FLASHBRDF_THREADS")
@@ -134,10 +135,11 @@ def _close(thing):
 def worker_threads():
     """Inside the block, BLAS/OpenMP pools and FLASHBRDF_THREADS are limited to this worker's
     share of the cores: $FLASHBRDF_THREADS as dask_client set it for a local worker, else 1 (a
-    worker started by hand, which may share its machine with others)."""
+    worker started by hand, which may share its machine with others; a value that is not a
+    positive integer counts as unset, files.threads)."""
     from threadpoolctl import threadpool_limits
     before = os.environ.get("FLASHBRDF_THREADS")
-    threads = max(1, int(before or 1))
+    threads = thread_budget(cap=1)
     os.environ["FLASHBRDF_THREADS"] = str(threads)
     try:
         with threadpool_limits(limits=threads):

@@ -38,3 +38,18 @@ def test_photos_are_decoded_ahead_only_with_a_second_thread(monkeypatch, tmp_pat
     for _ in iter_flash_images(load_scene(folder)):
         seen |= {t.name for t in threading.enumerate()}
     assert any(name.startswith("flash-photo") for name in seen) == prefetches
+
+
+@pytest.mark.parametrize("value, expected", [(None, 1), ("two", 1), ("3", 3)])
+def test_a_dask_worker_takes_its_share_or_one_thread(monkeypatch, value, expected):
+    """pipeline.dask_engine.worker_threads: a local worker's share as dask_client set it, else 1
+    (a worker started by hand); inside the block stages read that share, after it the old value
+    is back."""
+    from flashbrdf.pipeline.dask_engine import worker_threads
+    if value is None:
+        monkeypatch.delenv("FLASHBRDF_THREADS", raising=False)
+    else:
+        monkeypatch.setenv("FLASHBRDF_THREADS", value)
+    with worker_threads() as threads:
+        assert threads == expected and thread_budget(4) == expected
+    assert os.environ.get("FLASHBRDF_THREADS") == value
