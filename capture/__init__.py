@@ -57,9 +57,10 @@ from flashbrdf.capture.scene import Camera, Geometry, Light, Photo, Scene, load_
 
 __all__ = [
     "Camera", "FlashImage", "Geometry", "Hits", "Light", "MeshIntersector", "Photo", "Scene",
-    "Surface", "box_pixels", "camera_key", "camera_rays", "embree_rays", "intersect", "is_convex", "load_brackets",
-    "iter_flash_images", "load_flash_images", "load_mesh", "load_normal_map", "load_photo", "load_photo_entry",
-    "load_reference_entry", "load_scene", "mask_box", "mesh_pixels", "photo_exists", "same_view", "occluded", "pixel_box", "pixel_rays", "project_points",
-    "read_float_image", "scene_intersector", "srgb_to_linear", "surface_at_pixels", "surface_from_mesh",
-    "surface_from_normal_map", "view_directions",
+    "Surface", "box_pixels", "camera_key", "camera_rays", "embree_rays", "intersect",
+    "is_convex", "load_brackets", "iter_flash_images", "load_flash_images", "load_mesh",
+    "load_normal_map", "load_photo", "load_photo_entry", "load_reference_entry", "load_scene",
+    "mask_box", "mesh_pixels", "photo_exists", "same_view", "occluded", "pixel_box",
+    "pixel_rays", "project_points", "read_float_image", "scene_intersector", "srgb_to_linear",
+    "surface_at_pixels", "surface_from_mesh", "surface_from_normal_map", "view_directions",
 ]
