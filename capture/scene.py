@@ -491,5 +491,6 @@ def _level(f, folder, geometry):
     else:
         reflectance = t.array("reflectance", (3,))
     if not np.all((reflectance > 0) & (reflectance <= 1)):
-        t.fail("reflectance", f"expected values in (0, 1], got {np.round(reflectance, 6).tolist()}")
+        got = ", ".join(f"{v:.6g}" for v in reflectance)   # np.round overflows on 1e308
+        t.fail("reflectance", f"expected values in (0, 1], got [{got}]")
     return Level(target_mesh=t.path("mesh", folder), reflectance=reflectance)

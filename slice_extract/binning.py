@@ -39,7 +39,8 @@ def _bin_statistics(rho, theta_h, censored, counts, k, rel_floor):
     n = np.zeros(n_bins, dtype=np.int64)
     inlier = np.zeros(rho.shape[1], dtype=bool)
     ends = np.cumsum(counts)
-    with np.errstate(invalid="ignore"):
+    # inf (clipped) samples make inf − inf; float32 samples near 3.4e38 overflow a median's sum
+    with np.errstate(invalid="ignore", over="ignore"):
         for i in np.flatnonzero(counts):
             lo, hi = ends[i] - counts[i], ends[i]
             segment = rho[:, lo:hi]
@@ -99,7 +100,8 @@ def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e
     order = np.argsort(bin_index.astype(np.int16), kind="stable")  # radix sort: O(n)
     # channel-major float32 copy in bin order (np.take: several times faster than fancy
     # indexing); float32 keeps 7 digits, and means accumulate in float64
-    rho = np.take(np.asarray(rho, dtype=np.float32).T, order, axis=1)
+    with np.errstate(over="ignore"):   # past float32's 3.4e38 a sample reads inf, as clipped does
+        rho = np.take(np.asarray(rho, dtype=np.float32).T, order, axis=1)
     censored = (np.zeros(len(order), dtype=bool) if censored is None
                 else np.take(np.asarray(censored, dtype=bool), order))
     rho[:, censored] = np.inf

@@ -104,6 +104,24 @@ def binary_camera_id(camera_id):
     return edit
 
 
+def binary_name_byte(value):
+    """edit of images.bin: the first byte of the first image's name (after its camera id u32:
+    byte 72), e.g. 0x80, which starts no UTF-8 character."""
+    def edit(folder):
+        data = bytearray((folder / "images.bin").read_bytes())
+        data[72] = value
+        (folder / "images.bin").write_bytes(bytes(data))
+    return edit
+
+
+def trackless_point(point_id):
+    """edit of points3D.txt: one more point, seen by no image, of the given id (text)."""
+    def edit(folder):
+        with open(folder / "points3D.txt", "a") as f:
+            f.write(f"{point_id} 0.01 0.02 0.1 0 0 0 0.5\n")
+    return edit
+
+
 def empty_model(folder):
     for path in folder.iterdir():
         path.write_text("# nothing reconstructed\n")
@@ -176,6 +194,12 @@ CASES = {
     "non-unit quaternion (frames.txt)": case(
         lambda w, t: argv(model_copy(w, t, edit=frame_line(["1.1", "0", "0", "0"])),
                           w["images"], w["mesh"], t / "s"), "frames.txt: image 1"),
+    "quaternion of 1e308 (old text)": case(
+        lambda w, t: argv(model_copy(w, t, old=True, edit=image_line({1: "1e308"})),
+                          w["images"], w["mesh"], t / "s"), "images.txt: image 1"),
+    "image name not UTF-8 (binary)": case(
+        lambda w, t: argv(model_copy(w, t, "sparse_bin", edit=binary_name_byte(0x80)),
+                          w["images"], w["mesh"], t / "s"), "images.bin: image 1"),
     "zero quaternion (binary)": case(
         lambda w, t: argv(binary_with_pose(w, t, [0, 0, 0, 0]), w["images"], w["mesh"],
                           t / "s"), "images.bin: image 1"),
@@ -276,6 +300,9 @@ CONTROLS = {
         model_copy(w, t, "sparse_bin", old=True), w["images"], w["mesh"], t / "s"),
     "photos beside other files": lambda w, t: argv(w["sparse"], images_copy(
         w, t, lambda f: (f / "notes.txt").write_text("x")), w["mesh"], t / "s"),
+    # COLMAP's point ids are uint64: "-1" reads as 2^64 - 1
+    "a point of id 2^64 - 1": lambda w, t: argv(
+        model_copy(w, t, edit=trackless_point(-1)), w["images"], w["mesh"], t / "s"),
     "--out inside the model folder": lambda w, t: argv(
         model_copy(w, t), w["images"], w["mesh"], t / "model" / "scene"),
 }
@@ -315,3 +342,15 @@ def test_truncated_binary_file_is_bad_input_not_a_hang(world, tmp_path, capfd, m
     assert status == 2 and len(lines) == 1, lines
     assert str(folder) in lines[0], lines[0]
     assert snapshot(*roots) == before
+
+
+def test_translation_too_large_to_place_the_camera():
+    """A finite translation whose rotated sum passes 1.8e308 (45° about z mixes x and y) is bad
+    input naming the image, not an inf camera centre."""
+    from flashbrdf.capture.importers.colmap_model import world_from_camera
+    from flashbrdf.files.errors import InputError
+    half = np.radians(45.0) / 2
+    quaternion_xyzw = [0.0, 0.0, np.sin(half), np.cos(half)]
+    assert np.isfinite(world_from_camera(quaternion_xyzw, [1e307, 1e307, 0.0], "x")).all()
+    with pytest.raises(InputError, match="image 7.*too large"):
+        world_from_camera(quaternion_xyzw, [1.7e308, 1.7e308, 0.0], "images.txt: image 7")

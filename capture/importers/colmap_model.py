@@ -108,7 +108,8 @@ class ColmapModel:
         InputError naming the points file for a non-finite point.
         """
         rec = self.reconstruction
-        ids = np.fromiter(rec.points3D.keys(), dtype=np.int64)
+        # COLMAP's point ids are uint64: a damaged file may hold any of them, 2^64 − 1 too
+        ids = np.fromiter(rec.points3D.keys(), dtype=np.uint64, count=len(rec.points3D))
         if len(ids) > max_points:
             ids = np.sort(np.random.default_rng(seed).choice(ids, max_points, replace=False))
         centres = {im.image_id: im.centre for im in self.images}
@@ -330,7 +331,8 @@ def world_from_camera(quaternion_xyzw, translation, where):
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(t))):
         raise InputError(where, f"pose is not finite (quaternion {_listed(q[[3, 0, 1, 2]])}, "
                                 f"translation {_listed(t)})")
-    norm = float(np.linalg.norm(q))
+    scale = float(np.abs(q).max())   # a norm without overflow: a damaged file may hold 1e308
+    norm = scale * float(np.linalg.norm(q / scale)) if scale > 0 else 0.0
     if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise InputError(where, f"quaternion (qw, qx, qy, qz) {_listed(q[[3, 0, 1, 2]])} has norm "
                                 f"{norm:.6g}, not 1: not a rotation (a damaged model file?)")
@@ -341,7 +343,10 @@ def world_from_camera(quaternion_xyzw, translation, where):
         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
     pose = np.eye(4)
     pose[:3, :3] = rotation.T
-    pose[:3, 3] = -rotation.T @ t
+    with np.errstate(over="ignore", invalid="ignore"):   # |t| near 1e308: checked below
+        pose[:3, 3] = -rotation.T @ t
+    if not np.all(np.isfinite(pose)):
+        raise InputError(where, f"translation {_listed(t)} is too large to place the camera")
     return pose
 
 
@@ -415,15 +420,20 @@ def read_colmap_model(model_dir):
     except Exception as err:  # noqa: BLE001
         raise InputError(files["images"], f"pycolmap cannot list the images: {err}") from None
     for image_id, image in entries:
+        try:
+            name = str(image.name)
+        except UnicodeDecodeError:   # pycolmap decodes the stored bytes on each access
+            raise InputError(f"{files['images']}: image {image_id}",
+                             "its name is not UTF-8 text (a damaged model file?)") from None
         if not _is_registered(image):
-            model.unregistered.append(image.name)
+            model.unregistered.append(name)
             continue
-        where = f"{pose_file}: image {image_id} ({image.name})"
+        where = f"{pose_file}: image {image_id} ({name})"
         try:
             quaternion, translation = cam_from_world(image)
         except Exception as err:  # noqa: BLE001  a frame or rig pycolmap cannot compose
             raise InputError(where, f"pycolmap cannot give its pose: {err}") from None
-        model.images.append(ModelImage(int(image_id), str(image.name), int(image.camera_id),
+        model.images.append(ModelImage(int(image_id), name, int(image.camera_id),
                                        world_from_camera(quaternion, translation, where)))
     if not model.images:
         raise InputError(pose_file, "holds no registered image (an empty reconstruction: did "
