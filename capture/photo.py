@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 import OpenImageIO as oiio
 
-from flashbrdf.files.errors import InputError
+from flashbrdf.files.errors import InputError, library_error
 
 SATURATION_FRACTION = 0.98
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -64,7 +64,7 @@ def read_float_image(path, require_float=False):
         return read_pfm(path)
     inp = oiio.ImageInput.open(str(path))
     if inp is None:
-        raise InputError(path, f"cannot read image: {oiio.geterror() or 'unknown format'}")
+        raise InputError(path, f"cannot read image: {library_error(oiio, 'unknown format')}")
     try:
         spec = inp.spec()
         for what, width, height in (("image", spec.width, spec.height),
@@ -74,13 +74,14 @@ def read_float_image(path, require_float=False):
                                        f"photo or map read here ({MAX_IMAGE_PIXELS} pixels)")
         data = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)
         if data is None:
-            raise InputError(path, f"cannot read image: {inp.geterror() or 'corrupt data'}")
+            raise InputError(path, f"cannot read image: {library_error(inp, 'corrupt data')}")
         names = [n.split(".")[-1].upper() for n in spec.channelnames]
         stored = spec.format.basetype
         if require_float and stored not in (oiio.BASETYPE.FLOAT, oiio.BASETYPE.HALF,
                                             oiio.BASETYPE.DOUBLE):
-            raise InputError(path, f"holds {inp.format_name()} integer codes ({stored.name.lower()}), "
-                                   "not floats: name it for what it is (.png, .tif, ...)")
+            raise InputError(path, f"holds {inp.format_name()} integer codes "
+                                   f"({stored.name.lower()}), not floats: name it for what it is "
+                                   "(.png, .tif, ...)")
     finally:
         inp.close()
     data = np.asarray(data, dtype=np.float32).reshape(spec.height, spec.width, spec.nchannels)

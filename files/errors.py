@@ -31,3 +31,15 @@ def _printable(text):
     if isinstance(text, bytes):
         text = os.fsdecode(text)
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def library_error(source, fallback=""):
+    """The last error message of an OpenImageIO-like `source` (the module, an ImageInput or an
+    ImageOutput: anything with geterror()), stripped, or `fallback` when it is empty. The
+    binding decodes the library's bytes as UTF-8, and a damaged file's own bytes quoted in the
+    message need not be: then a placeholder, never a UnicodeDecodeError."""
+    try:
+        message = source.geterror()
+    except UnicodeDecodeError:
+        return "(the library's message is not UTF-8 text)"
+    return message.strip() or fallback

@@ -10,7 +10,7 @@ import OpenImageIO as oiio
 
 from flashbrdf.files.atomic import atomic_path
 from flashbrdf.brdf.colour import srgb_encode
-from flashbrdf.files.errors import InputError
+from flashbrdf.files.errors import InputError, library_error
 
 
 def write_exr(path, rgb):
@@ -23,10 +23,10 @@ def write_exr(path, rgb):
         spec.attribute("compression", "zip")  # lossless, and smaller for images mostly black
         out = oiio.ImageOutput.create(tmp)
         if out is None or not out.open(tmp, spec):
-            raise OSError(f"{path}: cannot write EXR ({oiio.geterror().strip()})")
+            raise OSError(f"{path}: cannot write EXR ({library_error(oiio)})")
         try:
             if not out.write_image(rgb):
-                raise OSError(f"{path}: cannot write EXR ({out.geterror().strip()})")
+                raise OSError(f"{path}: cannot write EXR ({library_error(out)})")
         finally:
             out.close()
 
@@ -37,7 +37,8 @@ def read_image(path):
     capture's reader: channels by name, grey repeated to RGB, alpha dropped, an EXR data window
     placed in its display window (NaN outside). InputError when missing or unreadable.
     """
-    from flashbrdf.capture import read_float_image  # on first use: see render.envmap.read_envmap_pixels
+    # imported on first use: see render.envmap.read_envmap_pixels
+    from flashbrdf.capture import read_float_image
     return read_float_image(path)
 
 
@@ -46,7 +47,7 @@ def image_channel_names(path):
     "B"] or ["Y"]; [] when it cannot be opened (read_image then says why)."""
     inp = oiio.ImageInput.open(os.fspath(path))
     if inp is None:
-        oiio.geterror()  # clear it: read_image reports the failure
+        library_error(oiio)  # clear it: read_image reports the failure
         return []
     try:
         return [n.split(".")[-1].upper() for n in inp.spec().channelnames]
@@ -80,7 +81,7 @@ def write_png(path, rgb8):
         spec = oiio.ImageSpec(rgb8.shape[1], rgb8.shape[0], rgb8.shape[2], oiio.UINT8)
         out = oiio.ImageOutput.create(tmp)
         if out is None or not out.open(tmp, spec):
-            raise OSError(f"{path}: cannot write PNG ({oiio.geterror().strip()})")
+            raise OSError(f"{path}: cannot write PNG ({library_error(oiio)})")
         try:
             out.write_image(rgb8)
         finally:
@@ -100,7 +101,7 @@ def read_mask(path, shape=None):
         raise InputError(path, "no such mask file")
     inp = oiio.ImageInput.open(path)
     if inp is None:
-        raise InputError(path, f"cannot read mask ({oiio.geterror().strip()})")
+        raise InputError(path, f"cannot read mask ({library_error(oiio)})")
     try:
         spec = inp.spec()
         pixels = inp.read_image(0, 0, 0, spec.nchannels, oiio.FLOAT)

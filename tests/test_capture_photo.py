@@ -186,6 +186,23 @@ def test_size_missing_and_corrupt_files(tmp_path):
         capture.load_photo(tmp_path / "bad.dng")
 
 
+def test_damaged_exr_whose_error_message_is_not_utf8(tmp_path):
+    """OpenImageIO quotes a damaged header's bytes in its message (here a channel-list type
+    name running into byte 0xd5), and its binding then raises UnicodeDecodeError: the reader
+    still gives one InputError naming the file (found by fuzzing compare)."""
+    from flashbrdf.render.images import image_channel_names, read_mask
+    write_exr(tmp_path / "a.exr", np.ones((4, 5, 3)))
+    data = bytearray((tmp_path / "a.exr").read_bytes())
+    data[data.index(b"chlist\x00") + 6] = 0xD5
+    (tmp_path / "a.exr").write_bytes(bytes(data))
+    with pytest.raises(InputError, match=r"a.exr: cannot read image: \(the library's message is "
+                                         r"not UTF-8 text\)"):
+        capture.load_photo(tmp_path / "a.exr")
+    assert image_channel_names(tmp_path / "a.exr") == []
+    with pytest.raises(InputError, match=r"a.exr: cannot read mask"):
+        read_mask(tmp_path / "a.exr")
+
+
 def test_image_over_opencvs_size_limit_is_named_with_the_limit(tmp_path):
     """cv2.imread raises (not None) past its limits: the one line names the file and the limit it
     exceeds, not "cannot read image (corrupt or unsupported)"."""

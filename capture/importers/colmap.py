@@ -26,7 +26,7 @@ from flashbrdf.capture.importers.mesh_frame import check_mesh_frame, require_mes
 from flashbrdf.capture.importers.scene_json import dumps_scene
 from flashbrdf.capture.photo import CV_EXTENSIONS, FLOAT_EXTENSIONS, RAW_EXTENSIONS
 from flashbrdf.capture.scene import MAX_FACTOR, MIN_FACTOR
-from flashbrdf.files.errors import InputError
+from flashbrdf.files.errors import InputError, library_error
 from flashbrdf.files.outputs import check_outputs, path_inside, staged_output_dir
 
 PHOTO_EXTENSIONS = FLOAT_EXTENSIONS + CV_EXTENSIONS + RAW_EXTENSIONS
@@ -187,7 +187,7 @@ def photo_size(path):
     import OpenImageIO as oiio
     image = oiio.ImageInput.open(str(path))
     if image is None:
-        raise InputError(path, f"cannot read image: {oiio.geterror() or 'unknown format'}")
+        raise InputError(path, f"cannot read image: {library_error(oiio, 'unknown format')}")
     try:
         spec = image.spec()
     finally:
