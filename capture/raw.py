@@ -36,8 +36,9 @@ def _apply_flip(mask, flip):
 
 def load_raw(path, saturation_fraction):
     """Decode a RAW file; a sensel at or above `saturation_fraction` of its range counts as clipped
-    (capture.photo.SATURATION_FRACTION). Returns rgb (H, W, 3) float32 linear sRGB primaries, scaled so that the
-    white level maps to 1 before white balance, usable (H, W) bool, clipped (H, W) bool."""
+    (capture.photo.SATURATION_FRACTION). Returns rgb (H, W, 3) float32 linear sRGB primaries,
+    scaled so that the white level maps to 1 before white balance, usable (H, W) bool, clipped
+    (H, W) bool."""
     try:
         raw = rawpy.imread(str(path))
     except (rawpy.LibRawError, OSError, ValueError) as err:

@@ -11,13 +11,12 @@ Additive fields (beyond the contract) accepted here:
 """
 
 import json
-import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from flashbrdf.capture.scene_fields import Fields, check_finite, no_repeats
 from flashbrdf.files.errors import InputError
 
 CAMERA_MODELS = ("pinhole", "orthographic")
@@ -25,11 +24,6 @@ ROLES = ("flash", "ambient", "reference")
 LIGHT_TYPES = ("point", "directional", "envmap")
 ENCODINGS = ("linear", "srgb")
 MAX_IMAGE_SIDE = 1 << 16  # pixels; larger is a typo (or an attack), not a camera
-ROTATION_ATOL = 1e-4
-# Photos are float32 (up to 3.4e38, normal down to 1.2e-38), and so are the rays Embree traces: a
-# scale, intensity, exposure or intrinsic outside this range turned them to inf or to 0 (a slice
-# of zeros, a render of inf, with exit 0). Far beyond any camera or light.
-MIN_FACTOR, MAX_FACTOR = 1e-30, 1e30
 
 
 @dataclass(frozen=True, eq=False)
@@ -197,124 +191,6 @@ class Scene:
         return list(dict.fromkeys(f for f in files if f is not None))
 
 
-class _Fields:
-    """Typed access to one JSON object, raising InputError with the full field path."""
-
-    def __init__(self, json_path, prefix, obj):
-        self.json_path, self.prefix = json_path, prefix
-        if not isinstance(obj, dict):
-            self.fail("", "expected a JSON object")
-        self.obj = obj
-
-    def name(self, key):
-        return f"{self.prefix}.{key}" if self.prefix and key else (self.prefix or key)
-
-    def fail(self, key, problem):
-        raise InputError(f"{self.json_path}: {self.name(key)}" if self.name(key) else
-                         self.json_path, problem)
-
-    def has(self, key):
-        return key in self.obj and self.obj[key] is not None
-
-    def get(self, key, default=None):
-        return self.obj.get(key, default)
-
-    def sub(self, key):
-        if not self.has(key):
-            self.fail(key, "missing")
-        return _Fields(self.json_path, self.name(key), self.obj[key])
-
-    def number(self, key, default=None, positive=False, nonnegative=False, factor=False):
-        """A finite number; factor: one that multiplies or divides float32 pixels or rays, so
-        its magnitude must be 0 (where allowed) or within MIN_FACTOR..MAX_FACTOR."""
-        if not self.has(key):
-            if default is not None:
-                return float(default)
-            self.fail(key, "missing")
-        v = self.obj[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            self.fail(key, f"expected a finite number, got {v!r}")
-        if positive and v <= 0:
-            self.fail(key, f"expected a positive number, got {v!r}")
-        if nonnegative and v < 0:
-            self.fail(key, f"expected a non-negative number, got {v!r}")
-        if factor:
-            self._check_factors(key, [v])
-        return float(v)
-
-    def _check_factors(self, key, values):
-        odd = [v for v in values if v != 0 and not MIN_FACTOR <= abs(v) <= MAX_FACTOR]
-        if odd:
-            self.fail(key, f"{odd[0]!r} is outside {MIN_FACTOR:g}..{MAX_FACTOR:g} in magnitude "
-                           "(photos and rays are 32-bit floats: it would turn them to inf or 0)")
-
-    def integer(self, key, minimum=1, maximum=None):
-        v = self.obj.get(key)
-        if v is None:
-            self.fail(key, "missing")
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) \
-                or v != int(v) or v < minimum or (maximum is not None and v > maximum):
-            bounds = f">= {minimum}" if maximum is None else f"in {minimum}..{maximum}"
-            self.fail(key, f"expected an integer {bounds}, got {v!r}")
-        return int(v)
-
-    def rotation(self, key, matrix):
-        """Check that (3, 3) `matrix` (read from `key`) is a rotation: orthonormal, det +1."""
-        if not np.allclose(matrix.T @ matrix, np.eye(3), atol=ROTATION_ATOL) or \
-                abs(np.linalg.det(matrix) - 1.0) > ROTATION_ATOL:
-            self.fail(key, "rotation part must be orthonormal with determinant +1 (within "
-                           f"{ROTATION_ATOL:g})")
-        return matrix
-
-    def choice(self, key, choices, default=None):
-        v = self.obj.get(key, default)
-        if v is None:
-            self.fail(key, f"missing (one of {', '.join(choices)})")
-        if v not in choices:
-            self.fail(key, f"expected one of {', '.join(choices)}, got {v!r}")
-        return v
-
-    def array(self, key, shape, default=None, nonnegative=False, factor=False):
-        """A numeric array of exactly `shape` (nested JSON lists) as float64."""
-        if not self.has(key):
-            if default is not None:
-                return np.array(default, dtype=float)
-            self.fail(key, "missing")
-        what = f"{shape[0]} numbers" if len(shape) == 1 else "a " + "x".join(map(str, shape)) + \
-            " matrix of numbers"
-        if _holds_bool(self.obj[key]):  # numpy reads true as 1.0: JSON's true is no number
-            self.fail(key, f"expected {what}, got true/false")
-        try:
-            a = np.array(self.obj[key], dtype=float)
-        except (TypeError, ValueError):
-            self.fail(key, f"expected {what}")
-        if a.shape != tuple(shape) or not np.all(np.isfinite(a)):
-            self.fail(key, f"expected {what}")
-        if nonnegative and np.any(a < 0):
-            self.fail(key, f"expected non-negative numbers, got {a.tolist()}")
-        if factor:
-            self._check_factors(key, a.ravel().tolist())
-        return a
-
-    def path(self, key, folder):
-        v = self.obj.get(key)
-        if not isinstance(v, str) or not v or "\0" in v:
-            self.fail(key, "expected a file name (string, relative to the scene folder)")
-        try:
-            return (folder / v).resolve()
-        except (OSError, RuntimeError, ValueError) as err:
-            # a symlink loop, a name too long, a lone surrogate ("\ud800", valid JSON) that no
-            # file name encodes
-            self.fail(key, f"cannot resolve the path {v!r} ({err})")
-
-
-def _holds_bool(value):
-    """Whether `value` is a bool or a (nested) list holding one."""
-    if isinstance(value, list):
-        return any(_holds_bool(v) for v in value)
-    return isinstance(value, bool)
-
-
 def _camera(f):
     model = f.choice("model", CAMERA_MODELS)
     width = f.integer("width", maximum=MAX_IMAGE_SIDE)
@@ -323,6 +199,7 @@ def _camera(f):
     if not np.allclose(pose[3], [0, 0, 0, 1], atol=1e-9):
         f.fail("world_from_camera", "last row must be [0, 0, 0, 1]")
     f.rotation("world_from_camera", pose[:3, :3])
+    f.check_coordinates("world_from_camera", pose[:3, 3].tolist())
     if model == "orthographic":
         return Camera(model, width, height, pose,
                       pixel_size=f.number("pixel_size", positive=True, factor=True))
@@ -336,14 +213,14 @@ def _camera(f):
             distortion = None
     return Camera(model, width, height, pose, fx=f.number("fx", positive=True, factor=True),
                   fy=f.number("fy", positive=True, factor=True),
-                  cx=f.number("cx"), cy=f.number("cy"),
+                  cx=f.number("cx", coordinate=True), cy=f.number("cy", coordinate=True),
                   distortion=distortion)
 
 
 def _light(f, folder):
     kind = f.choice("type", LIGHT_TYPES)
     if kind == "point":
-        return Light(kind, position=f.array("position", (3,)),
+        return Light(kind, position=f.array("position", (3,), coordinate=True),
                      intensity_rgb=f.array("intensity_rgb", (3,), nonnegative=True, factor=True))
     if kind == "directional":
         d = f.array("direction", (3,))
@@ -372,7 +249,7 @@ def _photo(f, index, folder, camera):
             f.fail("brackets", "expected a non-empty list of {file, exposure_s}")
         brackets = []
         for k, item in enumerate(items):
-            b = _Fields(f.json_path, f.name(f"brackets[{k}]"), item)
+            b = Fields(f.json_path, f.name(f"brackets[{k}]"), item)
             brackets.append((b.path("file", folder),
                              b.number("exposure_s", positive=True, factor=True)))
         files = [path for path, _ in brackets]
@@ -395,43 +272,6 @@ def _photo(f, index, folder, camera):
                  saturation=saturation)
 
 
-class _RepeatedKey(ValueError):
-    pass
-
-
-def _no_repeats(pairs):
-    """json object hook: a dict, or _RepeatedKey for a key given twice ("fx": 100, "fx": 5000),
-    which json would settle silently by keeping the last."""
-    doc = dict(pairs)
-    if len(doc) != len(pairs):
-        seen = set()
-        key = next(k for k, _ in pairs if k in seen or seen.add(k))
-        raise _RepeatedKey(f"key {key!r} is given twice in one object")
-    return doc
-
-
-def _check_finite(value, json_path, where):
-    """InputError naming the field (e.g. "camera.width") of the first NaN or +-Infinity.
-
-    Python's json reads NaN, Infinity and 1e999 as floats, and 1 followed by 400 zeros as an int
-    no float holds; the contract's JSON has none, and one check over the whole document keeps
-    every reader below from meeting them.
-    """
-    if isinstance(value, float) and not math.isfinite(value):
-        raise InputError(f"{json_path}: {where or '(document)'}",
-                         f"expected a finite number, got {value!r}")
-    if isinstance(value, int) and abs(value) > sys.float_info.max:
-        raise InputError(f"{json_path}: {where or '(document)'}",
-                         f"expected a finite number, got an integer of {len(str(abs(value)))} "
-                         "digits")
-    if isinstance(value, dict):
-        for key, item in value.items():
-            _check_finite(item, json_path, f"{where}.{key}" if where else str(key))
-    elif isinstance(value, list):
-        for k, item in enumerate(value):
-            _check_finite(item, json_path, f"{where}[{k}]")
-
-
 def load_scene(scene_dir):
     """Read `scene_dir/scene.json` into a validated Scene (no images or meshes are read).
 
@@ -444,14 +284,14 @@ def load_scene(scene_dir):
         raise InputError(json_path, "not found (a scene folder needs a scene.json)")
     try:
         # utf-8-sig: a byte-order mark (Windows editors write one) is no JSON text
-        doc = json.loads(json_path.read_text(encoding="utf-8-sig"), object_pairs_hook=_no_repeats)
-        _check_finite(doc, str(json_path), "")
+        doc = json.loads(json_path.read_text(encoding="utf-8-sig"), object_pairs_hook=no_repeats)
+        check_finite(doc, str(json_path), "")
     except InputError:
         raise
     except (OSError, UnicodeDecodeError, ValueError, RecursionError) as err:
         # ValueError: json.JSONDecodeError, or an integer literal of over 4300 digits
         raise InputError(json_path, f"not valid JSON: {err}") from None
-    root = _Fields(str(json_path), "", doc)
+    root = Fields(str(json_path), "", doc)
     camera = _camera(root.sub("camera"))
     g = root.sub("geometry")
     if g.has("mesh") and (g.has("normal_map") or g.has("mask")):
@@ -465,7 +305,7 @@ def load_scene(scene_dir):
     items = root.get("photos")
     if not isinstance(items, list) or not items:
         root.fail("photos", "expected a non-empty list")
-    photos = [_photo(_Fields(str(json_path), f"photos[{i}]", p), i, folder, camera)
+    photos = [_photo(Fields(str(json_path), f"photos[{i}]", p), i, folder, camera)
               for i, p in enumerate(items)]
     level = _level(root.sub("level"), folder, geometry) if root.has("level") else None
     return Scene(folder=folder, camera=camera, geometry=geometry, photos=photos,

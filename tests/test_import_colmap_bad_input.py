@@ -197,6 +197,9 @@ CASES = {
     "quaternion of 1e308 (old text)": case(
         lambda w, t: argv(model_copy(w, t, old=True, edit=image_line({1: "1e308"})),
                           w["images"], w["mesh"], t / "s"), "images.txt: image 1"),
+    "camera 1e308 away (frames.txt)": case(
+        lambda w, t: argv(model_copy(w, t, edit=fields_of_line_1("frames.txt", {6: "1e308"})),
+                          w["images"], w["mesh"], t / "s"), "frames.txt: image 1"),
     "image name not UTF-8 (binary)": case(
         lambda w, t: argv(model_copy(w, t, "sparse_bin", edit=binary_name_byte(0x80)),
                           w["images"], w["mesh"], t / "s"), "images.bin: image 1"),
@@ -345,12 +348,13 @@ def test_truncated_binary_file_is_bad_input_not_a_hang(world, tmp_path, capfd, m
 
 
 def test_translation_too_large_to_place_the_camera():
-    """A finite translation whose rotated sum passes 1.8e308 (45° about z mixes x and y) is bad
-    input naming the image, not an inf camera centre."""
+    """A camera centre past ±1e30, or one whose rotated sum passes 1.8e308 (45° about z mixes x
+    and y), is bad input naming the image, not an inf (or unrepresentable) camera centre."""
     from flashbrdf.capture.importers.colmap_model import world_from_camera
     from flashbrdf.files.errors import InputError
     half = np.radians(45.0) / 2
     quaternion_xyzw = [0.0, 0.0, np.sin(half), np.cos(half)]
-    assert np.isfinite(world_from_camera(quaternion_xyzw, [1e307, 1e307, 0.0], "x")).all()
-    with pytest.raises(InputError, match="image 7.*too large"):
-        world_from_camera(quaternion_xyzw, [1.7e308, 1.7e308, 0.0], "images.txt: image 7")
+    assert np.isfinite(world_from_camera(quaternion_xyzw, [1e29, 1e29, 0.0], "x")).all()
+    for translation in ([1.7e308, 1.7e308, 0.0], [1e31, 0.0, 0.0]):
+        with pytest.raises(InputError, match=r"image 7: translation .* beyond ±1e\+30"):
+            world_from_camera(quaternion_xyzw, translation, "images.txt: image 7")

@@ -85,6 +85,42 @@ def test_any_value_in_any_scene_field(tmp_path, field, value):
     assert scene.camera.width >= 1 and np.all(np.isfinite(scene.camera.world_from_camera))
 
 
+def _scene_with(tmp_path, field, value):
+    doc = json.loads(json.dumps(VALID_SCENE))
+    target = doc
+    for key in field[:-1]:
+        target = target[key]
+    target[field[-1]] = value
+    (tmp_path / "scene.json").write_text(json.dumps(doc))
+    return tmp_path
+
+
+CENTRE_AT = [[1, 0, 0, "X"], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]
+
+
+@pytest.mark.parametrize("field, value, named", [
+    (("camera", "world_from_camera"), json.loads(json.dumps(CENTRE_AT).replace('"X"', "1e31")),
+     r"camera\.world_from_camera: 1e\+31 is beyond"),
+    (("camera", "world_from_camera"), json.loads(json.dumps(CENTRE_AT).replace('"X"', "0")
+                                                 .replace("[1, 0, 0", "[1e308, 0, 0", 1)),
+     r"camera\.world_from_camera: rotation part"),
+    (("camera", "cx"), 1e308, r"camera\.cx: 1e\+308 is beyond"),
+    (("photos", 0, "light", "position"), [0, -1e31, 0], r"photos\[0\]\.light\.position: -1e\+31"),
+])
+def test_coordinates_past_float32_rays_are_named(tmp_path, field, value, named):
+    """A camera centre, principal point or light position past ±1e30 (rays and pixel
+    coordinates are float32: 1e308 turns them to inf), or a rotation entry of 1e308 (whose
+    square overflows), is bad input naming the field."""
+    with pytest.raises(InputError, match=named):
+        load_scene(_scene_with(tmp_path, field, value))
+
+
+def test_a_camera_1e29_away_loads(tmp_path):
+    centre = json.loads(json.dumps(CENTRE_AT).replace('"X"', "1e29"))
+    scene = load_scene(_scene_with(tmp_path, ("camera", "world_from_camera"), centre))
+    assert scene.camera.centre_world[0] == 1e29
+
+
 def test_the_valid_scene_loads(tmp_path):
     """The base document of the property above is valid, so the property tests changes to it."""
     (tmp_path / "scene.json").write_text(json.dumps(VALID_SCENE))

@@ -25,7 +25,7 @@ from flashbrdf.capture.importers.colmap_model import camera_model_name, read_col
 from flashbrdf.capture.importers.mesh_frame import check_mesh_frame, require_mesh_in_frame
 from flashbrdf.capture.importers.scene_json import dumps_scene
 from flashbrdf.capture.photo import CV_EXTENSIONS, FLOAT_EXTENSIONS, RAW_EXTENSIONS
-from flashbrdf.capture.scene import MAX_FACTOR, MIN_FACTOR
+from flashbrdf.capture.scene_fields import MAX_FACTOR, MIN_FACTOR
 from flashbrdf.files.errors import InputError, library_error
 from flashbrdf.files.outputs import check_outputs, path_inside, staged_output_dir
 

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.capture.scene import MAX_FACTOR, MAX_IMAGE_SIDE, MIN_FACTOR
+from flashbrdf.capture.scene import MAX_IMAGE_SIDE
+from flashbrdf.capture.scene_fields import MAX_FACTOR, MIN_FACTOR
 from flashbrdf.files.errors import InputError
 
 MODEL_FILES = {"binary": ("cameras.bin", "images.bin", "points3D.bin"),
@@ -345,8 +346,10 @@ def world_from_camera(quaternion_xyzw, translation, where):
     pose[:3, :3] = rotation.T
     with np.errstate(over="ignore", invalid="ignore"):   # |t| near 1e308: checked below
         pose[:3, 3] = -rotation.T @ t
-    if not np.all(np.isfinite(pose)):
-        raise InputError(where, f"translation {_listed(t)} is too large to place the camera")
+    if not np.all(np.abs(pose[:3, 3]) <= MAX_FACTOR):      # inf too
+        raise InputError(where, f"translation {_listed(t)} places the camera beyond "
+                                f"±{MAX_FACTOR:g} model units (rays are 32-bit floats): a "
+                                "damaged model file?")
     return pose
 
 

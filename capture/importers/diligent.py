@@ -59,8 +59,9 @@ class DiligentObject:
 def _require(folder, name):
     path = folder / name
     if not path.is_file():
-        raise InputError(path, "missing (a DiLiGenT object folder needs *.png, light_directions.txt, "
-                               "light_intensities.txt, mask.png and Normal_gt.mat)")
+        raise InputError(path, "missing (a DiLiGenT object folder needs *.png, "
+                               "light_directions.txt, light_intensities.txt, mask.png and "
+                               "Normal_gt.mat)")
     return path
 
 

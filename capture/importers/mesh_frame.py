@@ -82,10 +82,11 @@ def _views_seeing(vertices, cameras):
     seeing = 0
     for cam in cameras:
         pose = np.asarray(cam["world_from_camera"], dtype=np.float64)
-        local = (vertices - pose[:3, 3]) @ pose[:3, :3]
-        z = local[:, 2]
-        front = z > 0
-        with np.errstate(divide="ignore", invalid="ignore"):
+        # a damaged model's camera at 1e308 overflows to inf here, which reads as "not in view"
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            local = (vertices - pose[:3, 3]) @ pose[:3, :3]
+            z = local[:, 2]
+            front = z > 0
             u = cam["fx"] * local[:, 0] / z + cam["cx"]
             v = cam["fy"] * local[:, 1] / z + cam["cy"]
         inside = front & (u >= -0.5) & (u <= cam["width"] - 0.5) & (v >= -0.5) & \
@@ -114,9 +115,10 @@ def check_mesh_frame(intersector, points, observed_point, observer_centre, camer
     hidden_point = np.zeros(len(points), dtype=bool)
     on = hidden = 0
     if len(observed_point):
-        sight = points[observed_point] - observer_centre
-        length = np.linalg.norm(sight, axis=1)
-        valid = length > 0
+        with np.errstate(over="ignore"):   # sight lines from a 1e308 camera: inf, left out
+            sight = points[observed_point] - observer_centre
+            length = np.linalg.norm(sight, axis=1)
+        valid = (length > 0) & np.isfinite(length)
         hits = intersect(intersector, observer_centre[valid], sight[valid] / length[valid, None])
         gap = hits.distance - length[valid]           # inf where the line misses the mesh
         on_line, hidden_line = np.abs(gap) <= tolerance, gap < -tolerance
