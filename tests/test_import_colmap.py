@@ -136,6 +136,17 @@ def test_cli_summary(made, tmp_path, capsys):
     assert sorted(p.name for p in photos.iterdir()) == [f"{n}.exr" for n in made["names"][:4]]
 
 
+def test_summary_says_why_the_reprojection_error_is_missing(made, tmp_path, capsys,
+                                                             monkeypatch):
+    """With 3D points whose error pycolmap cannot compute, the summary does not claim there are
+    none."""
+    from flashbrdf.capture.importers.colmap_model import ColmapModel
+    monkeypatch.setattr(ColmapModel, "mean_reprojection_error", lambda self: None)
+    assert main(["import-colmap", str(made["sparse"]), "--images", str(made["images"]),
+                 "--mesh", str(made["mesh"]), "--out", str(tmp_path / "scene")]) == 0
+    assert "mean reprojection error: n/a (not computable)" in capsys.readouterr().out
+
+
 def test_mesh_frame_check_reach(made, tmp_path):
     """The mesh_frame limits as its docstring states them: the true mesh passes, with exact
     points, points scattered by 2% of the mesh's diagonal, or tracks listing every camera whose

@@ -63,8 +63,10 @@ class ColmapImport:
             out.append(f"camera {camera_id}: {name} {cam['width']}x{cam['height']}, fx "
                        f"{cam['fx']:.6g} fy {cam['fy']:.6g} cx {cam['cx']:.6g} cy "
                        f"{cam['cy']:.6g} (pixel centres at 0){dist}; {count} photos")
-        error = ("n/a (no 3D points)" if self.reprojection_error is None
-                 else f"{self.reprojection_error:.3g} px")
+        if self.reprojection_error is not None:
+            error = f"{self.reprojection_error:.3g} px"
+        else:   # no points, or pycolmap failed on them (a camera far off makes it non-finite)
+            error = "n/a (no 3D points)" if not self.frame.points else "n/a (not computable)"
         out.append(f"mean reprojection error: {error}")
         f = self.frame
         if f.points:
