@@ -22,6 +22,7 @@ from embreex.mesh_construction import TriangleMesh
 from flashbrdf.files.errors import InputError
 from flashbrdf.capture.camera import embree_rays, mesh_pixels
 from flashbrdf.capture.scene import Scene
+from flashbrdf.capture.scene_fields import MAX_COORDINATE, beyond_coordinates
 
 _CHUNK = 1 << 21  # rays per Embree call: bounds temporary memory to ~100 MB
 _SHADOW_OFFSET = 1e-4  # x bounding-box diagonal
@@ -98,6 +99,10 @@ def load_mesh(path):
                             if has_normals else None), process=False)
     if not np.all(np.isfinite(mesh.vertices)):
         raise InputError(path, "mesh has non-finite vertex coordinates")
+    odd = beyond_coordinates(mesh.vertices)
+    if odd is not None:
+        raise InputError(path, f"a vertex coordinate {odd:.6g} is beyond ±{MAX_COORDINATE:g} (rays "
+                               "are 32-bit floats)")
     faces, count = np.asarray(mesh.faces), len(mesh.vertices)
     if faces.min() < 0 or faces.max() >= count:
         bad = int(faces.min() if faces.min() < 0 else faces.max())

@@ -16,7 +16,13 @@ from pathlib import Path
 
 import numpy as np
 
-from flashbrdf.capture.scene_fields import Fields, check_finite, no_repeats
+from flashbrdf.capture.scene_fields import (
+    Fields,
+    check_finite,
+    no_repeats,
+    principal_point_problem,
+    scaled_norm,
+)
 from flashbrdf.files.errors import InputError
 
 CAMERA_MODELS = ("pinhole", "orthographic")
@@ -211,10 +217,13 @@ def _camera(f):
         distortion = f.array("distortion", (size if size in (4, 5, 8, 12, 14) else 5,))
         if not np.any(distortion):
             distortion = None
-    return Camera(model, width, height, pose, fx=f.number("fx", positive=True, factor=True),
-                  fy=f.number("fy", positive=True, factor=True),
-                  cx=f.number("cx", coordinate=True), cy=f.number("cy", coordinate=True),
-                  distortion=distortion)
+    fx, fy = (f.number(k, positive=True, factor=True) for k in ("fx", "fy"))
+    cx, cy = (f.number(k, coordinate=True) for k in ("cx", "cy"))
+    for key, centre, size, focal in (("cx", cx, width, fx), ("cy", cy, height, fy)):
+        problem = principal_point_problem(centre, size, focal)
+        if problem:
+            f.fail(key, problem)
+    return Camera(model, width, height, pose, fx=fx, fy=fy, cx=cx, cy=cy, distortion=distortion)
 
 
 def _light(f, folder):
@@ -224,7 +233,7 @@ def _light(f, folder):
                      intensity_rgb=f.array("intensity_rgb", (3,), nonnegative=True, factor=True))
     if kind == "directional":
         d = f.array("direction", (3,))
-        norm = np.linalg.norm(d)
+        norm = scaled_norm(d)
         if norm < 1e-9:
             f.fail("direction", "must not be the zero vector")
         return Light(kind, direction=d / norm,

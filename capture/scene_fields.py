@@ -14,6 +14,36 @@ ROTATION_ATOL = 1e-4
 # scale, intensity, exposure or intrinsic outside this range turned them to inf or to 0 (a slice
 # of zeros, a render of inf, with exit 0). Far beyond any camera or light.
 MIN_FACTOR, MAX_FACTOR = 1e-30, 1e30
+# Positions (camera centres, light positions, mesh vertices) and principal points: any magnitude
+# up to this, 0 included; past it, float32 rays and pixel coordinates turn to inf.
+MAX_COORDINATE = 1e30
+
+
+def beyond_coordinates(values):
+    """The first of `values` (any shape) past ±MAX_COORDINATE (inf included), or None."""
+    values = np.ravel(np.asarray(values, dtype=np.float64))
+    odd = values[~(np.abs(values) <= MAX_COORDINATE)]
+    return float(odd[0]) if odd.size else None
+
+
+def principal_point_problem(centre, size, focal):
+    """Why a principal point `centre` (pixels) of an image axis of `size` pixels cannot go with
+    focal length `focal` (pixels, positive), or None: past ±MAX_COORDINATE itself, or making a
+    pixel's ray slope (pixel − centre) / focal pass it, which float32 rays cannot hold."""
+    if beyond_coordinates([centre]) is not None:
+        return f"{centre:.6g} is beyond ±{MAX_COORDINATE:g} (pixel coordinates are 32-bit floats)"
+    if max(abs(centre), abs(size - centre)) > MAX_COORDINATE * focal:
+        return (f"{centre:.6g} with a focal length of {focal:.6g} px puts ray slopes past "
+                f"{MAX_COORDINATE:g} (rays are 32-bit floats)")
+    return None
+
+
+def scaled_norm(values):
+    """The Euclidean norm of `values` (finite) without overflow: 1e308 entries square past
+    float64, so the norm is taken of the values over their largest magnitude, then scaled."""
+    values = np.ravel(np.asarray(values, dtype=np.float64))
+    scale = float(np.abs(values).max()) if values.size else 0.0
+    return scale * float(np.linalg.norm(values / scale)) if scale > 0 else 0.0
 
 
 class Fields:
@@ -66,12 +96,11 @@ class Fields:
         return float(v)
 
     def check_coordinates(self, key, values):
-        """A position or principal point: any magnitude up to MAX_FACTOR (past it, 32-bit rays
-        and pixel coordinates turn to inf), 0 and tiny values included."""
-        odd = [v for v in values if abs(v) > MAX_FACTOR]
-        if odd:
-            self.fail(key, f"{odd[0]!r} is beyond ±{MAX_FACTOR:g} (rays and pixel coordinates are "
-                           "32-bit floats: it would turn them to inf)")
+        """A position or principal point: any magnitude up to MAX_COORDINATE, 0 included."""
+        odd = beyond_coordinates(values)
+        if odd is not None:
+            self.fail(key, f"{odd:.6g} is beyond ±{MAX_COORDINATE:g} (rays and pixel coordinates "
+                           "are 32-bit floats: it would turn them to inf)")
 
     def _check_factors(self, key, values):
         odd = [v for v in values if v != 0 and not MIN_FACTOR <= abs(v) <= MAX_FACTOR]

@@ -100,7 +100,7 @@ def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e
     order = np.argsort(bin_index.astype(np.int16), kind="stable")  # radix sort: O(n)
     # channel-major float32 copy in bin order (np.take: several times faster than fancy
     # indexing); float32 keeps 7 digits, and means accumulate in float64
-    with np.errstate(over="ignore"):   # past float32's 3.4e38 a sample reads inf, as clipped does
+    with np.errstate(over="ignore"):   # past float32's ±3.4e38 a sample reads ±inf
         rho = np.take(np.asarray(rho, dtype=np.float32).T, order, axis=1)
     censored = (np.zeros(len(order), dtype=bool) if censored is None
                 else np.take(np.asarray(censored, dtype=bool), order))

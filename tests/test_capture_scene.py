@@ -176,6 +176,21 @@ def test_mesh_file_normals_are_used(tmp_path):
     assert "No module named" not in str(err.value) and "\n" not in str(err.value)
 
 
+def test_vertex_past_float32_rays_is_bad_input(tmp_path):
+    """A vertex at 1e31 (finite, but past what float32 rays and Embree hold once squared or
+    differenced) is bad input naming the mesh; at 1e29 the mesh loads."""
+    import trimesh
+    for far, ok in ((1e29, True), (1e31, False)):
+        mesh = trimesh.Trimesh([[0, 0, 0], [1, 0, 0], [0, far, 0]], [[0, 1, 2]], process=False)
+        mesh.export(tmp_path / "far.ply")
+        if ok:
+            vertices = capture.load_mesh(tmp_path / "far.ply")[0].vertices
+            assert np.isclose(vertices.max(), far, rtol=1e-7)   # PLY stores float32
+        else:
+            with pytest.raises(InputError, match=r"far.ply: a vertex coordinate 1e\+31 is beyond"):
+                capture.load_mesh(tmp_path / "far.ply")
+
+
 def test_gltf_file_normals_are_used_and_placed_by_the_scene_graph(tmp_path):
     """A GLB loads as a trimesh Scene; its NORMAL attribute is the file's vertex normals and is
     the shading normal (contract geometry.mesh), transformed with the node. One flat triangle in

@@ -257,6 +257,13 @@ CASES = {
     "non-finite --flash-offset": case(
         lambda w, t: argv(w[T], w["images"], w["mesh"], t / "s", "--flash-offset", "nan,0,0"),
         "--flash-offset"),
+    "--flash-offset past 1e30": case(
+        lambda w, t: argv(w[T], w["images"], w["mesh"], t / "s", "--flash-offset", "1e31,0,0"),
+        "--flash-offset"),
+    "principal point past 1e30": case(
+        lambda w, t: argv(model_copy(w, t, edit=replace_line(
+            "cameras.txt", "2 ", "2 SIMPLE_RADIAL 240 180 330 1e31 94.2 0.08")),
+            w["images"], w["mesh"], t / "s"), "cameras.txt: camera 2"),
     "zero --intensity": case(
         lambda w, t: argv(w[T], w["images"], w["mesh"], t / "s", "--intensity", "1,0,1"),
         "--intensity"),

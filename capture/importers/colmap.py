@@ -25,7 +25,12 @@ from flashbrdf.capture.importers.colmap_model import camera_model_name, read_col
 from flashbrdf.capture.importers.mesh_frame import check_mesh_frame, require_mesh_in_frame
 from flashbrdf.capture.importers.scene_json import dumps_scene
 from flashbrdf.capture.photo import CV_EXTENSIONS, FLOAT_EXTENSIONS, RAW_EXTENSIONS
-from flashbrdf.capture.scene_fields import MAX_FACTOR, MIN_FACTOR
+from flashbrdf.capture.scene_fields import (
+    MAX_COORDINATE,
+    MAX_FACTOR,
+    MIN_FACTOR,
+    beyond_coordinates,
+)
 from flashbrdf.files.errors import InputError, library_error
 from flashbrdf.files.outputs import check_outputs, path_inside, staged_output_dir
 
@@ -65,7 +70,7 @@ class ColmapImport:
                        f"{cam['cy']:.6g} (pixel centres at 0){dist}; {count} photos")
         if self.reprojection_error is not None:
             error = f"{self.reprojection_error:.3g} px"
-        else:   # no points, or pycolmap failed on them (a camera far off makes it non-finite)
+        else:   # no points, or pycolmap failed on them (a non-finite result or an exception)
             error = "n/a (no 3D points)" if not self.frame.points else "n/a (not computable)"
         out.append(f"mean reprojection error: {error}")
         f = self.frame
@@ -98,7 +103,8 @@ def _short(values):
 
 
 def _triple(values, where, positive=False):
-    """Three finite numbers (list of floats); positive: each in MIN_FACTOR..MAX_FACTOR."""
+    """Three finite numbers (list of floats); positive: each in MIN_FACTOR..MAX_FACTOR, else
+    each within ±MAX_COORDINATE (a position)."""
     try:
         out = [float(v) for v in values]
     except (TypeError, ValueError):
@@ -108,6 +114,9 @@ def _triple(values, where, positive=False):
     if positive and not all(MIN_FACTOR <= v <= MAX_FACTOR for v in out):
         raise InputError(where, f"expected 3 positive numbers within {MIN_FACTOR:g}.."
                                 f"{MAX_FACTOR:g}, got {out}")
+    if not positive and beyond_coordinates(out) is not None:
+        raise InputError(where, f"{beyond_coordinates(out):.6g} is beyond ±{MAX_COORDINATE:g} "
+                                "(rays are 32-bit floats)")
     return out
 
 

@@ -20,7 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from flashbrdf.capture.scene import MAX_IMAGE_SIDE
-from flashbrdf.capture.scene_fields import MAX_FACTOR, MIN_FACTOR
+from flashbrdf.capture.scene_fields import (
+    MAX_COORDINATE,
+    MAX_FACTOR,
+    MIN_FACTOR,
+    beyond_coordinates,
+    principal_point_problem,
+    scaled_norm,
+)
 from flashbrdf.files.errors import InputError
 
 MODEL_FILES = {"binary": ("cameras.bin", "images.bin", "points3D.bin"),
@@ -326,14 +333,14 @@ def cam_from_world(image):
 
 def world_from_camera(quaternion_xyzw, translation, where):
     """The contract's 4x4 world_from_camera from COLMAP's cam_from_world; InputError naming
-    `where` for a non-finite or non-unit quaternion or a non-finite translation."""
+    `where` for a non-finite or non-unit quaternion, a non-finite translation, or a camera
+    centre past ±MAX_COORDINATE."""
     q = np.asarray(quaternion_xyzw, dtype=np.float64)
     t = np.asarray(translation, dtype=np.float64)
     if not (np.all(np.isfinite(q)) and np.all(np.isfinite(t))):
         raise InputError(where, f"pose is not finite (quaternion {_listed(q[[3, 0, 1, 2]])}, "
                                 f"translation {_listed(t)})")
-    scale = float(np.abs(q).max())   # a norm without overflow: a damaged file may hold 1e308
-    norm = scale * float(np.linalg.norm(q / scale)) if scale > 0 else 0.0
+    norm = scaled_norm(q)   # a damaged file may hold 1e308
     if abs(norm - 1.0) > QUATERNION_NORM_TOLERANCE:
         raise InputError(where, f"quaternion (qw, qx, qy, qz) {_listed(q[[3, 0, 1, 2]])} has norm "
                                 f"{norm:.6g}, not 1: not a rotation (a damaged model file?)")
@@ -346,9 +353,9 @@ def world_from_camera(quaternion_xyzw, translation, where):
     pose[:3, :3] = rotation.T
     with np.errstate(over="ignore", invalid="ignore"):   # |t| near 1e308: checked below
         pose[:3, 3] = -rotation.T @ t
-    if not np.all(np.abs(pose[:3, 3]) <= MAX_FACTOR):      # inf too
+    if beyond_coordinates(pose[:3, 3]) is not None:      # inf too
         raise InputError(where, f"translation {_listed(t)} places the camera beyond "
-                                f"±{MAX_FACTOR:g} model units (rays are 32-bit floats): a "
+                                f"±{MAX_COORDINATE:g} model units (rays are 32-bit floats): a "
                                 "damaged model file?")
     return pose
 
@@ -390,6 +397,10 @@ def contract_camera(camera, where, pose):
         if not MIN_FACTOR <= value <= MAX_FACTOR:
             raise InputError(where, f"focal length {key} = {value:g} is not a positive number "
                                     f"within {MIN_FACTOR:g}..{MAX_FACTOR:g}")
+    for key, size, focal in (("cx", width, fx), ("cy", height, fy)):
+        problem = principal_point_problem(p[key] - 0.5, size, focal)
+        if problem:
+            raise InputError(where, f"principal point {key} = {problem}")
     cam = {"model": "pinhole", "width": width, "height": height, "fx": fx, "fy": fy,
            "cx": p["cx"] - 0.5, "cy": p["cy"] - 0.5,   # COLMAP's pixel centres at +0.5
            "world_from_camera": np.asarray(pose, dtype=np.float64).tolist()}
@@ -404,8 +415,8 @@ def contract_camera(camera, where, pose):
 def read_colmap_model(model_dir):
     """Read and check a COLMAP sparse model folder (text or binary, with or without the rigs
     and frames files of COLMAP 3.12+) -> ColmapModel. InputError naming the file, camera or
-    image: a missing file, a file pycolmap cannot read, no registered image, a non-finite or
-    non-unit pose quaternion."""
+    image: a missing file, a file pycolmap cannot read, no registered image, an image name that
+    is not UTF-8, a non-finite or non-unit pose quaternion, a camera centre past ±1e30."""
     folder = Path(model_dir)
     if not folder.is_dir():
         raise InputError(folder, "not a folder (MODEL_DIR is a COLMAP sparse model folder, e.g. "

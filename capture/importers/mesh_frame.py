@@ -82,7 +82,7 @@ def _views_seeing(vertices, cameras):
     seeing = 0
     for cam in cameras:
         pose = np.asarray(cam["world_from_camera"], dtype=np.float64)
-        # a damaged model's camera at 1e308 overflows to inf here, which reads as "not in view"
+        # a vertex at z ≈ 0 divides to inf (or past float64), which reads as "not in view"
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             local = (vertices - pose[:3, 3]) @ pose[:3, :3]
             z = local[:, 2]
@@ -115,7 +115,7 @@ def check_mesh_frame(intersector, points, observed_point, observer_centre, camer
     hidden_point = np.zeros(len(points), dtype=bool)
     on = hidden = 0
     if len(observed_point):
-        with np.errstate(over="ignore"):   # sight lines from a 1e308 camera: inf, left out
+        with np.errstate(over="ignore"):   # sight lines to a damaged file's 1e308 point: left out
             sight = points[observed_point] - observer_centre
             length = np.linalg.norm(sight, axis=1)
         valid = (length > 0) & np.isfinite(length)
