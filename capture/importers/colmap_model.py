@@ -437,11 +437,15 @@ def read_colmap_model(model_dir):
         try:
             name = str(image.name)
         except UnicodeDecodeError:   # pycolmap decodes the stored bytes on each access
-            raise InputError(f"{files['images']}: image {image_id}",
-                             "its name is not UTF-8 text (a damaged model file?)") from None
-        if not _is_registered(image):
-            model.unregistered.append(name)
+            name = None
+        if not _is_registered(image):   # listed in the summary only
+            model.unregistered.append(name or f"image {image_id} (its name is not UTF-8)")
             continue
+        if name is None:
+            raise InputError(f"{files['images']}: image {image_id}",
+                             "its name is not UTF-8 text, which pycolmap cannot read (a damaged "
+                             "file, or a photo named in another encoding: rename it and rerun "
+                             "COLMAP)")
         where = f"{pose_file}: image {image_id} ({name})"
         try:
             quaternion, translation = cam_from_world(image)
