@@ -218,7 +218,7 @@ def _camera(f):
         if not np.any(distortion):
             distortion = None
     fx, fy = (f.number(k, positive=True, factor=True) for k in ("fx", "fy"))
-    cx, cy = (f.number(k, coordinate=True) for k in ("cx", "cy"))
+    cx, cy = (f.number(k) for k in ("cx", "cy"))
     for key, centre, size, focal in (("cx", cx, width, fx), ("cy", cy, height, fy)):
         problem = principal_point_problem(centre, size, focal)
         if problem:

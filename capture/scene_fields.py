@@ -73,11 +73,9 @@ class Fields:
             self.fail(key, "missing")
         return Fields(self.json_path, self.name(key), self.obj[key])
 
-    def number(self, key, default=None, positive=False, nonnegative=False, factor=False,
-               coordinate=False):
+    def number(self, key, default=None, positive=False, nonnegative=False, factor=False):
         """A finite number; factor: one that multiplies or divides float32 pixels or rays, so
-        its magnitude must be 0 (where allowed) or within MIN_FACTOR..MAX_FACTOR; coordinate:
-        one added to them (check_coordinates)."""
+        its magnitude must be 0 (where allowed) or within MIN_FACTOR..MAX_FACTOR."""
         if not self.has(key):
             if default is not None:
                 return float(default)
@@ -91,8 +89,6 @@ class Fields:
             self.fail(key, f"expected a non-negative number, got {v!r}")
         if factor:
             self._check_factors(key, [v])
-        if coordinate:
-            self.check_coordinates(key, [v])
         return float(v)
 
     def check_coordinates(self, key, values):
@@ -137,8 +133,8 @@ class Fields:
         return v
 
     def array(self, key, shape, default=None, nonnegative=False, factor=False, coordinate=False):
-        """A numeric array of exactly `shape` (nested JSON lists) as float64; factor and
-        coordinate as for number."""
+        """A numeric array of exactly `shape` (nested JSON lists) as float64; factor as for
+        number; coordinate: a position (check_coordinates)."""
         if not self.has(key):
             if default is not None:
                 return np.array(default, dtype=float)

@@ -128,7 +128,7 @@ def write_extraction(out, scene_dir, result, options, final_path=None):
 
 
 def extraction_report(scene, options, per_photo, theta_h, theta_d, inlier, n, timings, bin_clipped,
-            censored):
+                      censored):
     """SLICE.json's body: what was observed, rejected (by reason), the theta_d spread of the
     inliers, the options, every photo's record and the timings (s)."""
     total_pixels = sum(p.camera.width * p.camera.height for p in scene.photos_with_role("flash"))

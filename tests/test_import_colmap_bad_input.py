@@ -114,11 +114,11 @@ def binary_name_byte(value):
     return edit
 
 
-def trackless_point(point_id):
+def trackless_point(point_id, xyz="0.01 0.02 0.1"):
     """edit of points3D.txt: one more point, seen by no image, of the given id (text)."""
     def edit(folder):
         with open(folder / "points3D.txt", "a") as f:
-            f.write(f"{point_id} 0.01 0.02 0.1 0 0 0 0.5\n")
+            f.write(f"{point_id} {xyz} 0 0 0 0.5\n")
     return edit
 
 
@@ -200,6 +200,9 @@ CASES = {
     "camera 1e308 away (frames.txt)": case(
         lambda w, t: argv(model_copy(w, t, edit=fields_of_line_1("frames.txt", {6: "1e308"})),
                           w["images"], w["mesh"], t / "s"), "frames.txt: image 1"),
+    "a 3D point past 1e30": case(
+        lambda w, t: argv(model_copy(w, t, edit=trackless_point(9999, "0 1e308 0")),
+                          w["images"], w["mesh"], t / "s"), "points3D.txt: point 9999"),
     "image name not UTF-8 (binary)": case(
         lambda w, t: argv(model_copy(w, t, "sparse_bin", edit=binary_name_byte(0x80)),
                           w["images"], w["mesh"], t / "s"), "images.bin: image 1"),

@@ -114,9 +114,9 @@ def _triple(values, where, positive=False):
     if positive and not all(MIN_FACTOR <= v <= MAX_FACTOR for v in out):
         raise InputError(where, f"expected 3 positive numbers within {MIN_FACTOR:g}.."
                                 f"{MAX_FACTOR:g}, got {out}")
-    if not positive and beyond_coordinates(out) is not None:
-        raise InputError(where, f"{beyond_coordinates(out):.6g} is beyond ±{MAX_COORDINATE:g} "
-                                "(rays are 32-bit floats)")
+    odd = None if positive else beyond_coordinates(out)
+    if odd is not None:
+        raise InputError(where, f"{odd:.6g} is beyond ±{MAX_COORDINATE:g} (rays are 32-bit floats)")
     return out
 
 

@@ -113,7 +113,7 @@ class ColmapModel:
         Returns points (P, 3), observed_point (M,) int and observer_centre (M, 3): at most
         max_points points (a seeded sample when more; a sample's shares are estimates within
         ~0.5%) and per point up to per_point registered images of its track, as sight lines.
-        InputError naming the points file for a non-finite point.
+        InputError naming the points file for a point not finite or past ±MAX_COORDINATE.
         """
         rec = self.reconstruction
         # COLMAP's point ids are uint64: a damaged file may hold any of them, 2^64 − 1 too
@@ -132,9 +132,11 @@ class ColmapModel:
             for centre in seen:
                 observed.append(k)
                 observers.append(centre)
-        if not np.all(np.isfinite(points)):
-            bad = int(ids[np.flatnonzero(~np.all(np.isfinite(points), axis=1))[0]])
-            raise InputError(f"{self.files['points3D']}: point {bad}", "position is not finite")
+        placed = np.all(np.abs(points) <= MAX_COORDINATE, axis=1)     # NaN and inf fail too
+        if not placed.all():
+            bad = int(ids[np.flatnonzero(~placed)[0]])
+            raise InputError(f"{self.files['points3D']}: point {bad}",
+                             f"position is not finite or beyond ±{MAX_COORDINATE:g}")
         return (points, np.asarray(observed, dtype=np.int64),
                 np.asarray(observers, dtype=np.float64).reshape(-1, 3))
 

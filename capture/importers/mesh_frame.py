@@ -115,10 +115,9 @@ def check_mesh_frame(intersector, points, observed_point, observer_centre, camer
     hidden_point = np.zeros(len(points), dtype=bool)
     on = hidden = 0
     if len(observed_point):
-        with np.errstate(over="ignore"):   # sight lines to a damaged file's 1e308 point: left out
-            sight = points[observed_point] - observer_centre
-            length = np.linalg.norm(sight, axis=1)
-        valid = (length > 0) & np.isfinite(length)
+        sight = points[observed_point] - observer_centre
+        length = np.linalg.norm(sight, axis=1)
+        valid = length > 0
         hits = intersect(intersector, observer_centre[valid], sight[valid] / length[valid, None])
         gap = hits.distance - length[valid]           # inf where the line misses the mesh
         on_line, hidden_line = np.abs(gap) <= tolerance, gap < -tolerance
