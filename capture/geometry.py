@@ -6,10 +6,11 @@ never flipped toward the viewer: a surface seen from its back shows up as cos(th
 slice extraction rejects and reports ("backfacing"), so a wrongly wound mesh is diagnosed, not
 silently "fixed".
 
-Embree works in float32. The scene is re-centred on the mesh's bounding-box centre, and hit points
-are recomputed in float64 from Embree's barycentrics on the original vertices, so points sit on
-the triangle to float64 precision. Shadow rays start a small distance (1e-4 x the mesh's bounding
-box diagonal) along the ray, which clears float32 self-hits at cos(theta_i) >= 0.01.
+Embree works in float32. Vertices no face uses are dropped on load, the scene is re-centred on
+the mesh's bounding-box centre, and hit points are recomputed in float64 from Embree's
+barycentrics on the original vertices, so points sit on the triangle to float64 precision. Shadow
+rays start a small distance (1e-4 x the mesh's bounding box diagonal) along the ray, which clears
+float32 self-hits at cos(theta_i) >= 0.01.
 """
 
 from dataclasses import dataclass
@@ -97,17 +98,34 @@ def load_mesh(path):
             np.concatenate([g.faces + o for g, o in zip(parts, offsets)]),
             vertex_normals=(np.concatenate([g.vertex_normals for g in parts])
                             if has_normals else None), process=False)
+    faces, count = np.asarray(mesh.faces), len(mesh.vertices)
+    if faces.min() < 0 or faces.max() >= count:
+        bad = int(faces.min() if faces.min() < 0 else faces.max())
+        raise InputError(path, f"a face refers to vertex {bad}, but the mesh has {count} vertices")
+    mesh = _referenced_only(mesh, has_normals)
     if not np.all(np.isfinite(mesh.vertices)):
         raise InputError(path, "mesh has non-finite vertex coordinates")
     odd = beyond_coordinates(mesh.vertices)
     if odd is not None:
         raise InputError(path, f"a vertex coordinate {odd:.6g} is beyond ±{MAX_COORDINATE:g} (rays "
                                "are 32-bit floats)")
-    faces, count = np.asarray(mesh.faces), len(mesh.vertices)
-    if faces.min() < 0 or faces.max() >= count:
-        bad = int(faces.min() if faces.min() < 0 else faces.max())
-        raise InputError(path, f"a face refers to vertex {bad}, but the mesh has {count} vertices")
     return mesh, has_normals
+
+
+def _referenced_only(mesh, has_normals):
+    """The mesh without the vertices no face uses (photogrammetry leaves them after cleaning):
+    the bounding box sets the float32 frame, the shadow-ray offset and the pixels traced, so a
+    stray vertex far away would cost every ray its precision."""
+    import trimesh
+    faces = np.asarray(mesh.faces)
+    used = np.unique(faces)
+    if len(used) == len(mesh.vertices):
+        return mesh
+    new_index = np.zeros(len(mesh.vertices), dtype=np.int64)
+    new_index[used] = np.arange(len(used))
+    return trimesh.Trimesh(np.asarray(mesh.vertices)[used], new_index[faces],
+                           vertex_normals=(np.asarray(mesh.vertex_normals)[used]
+                                           if has_normals else None), process=False)
 
 
 def _check_ascii_ply_length(path):

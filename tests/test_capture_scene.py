@@ -236,6 +236,31 @@ def test_non_numeric_normal_map_is_bad_input(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_vertices_no_face_uses_are_dropped(tmp_path):
+    """Vertices no face uses (photogrammetry leaves them after cleaning) are dropped on load: a
+    stray vertex 1e6 away would otherwise set the float32 frame and cost every ray its precision
+    (float32 spacing at 1e6 is 0.06, the sphere is 0.2 across), and a NaN one would refuse a
+    mesh whose triangles are fine. Hits agree with the clean mesh to float64 rounding."""
+    import trimesh
+    sphere = sphere_mesh(radius=0.1, centre=(0, 0, 1), subdivisions=4)
+    stray = np.array([[1e6, 1e6, 1e6], [-1e6, 0, 0], [np.nan, 0, 0]])
+    dirty = trimesh.Trimesh(np.vstack([stray, sphere.vertices]), sphere.faces + len(stray),
+                            vertex_normals=np.vstack([np.tile([0, 0, 1.0], (3, 1)),
+                                                      sphere.vertex_normals]), process=False)
+    sphere.export(tmp_path / "clean.ply", vertex_normal=True)
+    dirty.export(tmp_path / "dirty.ply", vertex_normal=True)
+    clean, _ = capture.load_mesh(tmp_path / "clean.ply")
+    loaded, has_normals = capture.load_mesh(tmp_path / "dirty.ply")
+    assert has_normals and len(loaded.vertices) == len(sphere.vertices)
+    assert np.array_equal(loaded.vertices, clean.vertices)
+    assert np.array_equal(loaded.vertex_normals, clean.vertex_normals)
+    _, origins, dirs = _sphere_rays(tmp_path)
+    want = capture.intersect(capture.MeshIntersector(clean, True), origins, dirs)
+    got = capture.intersect(capture.MeshIntersector(loaded, True), origins, dirs)
+    assert np.array_equal(got.hit, want.hit) and want.hit.sum() > 1000
+    assert np.abs(got.points - want.points).max() < 1e-12
+
+
 def test_occluded_and_convexity():
     sphere = sphere_mesh(radius=0.1, centre=(0, 0, 1))
     blocker = box_mesh((0.1, 0.1, 0.02), (0, 0, 0.5))
