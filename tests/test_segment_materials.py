@@ -199,6 +199,20 @@ def test_auto_picks_one_material_on_the_sample_capture(tmp_path):
     assert json.loads(out.with_suffix(".json").read_text())["materials"] == 1
 
 
+def test_more_materials_asked_than_found_says_how_many_were_kept(two_materials, tmp_path):
+    """--materials 12 on two materials: a slice that explains under 2% of the pixels goes
+    (slices.refine_labels), and labels.json says how many of the 12 asked were kept."""
+    out = tmp_path / "labels.png"
+    assert main(["segment", str(two_materials["scene"]), "--out", str(out),
+                 "--materials", "12"]) == 0
+    report = json.loads(out.with_suffix(".json").read_text())
+    reason = report["criterion"]["reason"]
+    kept = int(reason.split("; ")[1].split()[0])
+    assert reason.startswith("--materials 12; ") and 2 <= kept < 12
+    assert report["materials"] <= kept
+    assert cv2.imread(str(out), cv2.IMREAD_UNCHANGED).max() == report["materials"]
+
+
 @pytest.mark.parametrize("how", ["wrong_size", "empty_label", "count"])
 def test_bad_labels_exit_2_with_one_line_and_no_output(two_materials, tmp_path, capsys, how):
     truth = two_materials["truth"].astype(np.uint16)

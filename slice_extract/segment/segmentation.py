@@ -66,9 +66,11 @@ def _fixed_k(rho, theta_h, k, options):
     gm = GaussianMixture(k, covariance_type="full", reg_covar=1e-4, init_params="k-means++",
                          random_state=options.seed).fit(x[fit])
     log_rho, _, _ = log_samples(rho[pick])
-    labels, k = refine_labels(log_rho, theta_h_bins(theta_h[pick]), gm.predict(x), k, options)
-    return assign_all(rho, theta_h, pick, labels, k), {"samples": int(n),
-                                                        "reason": f"--materials {k}"}
+    labels, kept = refine_labels(log_rho, theta_h_bins(theta_h[pick]), gm.predict(x), k, options)
+    reason = f"--materials {k}" + ("" if kept == k else
+                                   f"; {kept} kept: the slices of the others explained under "
+                                   f"{options.min_fraction:.0%} of the pixels each")
+    return assign_all(rho, theta_h, pick, labels, kept), {"samples": int(n), "reason": reason}
 
 
 def segment_scene(samples, materials="auto", options=None):
