@@ -6,6 +6,13 @@ import sys
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+# The property tests draw the same cases on every run, so main stays green at every commit;
+# HYPOTHESIS_PROFILE=explore draws new ones (and keeps what fails in .hypothesis/) when hunting.
+settings.register_profile("ci", derandomize=True, database=None)
+settings.register_profile("explore", derandomize=False)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 SHARED = Path(os.environ.get("FLASHBRDF_SHARED",
                              Path(__file__).resolve().parents[2] / "shared"))
