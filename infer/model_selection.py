@@ -99,8 +99,9 @@ def training_workers():
 def check_training_size(n_tables, where):
     """InputError naming `where` (a folder or "--merl-dir") when n_tables is too few to train."""
     if n_tables < MIN_TRAINING_TABLES:
-        raise InputError(where, f"needs at least {MIN_TRAINING_TABLES} MERL tables (a fifth is "
-                                f"held out to validate), found {n_tables}")
+        raise InputError(where, f"needs at least {MIN_TRAINING_TABLES} different MERL tables "
+                                f"(a fifth of them is held out to choose the hyperparameters), "
+                                f"found {n_tables}")
 
 
 def tune_baselines(training, seed=0, feature_space="auto", workers=None):

@@ -45,8 +45,8 @@ def train(merl_dirs, out, views_text="1d,2d", feature_space="auto", seed=0):
     from flashbrdf.infer.model_selection import check_training_size
     from flashbrdf.infer.training import train_model
     folders = merl_dirs_list(merl_dirs)
-    if seed < 0:  # numpy's generators take none: a traceback after the tables were read
-        raise InputError("--seed", f"must be a non-negative integer, got {seed}")
+    if not 0 <= seed < 2 ** 32:  # scikit-learn's random_state is a uint32: a traceback later
+        raise InputError("--seed", f"must be an integer in 0..{2 ** 32 - 1}, got {seed}")
     check_outputs(inputs=merl_inputs(folders), outputs=[out])
     wanted = views_text.split(",")
     training = TrainingSet.from_merl_dirs(folders, keep_3d="3d" in wanted)
@@ -72,7 +72,8 @@ def infer(model, slice_path, out, method_name="dsgplvm", merl_dirs=None, anchor=
         method, has_3d = make_method("chandraker").fit(None), True
     else:
         if not Path(model).is_file():
-            raise InputError(model, "no such model file")
+            raise InputError(model, "is a folder, not a model file" if Path(model).is_dir()
+                             else "no such model file")
         overrides = {"anchor": anchor} if method_name == "dsgplvm" else {}
         method = load_method(model, method_name, merl_dirs, **overrides)
         has_3d = method.can_predict_3d()

@@ -32,7 +32,8 @@ def model_path(model, methods):
     is given."""
     if model is not None:
         if not Path(model).is_file():
-            raise InputError(model, "no such model file")
+            raise InputError(model, "is a folder, not a model file" if Path(model).is_dir()
+                             else "no such model file")
         return Path(model)
     if all(m in METHODS_NEEDING_NO_MODEL for m in methods):
         return None  # nothing to read: the default model is 9 MB and takes seconds to load

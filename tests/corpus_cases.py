@@ -195,6 +195,9 @@ CASES = [
     ("infer", "model missing", lambda w, t: ["infer", "--model", str(t / "none.npz"), "--slice",
                                              str(w.slice), "--out", out_path(t, "b.binary")],
      "none.npz"),
+    ("infer", "model is a folder", lambda w, t: ["infer", "--model", str(empty(t)), "--slice",
+                                                 str(w.slice), "--out", out_path(t, "b.binary")],
+     "is a folder, not a model file"),
     ("infer", "model truncated", lambda w, t: ["infer", "--model", str(write(
         t, "m.npz", truncated(w.model, 0.7))), "--slice", str(w.slice), "--out",
         out_path(t, "b.binary")], "m.npz"),

@@ -174,6 +174,10 @@ SWEEP_CASES = [
         "train", "--merl-dir", str(merl_copy(w, t)), "--merl-dir", str(write(empty(t),
         "x.binary", w.brdf.read_bytes()[:12] + np.full(90 * 90 * 180 * 3, 0.01).tobytes()
         ).parent), "--out", out_path(t, "m.npz"), "--seed=-1"], "--seed"),
+    ("train", "seed 2**32 (a traceback from scikit-learn's uint32 random_state)", lambda w, t: [
+        "train", "--merl-dir", str(merl_copy(w, t)), "--merl-dir", str(write(empty(t),
+        "x.binary", w.brdf.read_bytes()[:12] + np.full(90 * 90 * 180 * 3, 0.01).tobytes()
+        ).parent), "--out", out_path(t, "m.npz"), f"--seed={2 ** 32}"], "--seed"),
     ("evaluate", "experiments 10**9 (it hung drawing the splits)", lambda w, t: [
         "evaluate", "--merl-dir", str(w.merl_dir), "--out", out_path(t), "--experiments",
         str(10 ** 9)], "--experiments"),
