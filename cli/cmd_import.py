@@ -45,7 +45,7 @@ def _add_import_colmap(sub):
     s.add_argument("--flash-offset", default="0,0,0", metavar="X,Y,Z",
                    help="flash position in the camera frame (x right, y down, z forward), model "
                         "units (default 0,0,0: at the lens)")
-    s.add_argument("--intensity", default="1,1,1", metavar="R,G,B",
+    s.add_argument("--intensity", metavar="R,G,B",
                    help="the flash's intensity_rgb (default 1,1,1: the level is relative)")
     s.add_argument("--target", metavar="MESH",
                    help="a diffuse target of known reflectance (a grey card) seen in some flash "
@@ -80,9 +80,13 @@ def _numbers(text, flag):
 def import_colmap(args):
     """Write the scene folder and print the summary on stdout."""
     from flashbrdf.capture.importers.colmap import import_colmap as write_scene
+    from flashbrdf.files.errors import InputError
+    if args.calibrated and args.intensity is None:  # else the placeholder 1,1,1 passes as measured
+        raise InputError("--calibrated", "needs --intensity R,G,B: the flash's intensity measured "
+                                         "before (docs/capture.md, \"The absolute level\")")
     done = write_scene(args.model_dir, args.images, args.mesh, args.out,
                        flash_offset=_numbers(args.flash_offset, "--flash-offset"),
-                       intensity=_numbers(args.intensity, "--intensity"),
+                       intensity=_numbers(args.intensity or "1,1,1", "--intensity"),
                        force=args.force, target=args.target,
                        reflectance=None if args.reflectance is None else
                        _reflectance(args.reflectance), calibrated=args.calibrated)

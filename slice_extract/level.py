@@ -66,8 +66,9 @@ def target_level(rho, level, where):
     if len(usable) < MIN_TARGET_SAMPLES:
         raise InputError(where, f"the target is seen in {len(usable)} usable flash pixels (at "
                                 f"least {MIN_TARGET_SAMPLES} are needed to fix the level): "
-                                "check its mesh's frame, or that it is in the photos and not "
-                                "clipped")
+                                "check its mesh's frame, that it faces the camera within "
+                                f"{np.degrees(np.arccos(TARGET_MIN_COS)):.0f}° in some photos, "
+                                "and that it is not clipped")
     median = np.median(usable, axis=0)
     if not np.all(median > 0):
         raise InputError(where, "the target's pixels are black in some channel: its level "

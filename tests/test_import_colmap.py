@@ -277,6 +277,41 @@ def test_photo_size_from_headers(made, tmp_path):
     assert photo_size(tmp_path / "p.jpg") == (11, 5)
 
 
+def test_exif_orientation_is_named_not_applied(made, tmp_path, capsys):
+    """Photos are used as stored, as COLMAP uses them (it ignores the EXIF orientation): JPEGs
+    with Orientation 6 and the stored pixels of the model's images import, and the summary names
+    them; a photo whose pixels were turned a quarter (Orientation 8) is refused, and the message
+    says that the tag asks for a turn flashbrdf does not make."""
+    import OpenImageIO as oiio
+    from flashbrdf.capture.importers.colmap import photo_header
+
+    def write_jpeg(path, rgb, orientation):
+        spec = oiio.ImageSpec(rgb.shape[1], rgb.shape[0], 3, "uint8")
+        spec.attribute("Orientation", orientation)
+        out = oiio.ImageOutput.create(str(path))
+        assert out.open(str(path), spec) and out.write_image(rgb) and out.close()
+
+    stored, turned = tmp_path / "stored", tmp_path / "turned"
+    stored.mkdir(), turned.mkdir()
+    for exr in sorted(made["images"].glob("*.exr")):
+        rgb, _ = capture.load_photo(exr)
+        srgb = (255 * np.clip(rgb / max(rgb.max(), 1e-6), 0, 1) ** (1 / 2.2)).astype(np.uint8)
+        write_jpeg(stored / f"{exr.stem}.jpg", srgb, 6)
+        write_jpeg(turned / f"{exr.stem}.jpg", np.ascontiguousarray(np.rot90(srgb)), 8)
+    assert photo_header(stored / "view_00.jpg") == (240, 180, 6)
+    common = [str(made["sparse"]), "--mesh", str(made["mesh"])]
+    capsys.readouterr()
+    assert main(["import-colmap", *common, "--images", str(stored),
+                 "--out", str(tmp_path / "ok")]) == 0
+    n = len(list(stored.glob("*.jpg")))
+    assert f"{n} photos carry an EXIF orientation other than 1" in capsys.readouterr().out
+    assert main(["import-colmap", *common, "--images", str(turned),
+                 "--out", str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is 180x240" in err[0] and "EXIF orientation 8" in err[0]
+    assert not (tmp_path / "bad").exists()
+
+
 def test_raw_photo_size_is_the_decoded_size():
     """rawpy's sizes (and flip) without decoding: the size capture.load_photo gives."""
     from conftest import shared_path
@@ -309,7 +344,9 @@ def test_negative_flash_offset_without_equals_sign(made, tmp_path):
 
 def test_a_target_or_a_calibrated_flash_goes_into_the_scene(made, tmp_path, capsys):
     """--target/--reflectance write scene.json's "level" (the mesh relative to the scene folder,
-    as the photos are); --calibrated writes its own; a reflectance without a target is refused."""
+    as the photos are); --calibrated writes its own, with the --intensity it vouches for; a
+    reflectance without a target, and --calibrated without --intensity (the placeholder 1,1,1
+    would pass as measured), are refused."""
     card = tmp_path / "card.ply"
     card.write_bytes(made["mesh"].read_bytes())
     common = [str(made["sparse"]), "--images", str(made["images"]), "--mesh", str(made["mesh"])]
@@ -321,10 +358,14 @@ def test_a_target_or_a_calibrated_flash_goes_into_the_scene(made, tmp_path, caps
     assert level.target_mesh == card.resolve()
     np.testing.assert_array_equal(level.reflectance, [0.18, 0.18, 0.18])
     calibrated = tmp_path / "calibrated"
-    assert main(["import-colmap", *common, "--out", str(calibrated), "--calibrated"]) == 0
+    assert main(["import-colmap", *common, "--out", str(calibrated), "--calibrated",
+                 "--intensity", "3.7,3.6,3.5"]) == 0
     assert load_scene(calibrated).level.calibrated
-    capsys.readouterr()
-    assert main(["import-colmap", *common, "--out", str(tmp_path / "bad"),
-                 "--reflectance", "0.18"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "--reflectance" in err[0] and not (tmp_path / "bad").exists()
+    scene = json.loads((calibrated / "scene.json").read_text())
+    assert scene["photos"][0]["light"]["intensity_rgb"] == [3.7, 3.6, 3.5]
+    for flag, extra in (("--reflectance", ["--reflectance", "0.18"]),
+                        ("--calibrated", ["--calibrated"])):
+        capsys.readouterr()
+        assert main(["import-colmap", *common, "--out", str(tmp_path / "bad"), *extra]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and flag in err[0] and not (tmp_path / "bad").exists()

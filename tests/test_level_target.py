@@ -100,6 +100,7 @@ def test_a_target_out_of_view_is_bad_input(capture_with_card, tmp_path, capsys):
     assert main(["extract", str(scene), "--out", str(tmp_path / "s.csv")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "level.target" in err[0] and not (tmp_path / "s.csv").exists()
+    assert "seen in 0 usable flash pixels" in err[0] and "within 60°" in err[0]
 
 
 @pytest.mark.parametrize("level,field", [({"target": {"mesh": "card.ply", "reflectance": 1.5}},

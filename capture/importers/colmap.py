@@ -43,7 +43,8 @@ class ColmapImport:
     """What import_colmap did: out_dir, the ColmapModel, matched [(ModelImage, photo Path)],
     skipped (registered images without a photo), cameras {camera_id: (COLMAP model name,
     contract camera dict of its first photo, photos)}, mean reprojection error (px or None),
-    frame (mesh_frame.FrameCheck), the scene dict written."""
+    frame (mesh_frame.FrameCheck), the scene dict written, oriented (names of the photos whose
+    EXIF orientation is not 1: used as stored, as COLMAP does)."""
     out_dir: Path
     model: object
     matched: list
@@ -52,6 +53,7 @@ class ColmapImport:
     reprojection_error: float
     frame: object
     scene: dict = field(default_factory=dict)
+    oriented: list = field(default_factory=list)
 
     def lines(self):
         """The summary printed on stdout, one string per line."""
@@ -63,6 +65,10 @@ class ColmapImport:
                + f", {m.reconstruction.num_points3D()} 3D points"]
         out.append(f"matched {len(self.matched)} images to photos; skipped {len(self.skipped)} "
                    "with no photo" + _named(self.skipped))
+        if self.oriented:
+            out.append(f"{len(self.oriented)} photos carry an EXIF orientation other than 1 "
+                       "(their pixels are used as stored, as COLMAP uses them; if SfM ran on "
+                       "copies turned upright, give those)" + _named(self.oriented))
         for camera_id, (name, cam, count) in sorted(self.cameras.items()):
             dist = f", distortion {_short(cam['distortion'])}" if "distortion" in cam else ""
             out.append(f"camera {camera_id}: {name} {cam['width']}x{cam['height']}, fx "
@@ -180,6 +186,15 @@ def match_photos(model, images_dir):
 
 def photo_size(path):
     """(width, height) of a photo as capture.load_photo decodes it, from its header only."""
+    return photo_header(path)[:2]
+
+
+def photo_header(path):
+    """(width, height, EXIF orientation) of a photo as capture.load_photo decodes it, from its
+    header only. Pixels are used as stored, as COLMAP uses them (it ignores the EXIF orientation
+    so that one camera serves photos held either way); the orientation (1 = as stored, 5-8 a
+    quarter turn) is returned to name it when sizes disagree. RAW: LibRaw turns the image by its
+    own flag on decoding, so the decoded size already holds it (orientation 1)."""
     path = Path(path)
     ext = path.suffix.lower()
     if ext in RAW_EXTENSIONS:
@@ -190,11 +205,11 @@ def photo_size(path):
         except (rawpy.LibRawError, OSError, ValueError) as err:
             raise InputError(path, f"cannot read RAW file: {err}") from None
         turned = sizes.flip in (5, 6)   # LibRaw turns the image a quarter on output
-        return (sizes.height, sizes.width) if turned else (sizes.width, sizes.height)
+        return (sizes.height, sizes.width, 1) if turned else (sizes.width, sizes.height, 1)
     if ext == ".pfm":
         from flashbrdf.capture.photo import read_pfm
         rgb = read_pfm(path)
-        return rgb.shape[1], rgb.shape[0]
+        return rgb.shape[1], rgb.shape[0], 1
     import OpenImageIO as oiio
     image = oiio.ImageInput.open(str(path))
     if image is None:
@@ -203,9 +218,10 @@ def photo_size(path):
         spec = image.spec()
     finally:
         image.close()
+    orientation = spec.get_int_attribute("Orientation", 1)
     if ext in FLOAT_EXTENSIONS and spec.full_width > 0 and spec.full_height > 0:
-        return spec.full_width, spec.full_height   # capture places a data window in it
-    return spec.width, spec.height
+        return spec.full_width, spec.full_height, orientation   # capture places a data window
+    return spec.width, spec.height, orientation
 
 
 def _relative(path, scene_folder):
@@ -253,15 +269,21 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
                                      f"{PurePosixPath(example).stem}.exr, .dng, .jpg, ...)")
     check_outputs(inputs=[p for _, p in matched], outputs=[out_dir], folders=[out_dir])
     scene_folder = os.path.realpath(out_dir)
-    cameras, photos = {}, []
+    cameras, photos, oriented = {}, [], []
     for image, photo in matched:
         cam = model.contract_camera(image.camera_id, image.world_from_camera)
-        size = photo_size(photo)
-        if size != (cam["width"], cam["height"]):
+        *size, orientation = photo_header(photo)
+        if tuple(size) != (cam["width"], cam["height"]):
+            turned = (f"; its EXIF orientation {orientation} asks viewers to turn it a quarter, "
+                      "which COLMAP does not do and flashbrdf neither: give the pixels SfM saw"
+                      if orientation in (5, 6, 7, 8) else "")
             raise InputError(photo, f"image is {size[0]}x{size[1]} but its camera "
                                     f"{image.camera_id} in {model.files['cameras'].name} is "
                                     f"{cam['width']}x{cam['height']} (photos must be the "
-                                    "images the model was made from, uncropped and unturned)")
+                                    f"images the model was made from, uncropped and unturned"
+                                    f"{turned})")
+        if orientation != 1:
+            oriented.append(photo.name)
         kind, first, count = cameras.get(image.camera_id, (
             camera_model_name(model.reconstruction.camera(image.camera_id)), cam, 0))
         cameras[image.camera_id] = (kind, first, count + 1)
@@ -284,7 +306,7 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
         scene["level"] = level
     with staged_output_dir(out_dir, force=force, command="import-colmap") as staged:
         Path(staged, "scene.json").write_text(dumps_scene(scene), encoding="utf-8")
-    return ColmapImport(out_dir, model, matched, skipped, cameras, error, frame, scene)
+    return ColmapImport(out_dir, model, matched, skipped, cameras, error, frame, scene, oriented)
 
 
 def _level(target, reflectance, calibrated):
