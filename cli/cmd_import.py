@@ -53,6 +53,10 @@ def _add_import_colmap(sub):
                         "absolute level (scene.json \"level\")")
     s.add_argument("--reflectance", metavar="R[,G,B]",
                    help="the target's reflectance, one value or three, in (0, 1] (e.g. 0.18)")
+    s.add_argument("--encoding", choices=["linear", "srgb"],
+                   help="how the photos' codes map to light (default: 8-bit sRGB, 16-bit and "
+                        "float linear); srgb for 16-bit TIFF/PNG a RAW converter wrote with the "
+                        "sRGB curve")
     s.add_argument("--calibrated", action="store_true",
                    help="--intensity was measured before (a calibrated flash, scene units): the "
                         "level is absolute")
@@ -89,7 +93,8 @@ def import_colmap(args):
                        intensity=_numbers(args.intensity or "1,1,1", "--intensity"),
                        force=args.force, target=args.target,
                        reflectance=None if args.reflectance is None else
-                       _reflectance(args.reflectance), calibrated=args.calibrated)
+                       _reflectance(args.reflectance), calibrated=args.calibrated,
+                       encoding=args.encoding)
     for line in done.lines():
         print(line)
 

@@ -107,6 +107,40 @@ def test_round_trip_gives_the_known_slice(made, tmp_path):
                                                   for p in got.report["photos"])
 
 
+def test_encoding_srgb_for_16_bit_photos_a_converter_wrote_with_the_curve(made, tmp_path):
+    """16-bit PNGs holding the photos through the sRGB curve (what RAW converters export by
+    default): read as linear (16-bit's default) the slice's shape is bent by the curve; with
+    --encoding srgb the slice is the EXR photos' times the one factor the PNGs were scaled by,
+    to 16-bit quantisation averaged over a bin's pixels (< 0.1% per bin, against a bend of
+    tens of %). srgb on EXR photos is refused."""
+    import cv2
+    from flashbrdf.brdf.colour import srgb_encode
+    folder = tmp_path / "png16"
+    folder.mkdir()
+    exrs = sorted(made["images"].glob("*.exr"))
+    peak = max(float(capture.load_photo(e)[0].max()) for e in exrs)
+    for exr in exrs:
+        linear = np.clip(capture.load_photo(exr)[0] / peak, 0, 1)
+        encoded = srgb_encode(linear)
+        cv2.imwrite(str(folder / f"{exr.stem}.png"),
+                    np.round(65535 * encoded[..., ::-1]).astype(np.uint16))
+    want = extract_slice(made["truth"])
+    ratios = {}
+    for encoding in (None, "srgb"):
+        out = tmp_path / f"s_{encoding}"
+        import_colmap(made["sparse_bin"], folder, made["mesh"], out,
+                      flash_offset=(0.03, -0.02, 0), encoding=encoding)
+        got = extract_slice(out)
+        ok = (got.n >= 20) & (want.n >= 20)
+        ratios[encoding] = np.log(got.rho[ok] * peak / want.rho[ok])
+    assert np.abs(ratios["srgb"]).max() < 0.001
+    assert np.ptp(ratios[None]) > 0.2
+    with pytest.raises(InputError, match="--encoding"):
+        import_colmap(made["sparse_bin"], made["images"], made["mesh"], tmp_path / "bad",
+                      flash_offset=(0.03, -0.02, 0), encoding="srgb")
+    assert not (tmp_path / "bad").exists()
+
+
 def test_cli_summary(made, tmp_path, capsys):
     """Two of the six photos missing: four matched, two skipped and named; both cameras listed
     with their photo counts; reprojection error near the keypoints' 0.3 px noise (the mean

@@ -236,7 +236,7 @@ def _relative(path, scene_folder):
 
 def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 0.0),
                   intensity=(1.0, 1.0, 1.0), force=False, target=None, reflectance=None,
-                  calibrated=False):
+                  calibrated=False, encoding=None):
     """Write the scene folder `out_dir` for a COLMAP sparse model, its flash photos in
     `images_dir` and a mesh in the model's frame. Returns a ColmapImport.
 
@@ -244,8 +244,10 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
     intensity_rgb; force: replace an out_dir that flashbrdf made. The level (scene.json
     "level", slice_extract.level): target, a mesh of a diffuse target in the model's frame, with
     its reflectance (3 numbers in (0, 1]); or calibrated, the intensity was measured before;
-    neither: relative. InputError (exit 2) naming the file or field for bad input; then nothing
-    is written.
+    neither: relative. encoding: every photo's scene.json "encoding" ("linear" or "srgb"; None:
+    by bit depth, 8-bit sRGB and 16-bit linear), for 16-bit TIFF/PNG a converter wrote with the
+    sRGB curve. InputError (exit 2) naming the file or field for bad input; then nothing is
+    written.
     """
     from flashbrdf.capture.geometry import MeshIntersector, load_mesh
     offset = _triple(flash_offset, "--flash-offset")
@@ -284,10 +286,14 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
                                     f"{turned})")
         if orientation != 1:
             oriented.append(photo.name)
+        if encoding == "srgb" and photo.suffix.lower() in FLOAT_EXTENSIONS + RAW_EXTENSIONS:
+            raise InputError("--encoding", f"srgb is for 8- and 16-bit PNG/TIFF/JPEG; {photo.name} "
+                                           "is linear by its format")
         kind, first, count = cameras.get(image.camera_id, (
             camera_model_name(model.reconstruction.camera(image.camera_id)), cam, 0))
         cameras[image.camera_id] = (kind, first, count + 1)
         photos.append({"file": _relative(photo, scene_folder), "role": "flash", "camera": cam,
+                       **({"encoding": encoding} if encoding else {}),
                        "light": {"type": "point", "position": offset, "intensity_rgb": power},
                        "source": {"model_image": image.name, "image_id": image.image_id,
                                   "camera_id": image.camera_id}})
