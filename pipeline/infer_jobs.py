@@ -7,11 +7,11 @@ Each takes values and checks its outputs against its inputs before any slow work
 import os
 import sys
 import time
-from pathlib import Path
 
 from flashbrdf.brdf import merl, views
 from flashbrdf.files.errors import InputError
 from flashbrdf.files.outputs import check_outputs, sidecar_json
+from flashbrdf.pipeline.options import existing_model_file
 
 
 def merl_dirs_list(value):
@@ -71,9 +71,7 @@ def infer(model, slice_path, out, method_name="dsgplvm", merl_dirs=None, anchor=
             raise InputError("--model", f"method {method_name} needs a trained model")
         method, has_3d = make_method("chandraker").fit(None), True
     else:
-        if not Path(model).is_file():
-            raise InputError(model, "is a folder, not a model file" if Path(model).is_dir()
-                             else "no such model file")
+        existing_model_file(model)
         overrides = {"anchor": anchor} if method_name == "dsgplvm" else {}
         method = load_method(model, method_name, merl_dirs, **overrides)
         has_3d = method.can_predict_3d()

@@ -27,14 +27,19 @@ def method_names(methods):
     return list(dict.fromkeys(names))
 
 
+def existing_model_file(model):
+    """Path(model), or InputError naming it when it is no file (a folder is named as one)."""
+    if not Path(model).is_file():
+        raise InputError(model, "is a folder, not a model file" if Path(model).is_dir()
+                         else "no such model file")
+    return Path(model)
+
+
 def model_path(model, methods):
     """The model file to read (Path), or None when no method needs one; DEFAULT_MODEL when none
     is given."""
     if model is not None:
-        if not Path(model).is_file():
-            raise InputError(model, "is a folder, not a model file" if Path(model).is_dir()
-                             else "no such model file")
-        return Path(model)
+        return existing_model_file(model)
     if all(m in METHODS_NEEDING_NO_MODEL for m in methods):
         return None  # nothing to read: the default model is 9 MB and takes seconds to load
     if DEFAULT_MODEL.is_file():
