@@ -20,7 +20,7 @@ from flashbrdf.pipeline import report_figures as figs
 from flashbrdf.pipeline.albedo_files import albedo_for_scene, write_albedo
 from flashbrdf.pipeline.label_files import write_labels
 from flashbrdf.pipeline.previews import previews_under_envmap
-from flashbrdf.pipeline.report import write_report
+from flashbrdf.pipeline.report import coverage, write_report
 from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
 from flashbrdf.pipeline.run_steps import infer_method, render_and_compare
 from flashbrdf.render import DiffuseAlbedoMap, MaterialMap
@@ -67,6 +67,10 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
                                  labels)
     cover = material_coverage(slices, labels)
     warnings = list(cover["warnings"])
+    for k, result in slices.items():  # what a single-material run warns of its slice, per material
+        if result is not None:
+            _, auto = coverage(np.degrees(theta_h_centres()), {"rho": result.rho, "n": result.n})
+            warnings += [f"material {k}: {w}" for w in auto]
     # the whole object's slice too, as a single-material run writes it (for comparison)
     whole = stages.run("extract", bin_samples, samples)
     write_extraction(out / "slice.csv", settings.scene_dir, whole, ExtractOptions(),

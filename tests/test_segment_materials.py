@@ -304,6 +304,14 @@ def test_run_export_exports_every_material(two_materials, tmp_path):
     assert rows["chandraker-principled"] < rows["chandraker"] + max(fits), (rows, fits)
     assert "material 2's chandraker BRDF exported to export/material_2/" in (
         out / "report.md").read_text()
+    # each material's slice is warned of as a single-material run's is: the blue part starts
+    # ~10° off the highlight (x + y/2 > 2 cm on a 10 cm sphere), so its peak is the prior's;
+    # the red one holds the highlight, all but the first bin or two (θh < 1°)
+    peaks = {int(w.split()[1].rstrip(":")): float(w.split("θh below ")[1].split("°")[0])
+             for w in report["warnings"] if "not observed (the specular peak)" in w}
+    assert len(peaks) == 2 and max(peaks.values()) > 5 and min(peaks.values()) < 1
+    md = (out / "report.md").read_text()
+    assert all(f"material {k}: θh below" in md for k in peaks)
 
 
 def test_batch_export_names_every_materials_table_where_it_is(two_materials, tmp_path):
