@@ -12,6 +12,7 @@ and each material's slice and tables included; only the Principled fit (export/p
 is read from OUT_DIR. The images are encoded by pipeline/report_photos.py.
 """
 
+import base64
 import html
 import json
 import re
@@ -63,6 +64,7 @@ def write_report_html(out_dir, report, references=(), observed=None, predictions
         "brdf": brdf,
         "principled": _principled(out_dir),
         "materials": _materials(report, materials),
+        "previews": _previews(out_dir, report.get("previews")),
         "images": image_info,
     }
     meta["exposure"]["initial"] = round(meta["exposure"]["initial"], 1)
@@ -92,6 +94,25 @@ def write_report_html(out_dir, report, references=(), observed=None, predictions
     return {"path": path, "bytes": path.stat().st_size,
             "seconds": time.perf_counter() - start, "image_factor": factor,
             "image_bytes": image_info.get("bytes", 0)}
+
+
+def _previews(out_dir, previews):
+    """{"envmap", "renders": [{"method", "what", "src" (a PNG data URI)}]} of report.json's
+    "previews" (pipeline/previews.py wrote the PNGs into OUT_DIR first), or None."""
+    if not previews:
+        return None
+    renders = []
+    for method, files in previews.get("renders", {}).items():
+        spheres = files.get("spheres", {})
+        named = [("the object", files.get("object"))] + [
+            ("a sphere" if len(spheres) == 1 else f"a sphere of material {k}", path)
+            for k, path in spheres.items()]
+        for what, rel in named:
+            path = out_dir / rel if rel else None
+            if path is not None and path.is_file():
+                renders.append({"method": method, "what": what, "src": "data:image/png;base64,"
+                                + base64.b64encode(path.read_bytes()).decode("ascii")})
+    return {"envmap": Path(previews.get("envmap", "")).name, "renders": renders}
 
 
 def _read(name):

@@ -2,6 +2,7 @@
 the object from the flash camera and a sphere per material, with known answers for a Lambertian
 BRDF under a constant map."""
 
+import base64
 import json
 
 import numpy as np
@@ -70,6 +71,14 @@ def test_run_without_reference_photos_renders_previews(flash_only, tmp_path):
     assert (out / renders["object"]).is_file() and (out / renders["spheres"]["1"]).is_file()
     assert (out / "envmap_studio.exr").is_file()
     assert "## Renders under an environment map" in (out / "report.md").read_text()
+    # and report.html shows the same renders: the PNGs run wrote, byte for byte
+    from flashbrdf.pipeline.report_html import page_data
+    meta, _ = page_data(out / "report.html")
+    shown = {r["what"]: base64.b64decode(r["src"].removeprefix("data:image/png;base64,"))
+             for r in meta["previews"]["renders"]}
+    assert meta["previews"]["envmap"] == "envmap_studio.exr"
+    assert shown == {"the object": (out / renders["object"]).read_bytes(),
+                     "a sphere": (out / renders["spheres"]["1"]).read_bytes()}
 
 
 def test_run_envmap_that_is_not_there_is_bad_input(flash_only, tmp_path, capsys):

@@ -128,9 +128,9 @@ function slicePlot(canvas, d, channel, readout, legend = true) {
       for (let k = 1; k < 90; k++) if (Math.abs(THETA_H_DEG[k] - deg) < Math.abs(THETA_H_DEG[i] - deg)) i = k;
       const ds = dataset(B.dataset), ch = B.channel;
       const parts = [`θh bin ${i} (${THETA_H_DEG[i].toFixed(2)}°)`];
-      if (ds.observed) parts.push(`observed ${fmt(observedValue(ds.observed, i, ch), 4)} (${ds.observed.n[i]} px)`);
-      for (const m of Object.keys(ds.methods)) parts.push(`${m} ${fmt(tableValue(ds.methods[m].table, i, 0, ch), 4)}`);
-      readout.textContent = parts.join(" · ") + " 1/sr";
+      if (ds.observed) parts.push(`observed ${fmtSig(observedValue(ds.observed, i, ch))} (${ds.observed.n[i]} px)`);
+      for (const m of Object.keys(ds.methods)) parts.push(`${m} ${fmtSig(tableValue(ds.methods[m].table, i, 0, ch))}`);
+      readout.textContent = readoutPrefix() + parts.join(" · ") + " 1/sr";
     });
     canvas.addEventListener("click", (e) => {
       const [x, y] = canvas.axes.eventPoint(e);
@@ -160,6 +160,7 @@ function polarValues(d, thetaI, channel, withCos) {
 }
 
 function polarPlot() {
+  document.getElementById("polar-readout").textContent = "";  // it read the lobe drawn before
   const canvas = document.getElementById("polar-plot"), d = dataset(B.dataset);
   const thetaIDeg = Number(document.getElementById("theta-i").value);
   const thetaI = thetaIDeg * Math.PI / 180, channel = B.channel;
@@ -235,9 +236,9 @@ function polarHover(e) {
   const k = Math.max(0, Math.min(p.angles.length - 1, Math.round((a + 89.5) / 0.5)));
   const thetaI = Number(document.getElementById("theta-i").value);
   const [th, td] = halfDiff(thetaI * Math.PI / 180, p.angles[k] * Math.PI / 180);
-  document.getElementById("polar-readout").textContent =
+  document.getElementById("polar-readout").textContent = readoutPrefix() +
     `θo ${p.angles[k].toFixed(1)}° (θh ${(th * 180 / Math.PI).toFixed(1)}°, θd ${(td * 180 / Math.PI).toFixed(1)}°): ` +
-    Object.entries(p.curves).map(([m, v]) => `${m} ${fmt(v[k], 4)}`).join(" · ");
+    Object.entries(p.curves).map(([m, v]) => `${m} ${fmtSig(v[k])}`).join(" · ");
 }
 
 // ---- heat maps ---------------------------------------------------------------------------
@@ -261,7 +262,7 @@ function heatImage(values, lo, hi, lut) {  // 90 x 90 values -> an offscreen can
 }
 
 function heatCanvas(values, lo, hi, lut, title, barLabel, onHover) {
-  const canvas = el("canvas", {width: "330", height: "290", role: "img", "aria-label": title});
+  const canvas = el("canvas", {width: "344", height: "290", role: "img", "aria-label": title});
   const ax = new Axes(canvas, {left: 44, top: 22, width: 220, height: 220}, {min: 0, max: 90},
                       {min: 0, max: 90, sqrt: true});
   const c = ax.ctx;
@@ -276,8 +277,17 @@ function heatCanvas(values, lo, hi, lut, title, barLabel, onHover) {
   c.strokeStyle = "#888"; c.strokeRect(272, 22, 10, 220);
   c.font = "10px system-ui, sans-serif"; c.fillStyle = "#333"; c.textBaseline = "middle";
   c.fillText(fmt(hi, 2), 286, 27); c.fillText(fmt(lo, 2), 286, 237);
-  c.save(); c.translate(300, 132); c.rotate(Math.PI / 2); c.textAlign = "center";
-  c.fillText(barLabel.length > 40 ? barLabel.slice(0, 38) + "…" : barLabel, 0, 0); c.restore();
+  // the bar's label, whole (its unit matters), right of the tick labels: on two lines when one
+  // would be longer than the bar
+  c.save(); c.translate(314, 132); c.rotate(Math.PI / 2); c.textAlign = "center";
+  c.textBaseline = "bottom";
+  let lines = [barLabel];
+  if (c.measureText(barLabel).width > 220 && barLabel.includes(" ")) {
+    const cut = barLabel.lastIndexOf(" ", Math.ceil(barLabel.length / 2)) + 1 || barLabel.indexOf(" ") + 1;
+    lines = [barLabel.slice(0, cut).trim(), barLabel.slice(cut)];
+  }
+  // turned a quarter clockwise, text reads top to bottom and its lines run right to left
+  lines.forEach((line, k) => c.fillText(line, 0, -12 * (lines.length - 1 - k))); c.restore();
   canvas.addEventListener("mousemove", (e) => {
     const [x, y] = ax.eventPoint(e);
     const j = Math.floor((x - ax.box.left) / ax.box.width * 90), i = Math.floor((y - ax.box.top) / ax.box.height * 90);
@@ -303,7 +313,7 @@ function heatmaps() {
   for (const [m, e] of Object.entries(d.methods)) {
     const show = (i, j) => {
       const o = 3 * (90 * i + j), t = e.table;
-      let text = `${m}: θh ${THETA_H_DEG[i].toFixed(2)}°, θd ${(j + 0.5).toFixed(1)}° → ρ ` +
+      let text = readoutPrefix() + `${m}: θh ${THETA_H_DEG[i].toFixed(2)}°, θd ${(j + 0.5).toFixed(1)}° → ρ ` +
         `(${fmtRGB([t[o], t[o + 1], t[o + 2]]).trim()}) 1/sr`;
       if (e.variance) text += ` · ${e.label} (${fmtRGB([e.variance[o], e.variance[o + 1], e.variance[o + 2]]).trim()})`;
       readout.textContent = text;
@@ -343,7 +353,14 @@ function principled() {
   }
 }
 
+// The readouts name the material when there are several, and are cleared on every redraw: a
+// value read off the material or channel drawn before must not stand beside the new plots.
+function readoutPrefix() {
+  return META.brdf.length > 1 ? `${dataset(B.dataset).name} · ` : "";
+}
+
 function drawBrdf() {
+  for (const id of ["slice-readout", "heat-readout"]) document.getElementById(id).textContent = "";
   slicePlot(document.getElementById("slice-plot"), dataset(B.dataset), B.channel,
             document.getElementById("slice-readout"));
   polarPlot();

@@ -81,8 +81,16 @@ function fmt(x, digits = 3) {
   return a !== 0 && (a < 1e-3 || a >= 1e5) ? x.toExponential(digits - 1) : x.toFixed(digits);
 }
 
+// Linear values span decades (a pixel, ρ in 1/sr): the same 4 significant digits at every level
+// (float16, as the page holds images, carries 3.3).
+function fmtSig(x, sig = 4) {
+  if (x === null || x === undefined || !Number.isFinite(x)) return "–";
+  const a = Math.abs(x);
+  return a !== 0 && (a < 1e-3 || a >= 1e5) ? x.toExponential(sig - 1) : x.toPrecision(sig);
+}
+
 function fmtRGB(values) {
-  return values.map((v) => fmt(v, 4).padStart(8)).join(" ");
+  return values.map((v) => fmtSig(v).padStart(9)).join(" ");
 }
 
 function el(tag, attrs = {}, children = []) {
@@ -179,8 +187,18 @@ function logTicks(min, max) {
   return ticks;
 }
 
+// 0 to max in steps of 1, 2 or 5 times a power of ten: about `count` ticks at any scale.
+function linearTicks(max, count = 5) {
+  if (!(max > 0)) return [0];
+  const raw = max / count, power = 10 ** Math.floor(Math.log10(raw));
+  const step = [1, 2, 5, 10].map((s) => s * power).find((s) => s >= raw);
+  const ticks = [];
+  for (let k = 0; k * step <= max * (1 + 1e-9); k++) ticks.push(Number((k * step).toPrecision(6)));
+  return ticks;
+}
+
 function tickLabel(t, log) {
-  if (!log) return String(t);
+  if (!log) return String(Number(t.toPrecision(6)));
   const e = Math.round(Math.log10(t));
   return Math.abs(t / 10 ** e - 1) < 1e-9 ? `1e${e}` : String(Number(t.toPrecision(2)));
 }

@@ -182,7 +182,7 @@ function errorsPlot() {
   const top = Math.max(...values) * 1.08;
   const ax = new Axes(canvas, {left: 50, top: 26, width: 830, height: 160},
                       {min: -0.5, max: photos.length - 0.5}, {min: 0, max: top});
-  const yTicks = [0, 1, 2, 5, 10, 20, 50].filter((t) => t <= top);
+  const yTicks = linearTicks(top);
   const step = Math.max(1, Math.ceil(photos.length / 20));
   ax.grid(yTicks);
   ax.frame("reference photo (index; hover for its name, click to show it)", "ΔE log mean",
@@ -216,10 +216,29 @@ function deColorbar() {
   bar.append(el("span", {text: "0"}), gradient, el("span", {text: `${fmt(META.delta_e_vmax, 1)} ΔE`}));
 }
 
+// run's previews (no reference photo, or --envmap): tone-mapped PNGs, no error to show.
+function previews() {
+  const info = META.previews;
+  if (!info || !info.renders.length) return;
+  document.getElementById("previews").hidden = false;
+  document.getElementById("previews-hint").textContent = `Each method's BRDF under ${info.envmap}, ` +
+    "seen from the first flash photo's camera, and on a sphere; tone-mapped (sRGB), no error computed.";
+  const grid = document.getElementById("previews-grid");
+  for (const r of info.renders) {
+    grid.append(el("figure", {}, [el("img", {src: r.src, alt: `${r.method}: ${r.what}`}),
+                                 el("figcaption", {text: `${r.method}: ${r.what}`})]));
+  }
+}
+
 function initRenders() {
+  previews();
   if (!META.photos.length) {
     document.getElementById("renders-ui").hidden = true;
-    document.getElementById("renders-empty").hidden = false;
+    const empty = document.getElementById("renders-empty");
+    empty.hidden = false;
+    if (META.previews && META.previews.renders.length) {
+      empty.textContent = "No reference photo: nothing to compare. The renders under an environment map are below.";
+    }
     return;
   }
   const select = document.getElementById("photo-select");
