@@ -209,6 +209,28 @@ def test_hover_shows_the_linear_values(page, embedded):
     assert delta_e == pytest.approx(arrays[f"de:{METHODS[0]}"][y, x, 0], abs=5e-3)
 
 
+def test_brdf_readouts_are_cleared_when_the_plots_are_redrawn(page, embedded):
+    """A value read off the slice plot is the drawn channel's: after a switch of channel the
+    old value must not stand beside the new plot; hovering again reads the new channel's."""
+    meta, _ = embedded
+    plot = page.page.locator("#slice-plot")
+    plot.scroll_into_view_if_needed()
+    box = plot.bounding_box()
+    at = (box["x"] + 0.5 * box["width"], box["y"] + 0.5 * box["height"])
+    page.page.mouse.move(*at)
+    first = page.page.inner_text("#slice-readout")
+    assert first.startswith("θh bin") and first.endswith("1/sr")
+    page.page.select_option("#channel", "0")
+    assert page.page.inner_text("#slice-readout") == ""
+    page.page.mouse.move(at[0] + 1, at[1])
+    page.page.mouse.move(*at)
+    again = page.page.inner_text("#slice-readout")
+    assert again.startswith("θh bin") and again != first   # red, not luminance
+    # one material: no material named; values at 4 significant digits
+    value = again.split(" · ")[1].split()[1]
+    assert len(value.replace(".", "").replace("-", "").lstrip("0").split("e")[0]) == 4
+
+
 def test_screenshot(page, tmp_path):
     path = tmp_path / "report.png"
     page.page.screenshot(path=str(path), full_page=True)
