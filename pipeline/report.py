@@ -51,7 +51,10 @@ HOW_TO_READ = """\
   median over the photos of the mean over channels of reference / render). It removes one
   light-calibration or exposure offset that all the photos share, which no BRDF can predict, and
   keeps the angular shape of the BRDF: compare methods on it when the lights' calibration is in
-  doubt (both are printed, the calibrated one first).
+  doubt (both are printed, the calibrated one first). The number is a ratio of sums, so it is set
+  by the highlights and by all three channels at once: it is not the factor that minimises ΔE,
+  and where a render's error is a colour shift (one channel off) it can raise the figure above
+  the calibrated one; then the colour, not the level, is what differs.
 - **reference / render** (`level_ratio_rgb`): per channel, the sum of the photo over the sum of
   the render on the compared pixels, median over the photos; 1.00 when the levels agree. Methods
   differ here where their BRDFs do; an offset they all share gets a level-check note.
