@@ -70,7 +70,8 @@ def table2(merl_dir, out_dir, predict, names=None, methods=METHODS, envmaps=None
                 if k < figure_materials and env_name == next(iter(maps)):
                     shown.setdefault(name, {"truth": ref})[method] = (image, delta_e)
     result = {"size": size, "spp": spp, "seed": seed, "materials": names,
-              "envmaps": [str(p) for p in envmap_paths], "seconds": time.perf_counter() - start,
+              "envmaps": [str(p) for p in envmap_paths], "envmap_names": list(maps),
+              "seconds": time.perf_counter() - start,
               "per_material": scores, "summary": _summary(scores)}
     os.makedirs(out_dir, exist_ok=True)
     write_text(os.path.join(out_dir, "table2.json"), json.dumps(result, indent=1) + "\n")
@@ -98,7 +99,7 @@ def _summary(scores):
 
 
 def _markdown(result):
-    envs = [Path(p).stem.split("_latlong")[0] for p in result["envmaps"]] + ["all"]
+    envs = list(result["envmap_names"]) + ["all"]   # the summary's keys (a path's stem or sky)
     lines = ["# Table 2: render error (log-CIELAB Delta E*ab, mean over sphere pixels)", "",
              f"{len(result['materials'])} materials; {result['size']}^2 sphere, "
              f"{result['spp']} spp, seed {result['seed']}; mean / median across materials.", "",

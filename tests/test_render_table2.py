@@ -45,3 +45,8 @@ def test_table2_without_envmaps_renders_the_maps_made_in_code(tmp_path, merl_pro
     assert result["envmaps"] == ["procedural:sky", "procedural:studio"]
     # 2 x the BRDF is 2 x every pixel under any map: a clear log-Lab error under both
     assert all(result["per_material"]["pca"][e][paths[0].stem] > 0.5 for e in ("sky", "studio"))
+    # table2.md shows each map's column, as table2.json holds it (it showed n/a under both)
+    row = next(line for line in (tmp_path / "out" / "table2.md").read_text().splitlines()
+               if line.startswith("| pca"))
+    sky, studio = (result["summary"]["pca"][e]["mean"] for e in ("sky", "studio"))
+    assert "n/a" not in row and f"{sky:.3f}" in row and f"{studio:.3f}" in row
