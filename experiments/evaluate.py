@@ -275,7 +275,9 @@ def _experiments_on_dask(client, data, all_splits, cache_file, quick, time_budge
     into accumulators = (records, costs, points, ablations); write() after each merge."""
     from distributed import as_completed  # only with --workers/--scheduler: dask is slow to import
     records = accumulators[0]
-    shared = client.scatter(data, broadcast=True)
+    # hash=False: a key of its own. Scattered by content, the 3D stage's copy took the 2D stage's
+    # key, and the 2D stage's release then dropped it under the 3D tasks ("lost dependencies")
+    shared = client.scatter(data, broadcast=True, hash=False)
     slots = max(1, len(client.scheduler_info().get("workers", {})))
     per_exp_s, finished = [], {}
     running, submitted = as_completed(loop=client.loop), 0
@@ -318,7 +320,7 @@ def _3d_on_dask(client, data, order, records, all_splits, cache_file, costs, str
     """3D metrics of the experiments in `order` as Dask tasks, all at once, added to their
     records as they finish (the first in `order` also times 3D inference). -> number done."""
     from distributed import as_completed  # only with --workers/--scheduler: dask is slow to import
-    shared = client.scatter(data, broadcast=True)
+    shared = client.scatter(data, broadcast=True, hash=False)   # a key of its own (see above)
     futures = {client.submit(experiment_3d_task, records[k]["chosen"], all_splits[k], shared,
                              cache_file, i == 0, stride, pure=False, retries=1,
                              key=f"table1-3d-{k}-{os.getpid()}"): (k, i == 0)

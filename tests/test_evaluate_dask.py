@@ -47,3 +47,23 @@ def test_experiments_on_dask_equal_the_loop(merl_proxy, tmp_path, monkeypatch):
             else:
                 assert got[path] == value, path
     assert np.isfinite(dask["summary"]["2d"]["dsgplvm"]["lab_log"]["mean"])
+
+
+
+@pytest.mark.slow
+def test_evaluate_quick_workers_runs_the_3d_phase_too(merl_proxy, tmp_path):
+    """`evaluate --quick --workers 2` (worker processes, as a user runs it) runs the 3D phase
+    right after the 2D one and scatters the same data again: with content-hashed keys the second
+    scatter took the first's key, whose release then dropped it under the 3D tasks ("lost
+    dependencies", exit 1 every time). The experiment's 3D metrics must come out whole."""
+    from flashbrdf.cli.main import main
+    folder = tmp_path / "merl"
+    folder.mkdir()
+    for p in merl_proxy(*QUICK):
+        shutil.copy(p, folder / p.name)
+    assert main(["evaluate", "--merl-dir", str(folder), "--out", str(tmp_path / "out"),
+                 "--quick", "--workers", "2"]) == 0
+    experiment = json.loads((tmp_path / "out" / "table1.json").read_text())["per_experiment"][0]
+    per_material = experiment["errors_3d"]["dsgplvm"]          # one per test table
+    assert len(per_material) == len(experiment["test"]) > 0
+    assert all(np.isfinite(m["lab_log"]) and m["lab_log"] > 0 for m in per_material)
