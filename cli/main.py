@@ -45,11 +45,18 @@ def main(argv=None):
         print(f"flashbrdf {args.command}: error: {err}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:  # staged outputs were removed on the way out
-        print(f"flashbrdf {args.command}: interrupted; no output written", file=sys.stderr)
+        print(f"flashbrdf {args.command}: interrupted; {_left(args.command)}", file=sys.stderr)
         return 130
     except Terminated:
-        print(f"flashbrdf {args.command}: terminated; no output written", file=sys.stderr)
+        print(f"flashbrdf {args.command}: terminated; {_left(args.command)}", file=sys.stderr)
         return 143
+
+
+def _left(command):
+    """What an interrupted command leaves: batch keeps the captures it finished (a rerun resumes
+    there); every other command builds its output aside and leaves none."""
+    return ("the captures already finished are kept, and a rerun resumes; no summary written"
+            if command == "batch" else "no output written")
 
 
 if __name__ == "__main__":

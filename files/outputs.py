@@ -29,6 +29,7 @@ import os
 import shutil
 import tempfile
 import time
+from pathlib import Path
 
 from flashbrdf.files.atomic import (
     current_umask,
@@ -148,6 +149,22 @@ def check_writable_folder(path):
         _check_parent(path)
     elif not os.access(path, os.W_OK | os.X_OK):
         raise InputError(path, "cannot be written: no permission to write in it")
+
+
+def folder_inventory(folder, only=None, skip=()):
+    """{path relative to folder (POSIX): size in bytes} of the files below `folder`, but those
+    named in `skip`; of the paths in `only` when given (a missing one is left out)."""
+    folder = Path(folder)
+    if only is not None:
+        found = {}
+        for rel in only:
+            try:
+                found[rel] = (folder / rel).stat().st_size
+            except OSError:
+                pass
+        return found
+    return {p.relative_to(folder).as_posix(): p.stat().st_size
+            for p in sorted(folder.rglob("*")) if p.is_file() and p.name not in skip}
 
 
 def sidecar_json(path):

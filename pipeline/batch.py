@@ -5,10 +5,12 @@ task that calls `run` in the worker process (pipeline/run.py, the same function 
 `flashbrdf run`), so OUT_DIR/<subfolder>/ is exactly what `run` writes, plus the completion marker.
 
 All or nothing per capture: the task builds the capture in a hidden staging folder inside OUT_DIR
-(`.<subfolder>.partial-<id>`), writes the marker `.batch_complete.json` (its summary row) last, and
-renames the folder into place. A capture is complete when OUT_DIR/<subfolder>/ holds a readable marker; a
-second call skips complete captures unless --force. Staging folders left by a killed worker are
-removed by the client when the batch ends (and at the start of the next batch).
+(`.<subfolder>.partial-<id>`), writes the marker `.batch_complete.json` (its summary row and the
+size of every file run wrote) last, and renames the folder into place. A capture is complete when
+OUT_DIR/<subfolder>/ holds a readable marker whose files are all there at those sizes; a second
+call skips complete captures unless --force. Staging folders left by a killed worker are removed
+by the client when the batch ends on its own cluster (a remote scheduler's workers may still be
+writing), and at the start of the next batch.
 
 A task that raises is retried once by Dask (retries=1), and a task whose worker dies is retried
 once on another worker (dask_engine.ALLOWED_FAILURES); then the capture is recorded as failed. Bad
@@ -46,7 +48,7 @@ from flashbrdf.pipeline import dask_engine
 from flashbrdf.pipeline.batch_summary import (SUMMARY_HEADS, failed_row, row_from_report,
                                               write_summary)
 from flashbrdf.pipeline.report_index import INDEX_NAME
-from flashbrdf.files.outputs import MARKER as RUN_MARKER
+from flashbrdf.files.outputs import MARKER as RUN_MARKER, folder_inventory
 from flashbrdf.files.outputs import check_writable_folder
 
 MARKER = ".batch_complete.json"
@@ -85,6 +87,9 @@ def completed_row(folder, requested=None):
         asked = {"refine_poses": False} | asked
     if requested is not None and asked != requested:
         return None
+    files = row.get("files")
+    if isinstance(files, dict) and files != folder_inventory(folder, files):
+        return None      # a file the marker lists is gone or changed: not what run wrote
     return row
 
 
@@ -227,8 +232,13 @@ def run_capture(scene_dir, out_dir, options):
             report = json.loads((staging / "report.json").read_text())
             row = row_from_report(name, report, seconds, time.process_time() - cpu_start,
                                    worker)
-            write_text(staging / MARKER, json.dumps(row | {"run_options": requested},
-                                                    indent=1) + "\n")
+            # the marker lists every file run wrote, so a folder that lost one (a client that
+            # gave up on a remote worker removes staging folders) is never taken as complete
+            files = folder_inventory(staging, skip=(MARKER,))
+            write_text(staging / MARKER, json.dumps(
+                row | {"run_options": requested, "files": files}, indent=1) + "\n")
+            if folder_inventory(staging, files) != files:
+                raise RuntimeError(f"{staging}: files went missing while the capture ran")
             _publish(staging, out_dir / name)
         except InputError as err:
             shutil.rmtree(staging, ignore_errors=True)
@@ -430,7 +440,7 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
     if in_process or not todo:
         options = check_run_options(options)
     start = time.perf_counter()
-    n_workers = 0
+    n_workers, every_task_ended = 0, False
     try:
         if in_process:
             _prepare(out, captures)
@@ -447,8 +457,13 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
                 _prepare(out, captures)
                 n_workers = len(client.scheduler_info().get("workers", {}))
                 rows |= _run_tasks(client, todo, out, options | {"requested": requested})
+        every_task_ended = True
     finally:
-        for c in todo:  # a killed worker leaves its staging folders (the cluster is closed now)
+        # a killed worker leaves its staging folders: removed here when the cluster was ours
+        # (closed now) or every task has ended; after an interrupt a remote scheduler's workers
+        # may still be writing theirs, so those are left to the next batch (_prepare). The
+        # markers' file lists guard against what a race would still leave.
+        for c in todo if every_task_ended or not scheduler else ():
             for leftover in _leftovers(out, c.name):
                 shutil.rmtree(leftover, ignore_errors=True)
     ordered = [rows[c.name] for c in captures]

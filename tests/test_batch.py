@@ -150,6 +150,15 @@ def test_resume_force_and_one_worker(two_workers, sequential, scheduler, capture
     assert (out / "b" / "report.json").stat().st_mtime_ns != before["b"]
     assert (out / "b" / MARKER).is_file() and "skipped" not in _summary(out)["b"]["reason"]
 
+    # a marker lists every file run wrote: a folder that lost one (a client that gave up on a
+    # remote worker removed its staging folder under it) is not complete, and is rerun
+    listed = json.loads((out / "a" / MARKER).read_text())["files"]
+    assert "slice.csv" in listed and "report.json" in listed and MARKER not in listed
+    (out / "a" / "slice.csv").unlink()
+    assert main(["batch", str(captures), "--out", str(out), "--scheduler", scheduler,
+                 *RUN_OPTIONS]) == 0
+    assert (out / "a" / "slice.csv").is_file() and "skipped" not in _summary(out)["a"]["reason"]
+
     for log in (out / "logs").glob("*.log"):
         log.unlink()
     assert main(["batch", str(captures), "--out", str(out), "--scheduler", scheduler, "--force",
