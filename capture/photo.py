@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 import OpenImageIO as oiio
 
-from flashbrdf.files.errors import InputError, library_error
+from flashbrdf.files.errors import InputError, library_error, no_file
 
 SATURATION_FRACTION = 0.98
 FLOAT32_MAX = float(np.finfo(np.float32).max)
@@ -59,7 +59,7 @@ def read_float_image(path, require_float=False):
     when it stores integer codes (an 8-bit PNG named .exr), whose scale and curve are unknown."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, "file not found")
+        raise no_file(path)
     if path.suffix.lower() == ".pfm":  # OpenImageIO gives PFM rows bottom first
         return read_pfm(path)
     inp = oiio.ImageInput.open(str(path))
@@ -260,7 +260,7 @@ def _load_photo(path, encoding, saturation, shape):
     """load_photo's work: -> rgb, usable, clipped, and whether the file stores floats."""
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, "file not found")
+        raise no_file(path)
     ext = path.suffix.lower()
     stored_float = False
     if ext in RAW_EXTENSIONS:
@@ -303,7 +303,7 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
         raw = [imread_unchanged(p) if p.is_file() else None for p in paths]
         for p, img in zip(paths, raw):
             if img is None:
-                raise InputError(p, "file not found" if not p.is_file() else "cannot read image")
+                raise no_file(p) if not p.is_file() else InputError(p, "cannot read image")
         if encoding is None and all(img.dtype == np.uint8 for img in raw):
             out = _merge_debevec(paths, raw, times, shape)
             return out if return_clipped else out[:2]

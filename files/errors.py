@@ -26,6 +26,11 @@ class InputError(ValueError):
         super().__init__(f"{self.where}: {problem}" if self.where else problem)
 
 
+def no_file(path):
+    """InputError naming `path`, which is not a readable file: a folder is named as one."""
+    return InputError(path, "is a folder, not a file" if os.path.isdir(path) else "file not found")
+
+
 def _printable(text):
     """`text` with each non-printable character escaped as Python would (\\n, \\x00, ...)."""
     if isinstance(text, bytes):

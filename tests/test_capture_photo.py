@@ -175,6 +175,9 @@ def test_size_missing_and_corrupt_files(tmp_path):
         capture.load_photo(tmp_path / "a.exr", shape=(4, 6))
     with pytest.raises(InputError, match="none.exr: file not found"):
         capture.load_photo(tmp_path / "none.exr")
+    (tmp_path / "dir.exr").mkdir()
+    with pytest.raises(InputError, match="dir.exr: is a folder, not a file"):
+        capture.load_photo(tmp_path / "dir.exr")
     (tmp_path / "bad.exr").write_bytes(b"not an exr")
     with pytest.raises(InputError, match="bad.exr: cannot read image"):
         capture.load_photo(tmp_path / "bad.exr")
