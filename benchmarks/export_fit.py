@@ -325,10 +325,10 @@ def markdown():
                       "these are the ones measured.", ""]
         lines += [
                   "2D LAB-log error of the fitted Principled against the table (mean / median / "
-                  "90th percentile / max); fit seconds (wall, on 2 cores shared with four other "
-                  "jobs at nice 10, load average about 10: the recovery table's CPU seconds are "
-                  "the fit's own cost); sphere Delta E log under pisa where rendered (tabulated "
-                  "fit against the table, same sampler and seed).", "",
+                  "90th percentile / max); fit seconds (wall, at nice 10 on 2 cores: they rise "
+                  "with the machine's load; the recovery table's CPU seconds are the fit's own "
+                  "cost); sphere Delta E log under pisa where rendered (tabulated fit against "
+                  "the table, same sampler and seed).", "",
                   "| group | LAB-log 2D | fit s | sphere Delta E log |", "|---|---|---|---|"]
         groups = [("all", rows)] + [(s, [r for r in rows if r["set"] == s])
                                     for s in dict.fromkeys(r["set"] for r in rows)]
