@@ -136,6 +136,11 @@ class Geometry:
     mask: Path = None
 
 
+# a target's pixels count when it faces the camera within 60°: a grey card is Lambertian near
+# normal incidence, less so at grazing
+TARGET_MIN_COS = 0.5
+
+
 @dataclass(frozen=True, eq=False)
 class Level:
     """How the flash's absolute level is known (scene.json "level", our extension). target_mesh:

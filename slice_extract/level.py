@@ -23,7 +23,7 @@ from flashbrdf.files.errors import InputError
 from flashbrdf.slice_extract.visibility import hit_depth, pixel_surfaces
 
 MIN_TARGET_SAMPLES = 50
-TARGET_MIN_COS = 0.5   # a grey card is Lambertian near normal incidence, less so at grazing
+TARGET_MIN_COS = capture.scene.TARGET_MIN_COS
 
 
 def relative_record(scene):

@@ -22,9 +22,11 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 
 from flashbrdf.capture.importers.colmap_model import camera_model_name, read_colmap_model
-from flashbrdf.capture.importers.mesh_frame import check_mesh_frame, require_mesh_in_frame
+from flashbrdf.capture.importers.mesh_frame import (check_mesh_frame, require_mesh_in_frame,
+                                                    require_target_facing_a_camera)
 from flashbrdf.capture.importers.scene_json import dumps_scene
 from flashbrdf.capture.photo import CV_EXTENSIONS, FLOAT_EXTENSIONS, RAW_EXTENSIONS
+from flashbrdf.capture.scene import TARGET_MIN_COS
 from flashbrdf.capture.scene_fields import (
     MAX_COORDINATE,
     MAX_FACTOR,
@@ -308,6 +310,9 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
              "provenance": _provenance(model, images_dir, mesh, skipped, error, frame)}
     if level is not None:
         if "target" in level:
+            card, _ = load_mesh(target)
+            require_target_facing_a_camera(card, [p["camera"] for p in photos], TARGET_MIN_COS,
+                                           target)
             level["target"]["mesh"] = _relative(Path(target), scene_folder)
         scene["level"] = level
     with staged_output_dir(out_dir, force=force, command="import-colmap") as staged:

@@ -75,24 +75,43 @@ class FrameCheck:
         return None
 
 
+def _in_view(points, cam):
+    """(N,) bool: points (N, 3) in front of the camera (a contract camera dict) and inside its
+    image. The lens is taken as a pinhole: distortion moves points by pixels, and far outside
+    the field its polynomial folds them back in."""
+    pose = np.asarray(cam["world_from_camera"], dtype=np.float64)
+    # a point at z ≈ 0 divides to inf (or past float64), which reads as "not in view"
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        local = (points - pose[:3, 3]) @ pose[:3, :3]
+        z = local[:, 2]
+        u = cam["fx"] * local[:, 0] / z + cam["cx"]
+        v = cam["fy"] * local[:, 1] / z + cam["cy"]
+    return (z > 0) & (u >= -0.5) & (u <= cam["width"] - 0.5) & (v >= -0.5) & \
+        (v <= cam["height"] - 0.5)
+
+
 def _views_seeing(vertices, cameras):
-    """How many of `cameras` (contract camera dicts) have >= 1% of `vertices` (N, 3) in front
-    and inside the image. The lens is taken as a pinhole: distortion moves points by pixels,
-    and far outside the field its polynomial folds them back in."""
-    seeing = 0
+    """How many of `cameras` (contract camera dicts) have >= 1% of `vertices` (N, 3) in view."""
+    return sum(int(np.count_nonzero(_in_view(vertices, cam)) >= max(1, 0.01 * len(vertices)))
+               for cam in cameras)
+
+
+def require_target_facing_a_camera(mesh, cameras, min_cos, path):
+    """InputError naming the target's mesh file `path` when no face of `mesh` (a
+    trimesh.Trimesh) has its centre in view of one of `cameras` (contract camera dicts) with
+    its normal within arccos(min_cos) of the way to that camera: extract could take no pixel
+    of it (occlusion by the object is left to extract)."""
+    centres, normals = np.asarray(mesh.triangles_center), np.asarray(mesh.face_normals)
     for cam in cameras:
         pose = np.asarray(cam["world_from_camera"], dtype=np.float64)
-        # a vertex at z ≈ 0 divides to inf (or past float64), which reads as "not in view"
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            local = (vertices - pose[:3, 3]) @ pose[:3, :3]
-            z = local[:, 2]
-            front = z > 0
-            u = cam["fx"] * local[:, 0] / z + cam["cx"]
-            v = cam["fy"] * local[:, 1] / z + cam["cy"]
-        inside = front & (u >= -0.5) & (u <= cam["width"] - 0.5) & (v >= -0.5) & \
-            (v <= cam["height"] - 0.5)
-        seeing += int(np.count_nonzero(inside) >= max(1, 0.01 * len(vertices)))
-    return seeing
+        to_camera = pose[:3, 3] - centres
+        distance = np.linalg.norm(to_camera, axis=1)
+        facing = np.einsum("ij,ij->i", normals, to_camera) >= min_cos * distance
+        if np.any(facing & _in_view(centres, cam)):
+            return
+    raise InputError(path, f"no photo has this target in view, facing its camera within "
+                           f"{np.degrees(np.arccos(min_cos)):.0f}° (is it in the model's frame, "
+                           "and its faces' normals toward the cameras?)")
 
 
 def check_mesh_frame(intersector, points, observed_point, observer_centre, cameras):
