@@ -20,7 +20,7 @@ import numpy as np
 from embreex import rtcore_scene
 from embreex.mesh_construction import TriangleMesh
 
-from flashbrdf.files.errors import InputError
+from flashbrdf.files.errors import InputError, no_file
 from flashbrdf.capture.camera import embree_rays, mesh_pixels
 from flashbrdf.capture.scene import Scene
 from flashbrdf.capture.scene_fields import MAX_COORDINATE, beyond_coordinates
@@ -69,7 +69,7 @@ def load_mesh(path):
     import trimesh
     path = Path(path)
     if not path.is_file():
-        raise InputError(path, "mesh file not found")
+        raise no_file(path, "mesh file", "mesh file not found")
     if path.suffix.lower() == ".ply":
         _check_ascii_ply_length(path)
     try:

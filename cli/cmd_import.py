@@ -84,13 +84,10 @@ def _numbers(text, flag):
 def import_colmap(args):
     """Write the scene folder and print the summary on stdout."""
     from flashbrdf.capture.importers.colmap import import_colmap as write_scene
-    from flashbrdf.files.errors import InputError
-    if args.calibrated and args.intensity is None:  # else the placeholder 1,1,1 passes as measured
-        raise InputError("--calibrated", "needs --intensity R,G,B: the flash's intensity measured "
-                                         "before (docs/capture.md, \"The absolute level\")")
     done = write_scene(args.model_dir, args.images, args.mesh, args.out,
                        flash_offset=_numbers(args.flash_offset, "--flash-offset"),
-                       intensity=_numbers(args.intensity or "1,1,1", "--intensity"),
+                       intensity=(None if args.intensity is None else
+                                  _numbers(args.intensity, "--intensity")),
                        force=args.force, target=args.target,
                        reflectance=None if args.reflectance is None else
                        _reflectance(args.reflectance), calibrated=args.calibrated,

@@ -26,9 +26,10 @@ class InputError(ValueError):
         super().__init__(f"{self.where}: {problem}" if self.where else problem)
 
 
-def no_file(path):
-    """InputError naming `path`, which is not a readable file: a folder is named as one."""
-    return InputError(path, "is a folder, not a file" if os.path.isdir(path) else "file not found")
+def no_file(path, what="file", missing="file not found"):
+    """InputError naming `path`, which is no file: "is a folder, not a <what>" for a folder,
+    else `missing`."""
+    return InputError(path, f"is a folder, not a {what}" if os.path.isdir(path) else missing)
 
 
 def _printable(text):

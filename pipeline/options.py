@@ -4,7 +4,7 @@ InputError naming the option."""
 
 from pathlib import Path
 
-from flashbrdf.files.errors import InputError
+from flashbrdf.files.errors import InputError, no_file
 
 # The model `run` and `batch` use when none is given; beside the package (sample_data/ in the
 # repository, flashbrdf/sample_data/ in a wheel).
@@ -30,8 +30,7 @@ def method_names(methods):
 def existing_model_file(model):
     """Path(model), or InputError naming it when it is no file (a folder is named as one)."""
     if not Path(model).is_file():
-        raise InputError(model, "is a folder, not a model file" if Path(model).is_dir()
-                         else "no such model file")
+        raise no_file(model, "model file", "no such model file")
     return Path(model)
 
 

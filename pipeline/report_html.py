@@ -98,7 +98,9 @@ def write_report_html(out_dir, report, references=(), observed=None, predictions
 
 def _previews(out_dir, previews):
     """{"envmap", "renders": [{"method", "what", "src" (a PNG data URI)}]} of report.json's
-    "previews" (pipeline/previews.py wrote the PNGs into OUT_DIR first), or None."""
+    "previews" (pipeline/previews.py wrote the PNGs into OUT_DIR first), or None. They are
+    embedded as written, outside the photos' image budget: a few tone-mapped PNGs of ~30 KB
+    each per method (an object and a sphere per material)."""
     if not previews:
         return None
     renders = []

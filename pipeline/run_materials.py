@@ -67,10 +67,13 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
                                  labels)
     cover = material_coverage(slices, labels)
     warnings = list(cover["warnings"])
+    flagged = {e["label"] for e in cover["materials"] if e.get("sparse") or e.get("narrow")}
     for k, result in slices.items():  # what a single-material run warns of its slice, per material
         if result is not None:
             _, auto = coverage(np.degrees(theta_h_centres()), {"rho": result.rho, "n": result.n})
-            warnings += [f"material {k}: {w}" for w in auto]
+            # a sparse or narrow slice's extent is warned of above, once
+            warnings += [f"material {k}: {w}" for w in auto
+                         if not (k in flagged and w.startswith("θh above"))]
     # the whole object's slice too, as a single-material run writes it (for comparison)
     whole = stages.run("extract", bin_samples, samples)
     write_extraction(out / "slice.csv", settings.scene_dir, whole, ExtractOptions(),

@@ -135,10 +135,16 @@ def test_encoding_srgb_for_16_bit_photos_a_converter_wrote_with_the_curve(made, 
         ratios[encoding] = np.log(got.rho[ok] * peak / want.rho[ok])
     assert np.abs(ratios["srgb"]).max() < 0.001
     assert np.ptp(ratios[None]) > 0.2
-    with pytest.raises(InputError, match="--encoding"):
-        import_colmap(made["sparse_bin"], made["images"], made["mesh"], tmp_path / "bad",
-                      flash_offset=(0.03, -0.02, 0), encoding="srgb")
-    assert not (tmp_path / "bad").exists()
+    floats = tmp_path / "float_tiff"          # floats by their samples, not their extension
+    floats.mkdir()
+    for exr in exrs:
+        cv2.imwrite(str(floats / f"{exr.stem}.tif"),
+                    capture.load_photo(exr)[0][..., ::-1].astype(np.float32))
+    for folder in (made["images"], floats):
+        with pytest.raises(InputError, match="--encoding"):
+            import_colmap(made["sparse_bin"], folder, made["mesh"], tmp_path / "bad",
+                          flash_offset=(0.03, -0.02, 0), encoding="srgb")
+        assert not (tmp_path / "bad").exists()
 
 
 def test_cli_summary(made, tmp_path, capsys):
@@ -332,7 +338,7 @@ def test_exif_orientation_is_named_not_applied(made, tmp_path, capsys):
         srgb = (255 * np.clip(rgb / max(rgb.max(), 1e-6), 0, 1) ** (1 / 2.2)).astype(np.uint8)
         write_jpeg(stored / f"{exr.stem}.jpg", srgb, 6)
         write_jpeg(turned / f"{exr.stem}.jpg", np.ascontiguousarray(np.rot90(srgb)), 8)
-    assert photo_header(stored / "view_00.jpg") == (240, 180, 6)
+    assert photo_header(stored / "view_00.jpg") == (240, 180, 6, False)
     common = [str(made["sparse"]), "--mesh", str(made["mesh"])]
     capsys.readouterr()
     assert main(["import-colmap", *common, "--images", str(stored),

@@ -1,7 +1,7 @@
 """A photogrammetry reconstruction of flash photos -> a scene folder (the contract's import-colmap).
 
     import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0, 0, 0),
-                  intensity=(1, 1, 1), force=False) -> ColmapImport (.lines(): the summary)
+                  intensity=None, force=False, ...) -> ColmapImport (.lines(): the summary)
 
 Each registered model image whose file stem matches a photo in `images_dir` becomes a `flash`
 photo with its own camera (several COLMAP cameras per model are kept apart), lit by a point
@@ -192,11 +192,12 @@ def photo_size(path):
 
 
 def photo_header(path):
-    """(width, height, EXIF orientation) of a photo as capture.load_photo decodes it, from its
-    header only. Pixels are used as stored, as COLMAP uses them (it ignores the EXIF orientation
-    so that one camera serves photos held either way); the orientation (1 = as stored, 5-8 a
-    quarter turn) is returned to name it when sizes disagree. RAW: LibRaw turns the image by its
-    own flag on decoding, so the decoded size already holds it (orientation 1)."""
+    """(width, height, EXIF orientation, stores floats) of a photo as capture.load_photo
+    decodes it, from its header only. Pixels are used as stored, as COLMAP uses them (it
+    ignores the EXIF orientation so that one camera serves photos held either way); the
+    orientation (1 = as stored, 5-8 a quarter turn) is returned to name it when sizes disagree.
+    RAW: LibRaw turns the image by its own flag on decoding, so the decoded size already holds
+    it (orientation 1)."""
     path = Path(path)
     ext = path.suffix.lower()
     if ext in RAW_EXTENSIONS:
@@ -207,11 +208,12 @@ def photo_header(path):
         except (rawpy.LibRawError, OSError, ValueError) as err:
             raise InputError(path, f"cannot read RAW file: {err}") from None
         turned = sizes.flip in (5, 6)   # LibRaw turns the image a quarter on output
-        return (sizes.height, sizes.width, 1) if turned else (sizes.width, sizes.height, 1)
+        return (sizes.height, sizes.width, 1, False) if turned else \
+            (sizes.width, sizes.height, 1, False)
     if ext == ".pfm":
         from flashbrdf.capture.photo import read_pfm
         rgb = read_pfm(path)
-        return rgb.shape[1], rgb.shape[0], 1
+        return rgb.shape[1], rgb.shape[0], 1, True
     import OpenImageIO as oiio
     image = oiio.ImageInput.open(str(path))
     if image is None:
@@ -221,9 +223,12 @@ def photo_header(path):
     finally:
         image.close()
     orientation = spec.get_int_attribute("Orientation", 1)
+    stored_float = ext in FLOAT_EXTENSIONS or spec.format.basetype in (
+        oiio.FLOAT, oiio.HALF, oiio.DOUBLE)
     if ext in FLOAT_EXTENSIONS and spec.full_width > 0 and spec.full_height > 0:
-        return spec.full_width, spec.full_height, orientation   # capture places a data window
-    return spec.width, spec.height, orientation
+        # capture places a data window in it
+        return spec.full_width, spec.full_height, orientation, stored_float
+    return spec.width, spec.height, orientation, stored_float
 
 
 def _relative(path, scene_folder):
@@ -237,23 +242,27 @@ def _relative(path, scene_folder):
 
 
 def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 0.0),
-                  intensity=(1.0, 1.0, 1.0), force=False, target=None, reflectance=None,
+                  intensity=None, force=False, target=None, reflectance=None,
                   calibrated=False, encoding=None):
     """Write the scene folder `out_dir` for a COLMAP sparse model, its flash photos in
     `images_dir` and a mesh in the model's frame. Returns a ColmapImport.
 
     flash_offset: the flash position in each camera's frame (model units); intensity: its
-    intensity_rgb; force: replace an out_dir that flashbrdf made. The level (scene.json
-    "level", slice_extract.level): target, a mesh of a diffuse target in the model's frame, with
-    its reflectance (3 numbers in (0, 1]); or calibrated, the intensity was measured before;
-    neither: relative. encoding: every photo's scene.json "encoding" ("linear" or "srgb"; None:
-    by bit depth, 8-bit sRGB and 16-bit linear), for 16-bit TIFF/PNG a converter wrote with the
-    sRGB curve. InputError (exit 2) naming the file or field for bad input; then nothing is
-    written.
+    intensity_rgb (None: 1, 1, 1, a relative level; calibrated needs it given); force: replace
+    an out_dir that flashbrdf made. The level (scene.json "level", slice_extract.level):
+    target, a mesh of a diffuse target in the model's frame, with its reflectance (3 numbers in
+    (0, 1]); or calibrated, the intensity was measured before; neither: relative. encoding:
+    every photo's scene.json "encoding" ("linear" or "srgb"; None: by bit depth, 8-bit sRGB and
+    16-bit linear), for 16-bit TIFF/PNG a converter wrote with the sRGB curve. InputError (exit
+    2) naming the file or field for bad input; then nothing is written.
     """
     from flashbrdf.capture.geometry import MeshIntersector, load_mesh
     offset = _triple(flash_offset, "--flash-offset")
-    power = _triple(intensity, "--intensity", positive=True)
+    if calibrated and intensity is None:   # else the placeholder 1,1,1 passes as measured
+        raise InputError("--calibrated", "needs --intensity R,G,B: the flash's intensity measured "
+                                         "before (docs/capture.md, \"The absolute level\")")
+    power = _triple((1.0, 1.0, 1.0) if intensity is None else intensity, "--intensity",
+                    positive=True)
     level = _level(target, reflectance, calibrated)
     images_dir, mesh, out_dir = Path(images_dir), Path(mesh), Path(out_dir)
     if not images_dir.is_dir():
@@ -276,7 +285,7 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
     cameras, photos, oriented = {}, [], []
     for image, photo in matched:
         cam = model.contract_camera(image.camera_id, image.world_from_camera)
-        *size, orientation = photo_header(photo)
+        *size, orientation, stored_float = photo_header(photo)
         if tuple(size) != (cam["width"], cam["height"]):
             turned = (f"; its EXIF orientation {orientation} asks viewers to turn it a quarter, "
                       "which COLMAP does not do and flashbrdf neither: give the pixels SfM saw"
@@ -288,9 +297,9 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
                                     f"{turned})")
         if orientation != 1:
             oriented.append(photo.name)
-        if encoding == "srgb" and photo.suffix.lower() in FLOAT_EXTENSIONS + RAW_EXTENSIONS:
+        if encoding == "srgb" and (stored_float or photo.suffix.lower() in RAW_EXTENSIONS):
             raise InputError("--encoding", f"srgb is for 8- and 16-bit PNG/TIFF/JPEG; {photo.name} "
-                                           "is linear by its format")
+                                           "is linear by its format (floats or RAW)")
         kind, first, count = cameras.get(image.camera_id, (
             camera_model_name(model.reconstruction.camera(image.camera_id)), cam, 0))
         cameras[image.camera_id] = (kind, first, count + 1)
@@ -310,9 +319,9 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
              "provenance": _provenance(model, images_dir, mesh, skipped, error, frame)}
     if level is not None:
         if "target" in level:
-            card, _ = load_mesh(target)
-            require_target_facing_a_camera(card, [p["camera"] for p in photos], TARGET_MIN_COS,
-                                           target)
+            card, card_normals = load_mesh(target)
+            require_target_facing_a_camera(card, card_normals, [p["camera"] for p in photos],
+                                           TARGET_MIN_COS, target)
             level["target"]["mesh"] = _relative(Path(target), scene_folder)
         scene["level"] = level
     with staged_output_dir(out_dir, force=force, command="import-colmap") as staged:

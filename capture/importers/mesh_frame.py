@@ -96,12 +96,19 @@ def _views_seeing(vertices, cameras):
                for cam in cameras)
 
 
-def require_target_facing_a_camera(mesh, cameras, min_cos, path):
-    """InputError naming the target's mesh file `path` when no face of `mesh` (a
-    trimesh.Trimesh) has its centre in view of one of `cameras` (contract camera dicts) with
-    its normal within arccos(min_cos) of the way to that camera: extract could take no pixel
-    of it (occlusion by the object is left to extract)."""
-    centres, normals = np.asarray(mesh.triangles_center), np.asarray(mesh.face_normals)
+def require_target_facing_a_camera(mesh, has_normals, cameras, min_cos, path):
+    """InputError naming the target's mesh file `path` when no point of `mesh` (a
+    trimesh.Trimesh; its corners and face centres) is in view of one of `cameras` (contract
+    camera dicts) with its normal within arccos(min_cos) of the way to that camera: extract
+    could take no pixel of it. The normals are extract's: the file's vertex normals when it has
+    them (has_normals), else the faces'. Occlusion by the object is left to extract."""
+    if has_normals:
+        centres, normals = np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals)
+    else:
+        corners = np.asarray(mesh.triangles)                         # (F, 3, 3)
+        centres = np.concatenate([corners.reshape(-1, 3), np.asarray(mesh.triangles_center)])
+        normals = np.concatenate([np.repeat(np.asarray(mesh.face_normals), 3, axis=0),
+                                  np.asarray(mesh.face_normals)])
     for cam in cameras:
         pose = np.asarray(cam["world_from_camera"], dtype=np.float64)
         to_camera = pose[:3, 3] - centres
