@@ -115,7 +115,8 @@ def load_mesh(path):
 def _referenced_only(mesh, has_normals):
     """The mesh without the vertices no face uses (photogrammetry leaves them after cleaning):
     the bounding box sets the float32 frame, the shadow-ray offset and the pixels traced, so a
-    stray vertex far away would cost every ray its precision."""
+    stray vertex far away would cost every ray its precision. Not trimesh's
+    remove_unreferenced_vertices: it drops the file's vertex normals for recomputed ones."""
     import trimesh
     faces = np.asarray(mesh.faces)
     used = np.unique(faces)

@@ -227,6 +227,11 @@ def staged_output_dir(path, force=False, command=None):
                        "created_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())}, f)
             f.write("\n")
         yield tmp
+        if not os.path.isfile(os.path.join(tmp, MARKER)):
+            # written first, so gone only if another process removed the folder under us (a
+            # batch client cleaning up after a remote worker): what is left is not whole
+            raise RuntimeError(f"{tmp}: removed by another process while it was being built; "
+                               "nothing written")
         with signals_deferred():  # no Ctrl-C between moving the old folder away and renaming
             raise_if_signalled()
             _check_replaceable(target, force)

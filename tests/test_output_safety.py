@@ -4,6 +4,7 @@ replaces only folders flashbrdf made, Ctrl-C / SIGTERM leave nothing, concurrent
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -66,6 +67,15 @@ def test_staged_output_dir_is_all_or_nothing_and_force_replaces_only_its_own(tmp
             (tmp_path / "late").mkdir()
             (tmp_path / "late" / "theirs.txt").write_text("theirs")
     assert os.listdir(tmp_path / "late") == ["theirs.txt"]
+    assert not [p for p in os.listdir(tmp_path) if p.endswith(".part")]
+    # Another process removed the folder under construction (a batch client cleaning up after a
+    # remote worker), the body wrote on into a recreated one: what is left is not published.
+    with pytest.raises(RuntimeError, match="removed by another process"):
+        with staged_output_dir(tmp_path / "gone") as tmp:
+            shutil.rmtree(tmp)
+            (Path(tmp) / "figures").mkdir(parents=True)
+            (Path(tmp) / "report.json").write_text("{}")
+    assert not (tmp_path / "gone").exists()
     assert not [p for p in os.listdir(tmp_path) if p.endswith(".part")]
 
 

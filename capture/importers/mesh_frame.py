@@ -103,18 +103,17 @@ def require_target_facing_a_camera(mesh, has_normals, cameras, min_cos, path):
     could take no pixel of it. The normals are extract's: the file's vertex normals when it has
     them (has_normals), else the faces'. Occlusion by the object is left to extract."""
     if has_normals:
-        centres, normals = np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals)
+        points, normals = np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals)
     else:
-        corners = np.asarray(mesh.triangles)                         # (F, 3, 3)
-        centres = np.concatenate([corners.reshape(-1, 3), np.asarray(mesh.triangles_center)])
-        normals = np.concatenate([np.repeat(np.asarray(mesh.face_normals), 3, axis=0),
-                                  np.asarray(mesh.face_normals)])
+        face_normals = np.asarray(mesh.face_normals)
+        points = np.concatenate([np.asarray(mesh.triangles).reshape(-1, 3),
+                                 np.asarray(mesh.triangles_center)])
+        normals = np.concatenate([np.repeat(face_normals, 3, axis=0), face_normals])
     for cam in cameras:
-        pose = np.asarray(cam["world_from_camera"], dtype=np.float64)
-        to_camera = pose[:3, 3] - centres
-        distance = np.linalg.norm(to_camera, axis=1)
-        facing = np.einsum("ij,ij->i", normals, to_camera) >= min_cos * distance
-        if np.any(facing & _in_view(centres, cam)):
+        to_camera = np.asarray(cam["world_from_camera"], dtype=np.float64)[:3, 3] - points
+        facing = (np.einsum("ij,ij->i", normals, to_camera)
+                  >= min_cos * np.linalg.norm(to_camera, axis=1))
+        if np.any(facing & _in_view(points, cam)):
             return
     raise InputError(path, f"no photo has this target in view, facing its camera within "
                            f"{np.degrees(np.arccos(min_cos)):.0f}° (is it in the model's frame, "
