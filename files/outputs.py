@@ -174,6 +174,25 @@ def sidecar_json(path):
     return root + ".report.json" if ext.lower() == ".json" else root + ".json"
 
 
+def check_sidecar_replaceable(path, own_key, record):
+    """InputError when the JSON at `path` (a sidecar this command writes) exists and is not this
+    command's own earlier `record` (a JSON object holding `own_key`): `extract --out x.csv` then
+    `infer x.csv --out x.binary` would otherwise replace extract's x.json, which only extract can
+    make again."""
+    path = os.fspath(path)
+    if not os.path.isfile(path):
+        return
+    try:
+        with open(path, encoding="utf-8") as f:
+            earlier = json.load(f)
+    except (OSError, UnicodeDecodeError, ValueError):
+        earlier = None
+    if isinstance(earlier, dict) and own_key in earlier:
+        return
+    raise InputError(path, f"exists and is not an earlier {record} (another command's output or a "
+                           "file of yours); this output would replace it: give --out another name")
+
+
 def _is_marked(folder):
     return os.path.isfile(os.path.join(folder, MARKER))
 

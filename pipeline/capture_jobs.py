@@ -9,7 +9,8 @@ from pathlib import Path
 
 from flashbrdf import capture
 from flashbrdf.files.errors import InputError
-from flashbrdf.files.outputs import check_outputs, sidecar_json, staged_output_dir
+from flashbrdf.files.outputs import (check_outputs, check_sidecar_replaceable, sidecar_json,
+                                     staged_output_dir)
 from flashbrdf.pipeline.albedo_files import albedo_sidecars, check_albedo_out
 from flashbrdf.pipeline.label_files import (faces_path, read_face_labels, read_labels,
                                             write_labels)
@@ -40,6 +41,7 @@ def extract(scene_dir, out, options=None):
     options = options or ExtractOptions()
     scene = capture.load_scene(scene_dir)
     check_outputs(inputs=[scene_dir, *scene.input_files()], outputs=[out, sidecar_json(out)])
+    check_sidecar_replaceable(sidecar_json(out), "slice_csv", "slice report (SLICE.json)")
     result = extract_slice(scene, options)
     write_extraction(out, scene_dir, result, options)
 

@@ -10,7 +10,7 @@ import time
 
 from flashbrdf.brdf import merl, views
 from flashbrdf.files.errors import InputError
-from flashbrdf.files.outputs import check_outputs, sidecar_json
+from flashbrdf.files.outputs import check_outputs, check_sidecar_replaceable, sidecar_json
 from flashbrdf.pipeline.options import existing_model_file
 
 
@@ -65,6 +65,7 @@ def infer(model, slice_path, out, method_name="dsgplvm", merl_dirs=None, anchor=
     t0 = time.perf_counter()
     check_outputs(inputs=[model, slice_path, *merl_inputs(merl_dirs)],
                   outputs=[out, sidecar_json(out)])
+    check_sidecar_replaceable(sidecar_json(out), "method", "BRDF.json")
     rho, n = views.read_slice_csv(slice_path)
     if model is None:
         if method_name != "chandraker":

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from flashbrdf.cli.main import main
 from flashbrdf.files.errors import InputError
 from flashbrdf.files.outputs import MARKER, check_outputs, staged_output_dir
 from test_bad_input_corpus import snapshot, world  # noqa: F401  (the corpus's tiny capture)
@@ -226,3 +227,23 @@ def test_name_length_counts_the_temporary_suffix_on_the_last_name_only(tmp_path)
     with pytest.raises(InputError, match="bytes long"):
         check_outputs([], [tmp_path / ("s" * (limit - 16 - 7) + ".csv")])
     assert not any(tmp_path.iterdir())                                   # nothing was made
+
+
+def test_a_sidecar_another_command_wrote_is_not_replaced(world, tmp_path, capsys):  # noqa: F811
+    """`extract --out x.csv` then `infer x.csv --out x.binary`: both sidecars are x.json, and
+    infer's BRDF.json would silently replace extract's slice report; a re-run of either command
+    onto its own earlier output is still allowed."""
+    slice_csv = tmp_path / "x.csv"
+    assert main(["extract", str(world.scene), "--out", str(slice_csv)]) == 0
+    report = (tmp_path / "x.json").read_bytes()
+    infer = ["infer", "--slice", str(slice_csv), "--model", str(world.model), "--method", "chandraker"]
+    capsys.readouterr()
+    assert main(infer + ["--out", str(tmp_path / "x.binary")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "x.json" in err[0] and "not an earlier BRDF.json" in err[0], err
+    assert (tmp_path / "x.json").read_bytes() == report and not (tmp_path / "x.binary").exists()
+    assert main(infer + ["--out", str(tmp_path / "y.binary")]) == 0
+    assert main(infer + ["--out", str(tmp_path / "y.binary")]) == 0  # its own record: replaced
+    assert main(["extract", str(world.scene), "--out", str(tmp_path / "y.csv")]) == 2
+    assert json.loads((tmp_path / "y.json").read_text())["method"] == "chandraker"
+    assert main(["extract", str(world.scene), "--out", str(slice_csv)]) == 0  # its own: replaced
