@@ -403,8 +403,8 @@ def test_a_target_or_a_calibrated_flash_goes_into_the_scene(made, tmp_path, caps
     assert load_scene(calibrated).level.calibrated
     scene = json.loads((calibrated / "scene.json").read_text())
     assert scene["photos"][0]["light"]["intensity_rgb"] == [3.7, 3.6, 3.5]
-    # a target no photo has in view, or whose faces all turn away from the cameras, could give
-    # extract no pixel: refused here, naming its file, rather than at extract
+    # a target no photo has in view, or whose faces all turn away from the cameras or hide
+    # behind the object, could give extract no pixel: refused here, naming its file
     # (the cameras ring the object 25-50° above it, up +z: a card under it facing down faces
     # none of them; 50 units away it is in no photo)
     import trimesh
@@ -412,7 +412,10 @@ def test_a_target_or_a_calibrated_flash_goes_into_the_scene(made, tmp_path, caps
     down = trimesh.Trimesh(corners, [[0, 2, 1], [0, 3, 2]], process=False)
     assert np.allclose(down.face_normals, [0, 0, -1])
     far = trimesh.Trimesh(corners + [50.0, 0, 0], [[0, 1, 2], [0, 2, 3]], process=False)
-    for name, mesh in (("down.ply", down), ("far.ply", far)):
+    # inside the object's sphere (radius 0.045), facing up at the cameras: in view, but hidden
+    inside = trimesh.Trimesh(corners * [0.2, 0.2, 0.0], [[0, 1, 2], [0, 2, 3]], process=False)
+    assert np.allclose(inside.face_normals, [0, 0, 1])
+    for name, mesh in (("down.ply", down), ("far.ply", far), ("inside.ply", inside)):
         mesh.export(tmp_path / name)
         capsys.readouterr()
         assert main(["import-colmap", *common, "--out", str(tmp_path / "bad"), "--target",

@@ -310,7 +310,8 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
                                   "camera_id": image.camera_id}})
     loaded, has_normals = load_mesh(mesh)
     points, observed, observers = model.sight_lines()
-    frame = check_mesh_frame(MeshIntersector(loaded, has_normals), points, observed, observers,
+    object_rays = MeshIntersector(loaded, has_normals)
+    frame = check_mesh_frame(object_rays, points, observed, observers,
                              [p["camera"] for p in photos])
     require_mesh_in_frame(frame, mesh)
     error = model.mean_reprojection_error()
@@ -321,7 +322,7 @@ def import_colmap(model_dir, images_dir, mesh, out_dir, flash_offset=(0.0, 0.0, 
         if "target" in level:
             card, card_normals = load_mesh(target)
             require_target_facing_a_camera(card, card_normals, [p["camera"] for p in photos],
-                                           TARGET_MIN_COS, target)
+                                           TARGET_MIN_COS, target, occluder=object_rays)
             level["target"]["mesh"] = _relative(Path(target), scene_folder)
         scene["level"] = level
     with staged_output_dir(out_dir, force=force, command="import-colmap") as staged:

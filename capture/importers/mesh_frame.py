@@ -96,12 +96,13 @@ def _views_seeing(vertices, cameras):
                for cam in cameras)
 
 
-def require_target_facing_a_camera(mesh, has_normals, cameras, min_cos, path):
+def require_target_facing_a_camera(mesh, has_normals, cameras, min_cos, path, occluder=None):
     """InputError naming the target's mesh file `path` when no point of `mesh` (a
     trimesh.Trimesh; its corners and face centres) is in view of one of `cameras` (contract
-    camera dicts) with its normal within arccos(min_cos) of the way to that camera: extract
+    camera dicts), with its normal within arccos(min_cos) of the way to that camera and, when
+    `occluder` (a capture.MeshIntersector of the object) is given, not hidden behind it: extract
     could take no pixel of it. The normals are extract's: the file's vertex normals when it has
-    them (has_normals), else the faces'. Occlusion by the object is left to extract."""
+    them (has_normals), else the faces'."""
     if has_normals:
         points, normals = np.asarray(mesh.vertices), np.asarray(mesh.vertex_normals)
     else:
@@ -113,11 +114,28 @@ def require_target_facing_a_camera(mesh, has_normals, cameras, min_cos, path):
         to_camera = np.asarray(cam["world_from_camera"], dtype=np.float64)[:3, 3] - points
         facing = (np.einsum("ij,ij->i", normals, to_camera)
                   >= min_cos * np.linalg.norm(to_camera, axis=1))
-        if np.any(facing & _in_view(points, cam)):
+        usable = facing & _in_view(points, cam)
+        if occluder is not None and np.any(usable):
+            usable[usable] = ~_hidden_behind(occluder, points[usable], to_camera[usable])
+        if np.any(usable):
             return
     raise InputError(path, f"no photo has this target in view, facing its camera within "
-                           f"{np.degrees(np.arccos(min_cos)):.0f}° (is it in the model's frame, "
-                           "and its faces' normals toward the cameras?)")
+                           f"{np.degrees(np.arccos(min_cos)):.0f}° and not hidden by the object "
+                           "(is it in the model's frame, and its faces' normals toward the "
+                           "cameras?)")
+
+
+def _hidden_behind(occluder, points, to_camera):
+    """(N,) bool: the object (a capture.MeshIntersector) blocks the sight line from each point
+    (N, 3) to its camera (to_camera (N, 3), from the point), short of the point by more than
+    TOLERANCE_FRACTION of the object's diagonal (a card touching the object is not hidden)."""
+    from flashbrdf.capture.geometry import intersect
+    length = np.linalg.norm(to_camera, axis=1)
+    centre = points + to_camera
+    hits = intersect(occluder, centre, -to_camera / length[:, None])
+    vertices = occluder.vertices
+    tolerance = TOLERANCE_FRACTION * float(np.linalg.norm(vertices.max(0) - vertices.min(0)))
+    return hits.distance < length - tolerance
 
 
 def check_mesh_frame(intersector, points, observed_point, observer_centre, cameras):
