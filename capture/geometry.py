@@ -26,7 +26,7 @@ from flashbrdf.capture.scene import Scene
 from flashbrdf.capture.scene_fields import MAX_COORDINATE, beyond_coordinates
 
 _CHUNK = 1 << 21  # rays per Embree call: bounds temporary memory to ~100 MB
-_SHADOW_OFFSET = 1e-4  # x bounding-box diagonal
+_SHADOW_OFFSET = 1e-4  # x the diagonal of the vertices' central 99% (MeshIntersector.scale)
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,9 +114,9 @@ def load_mesh(path):
 
 def _referenced_only(mesh, has_normals):
     """The mesh without the vertices no face uses (photogrammetry leaves them after cleaning):
-    the bounding box sets the float32 frame, the shadow-ray offset and the pixels traced, so a
-    stray vertex far away would cost every ray its precision. Not trimesh's
-    remove_unreferenced_vertices: it drops the file's vertex normals for recomputed ones."""
+    they would widen the box of pixels traced and weigh in the float32 frame's centre. Not
+    trimesh's remove_unreferenced_vertices: it drops the file's vertex normals for recomputed
+    ones."""
     import trimesh
     faces = np.asarray(mesh.faces)
     used = np.unique(faces)
@@ -197,14 +197,19 @@ class MeshIntersector:
         self.face_normals = np.asarray(mesh.face_normals, dtype=np.float64)
         self.vertex_normals = (np.asarray(mesh.vertex_normals, dtype=np.float64)
                                if use_vertex_normals else None)
-        self.centre = (self.vertices.min(0) + self.vertices.max(0)) / 2
+        # The float32 frame is centred, and the shadow offset scaled, on the bulk of the vertices
+        # (median, central 99%), not the bounding box: a few triangles kept far from the object
+        # (a Poisson skirt, a stray piece) would otherwise move the object's coordinates to where
+        # float32 keeps ~1e-4 of its size and push shadow rays' starts off it.
+        self.centre = np.median(self.vertices, axis=0)
         relative = (self.vertices - self.centre).astype(np.float32)
         # per-face corners (relative to the centre) and corner normals, float32: one gather per
         # hit instead of two, at half the memory traffic (float32 is ~1e-7 of the mesh size)
         self.corners = relative[self.faces]  # (F, 3, 3)
         self.corner_normals = (None if self.vertex_normals is None
                                else self.vertex_normals[self.faces].astype(np.float32))
-        self.scale = float(np.linalg.norm(self.vertices.max(0) - self.vertices.min(0))) or 1.0
+        low, high = np.percentile(self.vertices, [0.5, 99.5], axis=0)
+        self.scale = float(np.linalg.norm(high - low)) or 1.0
         self._scene = rtcore_scene.EmbreeScene()
         TriangleMesh(scene=self._scene, vertices=relative, indices=self.faces.astype(np.int32))
 
@@ -311,7 +316,8 @@ def occluded(target, points, directions, max_dist=None):
 
     points, directions: (..., 3) world, directions unit; max_dist: (...) or scalar, the length
     of the segment (the distance to a point light), None for a directional light (unbounded).
-    Returns (...) bool. Rays start 1e-4 x the mesh diagonal along the ray to clear self-hits.
+    Returns (...) bool. Rays start 1e-4 x the mesh's size (MeshIntersector.scale) along the ray
+    to clear self-hits.
     """
     mi = _as_intersector(target)
     directions = np.asarray(directions, dtype=np.float64)

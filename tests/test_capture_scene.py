@@ -238,9 +238,9 @@ def test_non_numeric_normal_map_is_bad_input(tmp_path, capsys):
 
 def test_vertices_no_face_uses_are_dropped(tmp_path):
     """Vertices no face uses (photogrammetry leaves them after cleaning) are dropped on load: a
-    stray vertex 1e6 away would otherwise set the float32 frame and cost every ray its precision
-    (float32 spacing at 1e6 is 0.06, the sphere is 0.2 across), and a NaN one would refuse a
-    mesh whose triangles are fine. Hits agree with the clean mesh to float64 rounding."""
+    stray vertex 1e6 away would otherwise widen the box of pixels traced to every pixel of every
+    photo, and a NaN one would refuse a mesh whose triangles are fine. Hits agree with the clean
+    mesh to float64 rounding."""
     import trimesh
     sphere = sphere_mesh(radius=0.1, centre=(0, 0, 1), subdivisions=4)
     stray = np.array([[1e6, 1e6, 1e6], [-1e6, 0, 0], [np.nan, 0, 0]])
@@ -259,6 +259,29 @@ def test_vertices_no_face_uses_are_dropped(tmp_path):
     got = capture.intersect(capture.MeshIntersector(loaded, True), origins, dirs)
     assert np.array_equal(got.hit, want.hit) and want.hit.sum() > 1000
     assert np.abs(got.points - want.points).max() < 1e-12
+
+
+def test_triangles_kept_far_from_the_object_cost_it_no_precision(tmp_path):
+    """A triangle 3e4 sphere sizes away (a Poisson skirt left untrimmed) must not move the float32
+    frame off the object, nor scale the shadow-ray offset by the whole box: that offset was 1e-4
+    of the box's diagonal, 0.6 here, three times the sphere, so a ray through the sphere from its
+    surface started beyond it. Hits agree with the sphere alone to float32 rounding at the
+    object's size (the frame centred on the box put the sphere at 3e3, spacing 2.4e-4)."""
+    import trimesh
+    sphere = sphere_mesh(radius=0.1, centre=(0, 0, 1), subdivisions=4)
+    far = np.array([[6e3, 0, 1], [6e3 + 0.2, 0, 1], [6e3, 0.2, 1]])
+    count = len(sphere.vertices)
+    skirted = trimesh.Trimesh(np.vstack([sphere.vertices, far]),
+                              np.vstack([sphere.faces, [[count, count + 1, count + 2]]]),
+                              process=False)
+    _, origins, dirs = _sphere_rays(tmp_path)
+    want = capture.intersect(capture.MeshIntersector(sphere), origins, dirs)
+    got = capture.intersect(capture.MeshIntersector(skirted), origins, dirs)
+    assert np.array_equal(got.hit, want.hit) and want.hit.sum() > 1000
+    assert np.abs(got.points - want.points)[want.hit].max() < 1e-6  # 1e-5 of the sphere
+    # from the near pole straight through the sphere: the far side blocks it
+    assert capture.occluded(capture.MeshIntersector(skirted), np.array([[0, 0, 0.9]]),
+                            np.array([[0, 0, 1.0]]))[0]
 
 
 def test_occluded_and_convexity():
