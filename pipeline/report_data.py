@@ -147,7 +147,9 @@ def downsample_factor(pixels, sides, bytes_per_pixel, budget=IMAGE_BUDGET_BYTES,
 def power_of_two_scale(arrays):
     """2^k such that the largest finite |value| of `arrays`, divided by it, is at most HALF_TOP
     and as close as possible (1 when they hold no nonzero value). Exact in float16 and float32."""
-    top = max((float(np.nanmax(np.abs(a))) for a in arrays
+    # finite values only: an inf pixel (a hot pixel in a merged HDR) is stored as inf, as NaN
+    # is stored as NaN, and must not set the scale of the rest
+    top = max((float(np.max(np.abs(a[np.isfinite(a)]))) for a in arrays
                if a is not None and np.isfinite(a).any()), default=0.0)
     if top <= 0:
         return 1.0

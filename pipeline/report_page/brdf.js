@@ -118,6 +118,15 @@ function slicePlot(canvas, d, channel, readout, legend = true) {
     canvas.legend = drawLegend(c, items, ax.box.left, 14);
   }
   canvas.axes = ax;
+  if (legend && !canvas.legendHooked) {  // the material plots' legends too
+    canvas.legendHooked = true;
+    canvas.addEventListener("click", (e) => {
+      const [x, y] = canvas.axes.eventPoint(e);
+      for (const b of canvas.legend || []) {
+        if (b.item.key && x >= b.x && x <= b.x + b.w && y >= b.y && y <= b.y + b.h) toggleMethod(b.item.key);
+      }
+    });
+  }
   if (readout && !canvas.hooked) {
     canvas.hooked = true;
     canvas.addEventListener("mousemove", (e) => {
@@ -132,15 +141,28 @@ function slicePlot(canvas, d, channel, readout, legend = true) {
       for (const m of Object.keys(ds.methods)) parts.push(`${m} ${fmtSig(tableValue(ds.methods[m].table, i, 0, ch))}`);
       readout.textContent = readoutPrefix() + parts.join(" · ") + " 1/sr";
     });
-    canvas.addEventListener("click", (e) => {
-      const [x, y] = canvas.axes.eventPoint(e);
-      for (const b of canvas.legend || []) {
-        if (b.item.key && x >= b.x && x <= b.x + b.w && y >= b.y && y <= b.y + b.h) {
-          if (B.hidden.has(b.item.key)) B.hidden.delete(b.item.key); else B.hidden.add(b.item.key);
-          drawBrdf();
-        }
-      }
-    });
+  }
+}
+
+// One method shown or hidden on every slice plot, from a legend click or its box (the boxes are
+// what the keyboard reaches).
+function toggleMethod(m) {
+  if (B.hidden.has(m)) B.hidden.delete(m); else B.hidden.add(m);
+  for (const box of document.querySelectorAll("#method-toggles input")) {
+    box.checked = !B.hidden.has(box.value);
+  }
+  drawBrdf();
+  if (META.materials) META.materials.draw();
+}
+
+function methodToggles() {
+  const box = document.getElementById("method-toggles");
+  for (const m of META.brdf_methods) {
+    const input = el("input", {type: "checkbox", value: m});
+    input.checked = !B.hidden.has(m);
+    input.addEventListener("change", () => toggleMethod(m));
+    box.append(el("label", {class: "control"}, [input, el("span", {class: "swatch",
+      style: `background:${methodColour(m)}`}), m]));
   }
 }
 
@@ -430,6 +452,7 @@ function initBrdf() {
   });
   document.getElementById("lobe-log").addEventListener("change", polarPlot);
   document.getElementById("polar-plot").addEventListener("mousemove", polarHover);
+  methodToggles();
   drawBrdf();
   principled();
 }

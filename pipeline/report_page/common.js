@@ -81,17 +81,18 @@ function fmt(x, digits = 3) {
   return a !== 0 && (a < 1e-3 || a >= 1e5) ? x.toExponential(digits - 1) : x.toFixed(digits);
 }
 
-// Linear values span decades (a pixel, ρ in 1/sr): the same 4 significant digits at every level
-// (float16, as the page holds images, carries 3.3).
+// Linear values span decades (a pixel, ρ in 1/sr): the same significant digits at every level,
+// 4 for the BRDF tables (float32 on the page), 3 for image pixels (float16, which carries 3.3).
 function fmtSig(x, sig = 4) {
   if (x === null || x === undefined || !Number.isFinite(x)) return "–";
   const a = Math.abs(x);
   return a !== 0 && (a < 1e-3 || a >= 1e5) ? x.toExponential(sig - 1) : x.toPrecision(sig);
 }
 
-function fmtRGB(values) {
-  return values.map((v) => fmtSig(v).padStart(9)).join(" ");
+function fmtRGB(values, sig = 4) {
+  return values.map((v) => fmtSig(v, sig).padStart(9)).join(" ");
 }
+const PIXEL_DIGITS = 3;
 
 function el(tag, attrs = {}, children = []) {
   const node = document.createElement(tag);

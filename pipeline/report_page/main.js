@@ -8,6 +8,15 @@ function onKey(event) {
   if (rendersKey(event)) event.preventDefault();
 }
 
+// The sticky toolbar sits under the header, whose height changes as it wraps.
+function trackHeaderHeight() {
+  const header = document.querySelector("header.top");
+  const set = () => document.documentElement.style.setProperty("--header-h", `${header.offsetHeight}px`);
+  set();
+  if (window.ResizeObserver) new ResizeObserver(set).observe(header);
+}
+
+trackHeaderHeight();
 document.addEventListener("keydown", onKey);
 initRenders();
 initBrdf();

@@ -6,7 +6,10 @@
 const R = {
   index: 0, stops: META.exposure.initial, flipped: false, split: 0, overlay: false,
   cache: new Map(), frames: [], photo: null,
+  point: null,      // {x, y}: the pixel the readouts show (mouse or arrow keys), in shown pixels
+  keyCursor: false, // the point was set by the arrow keys: it is marked on the frames
 };
+const NO_DATA_RGB = [255, 0, 255];  // a pixel with a NaN or inf channel (readout: –)
 const CACHE_PHOTOS = 6;  // decoded photos kept (a DiLiGenT photo is ~1 MB of float32)
 
 function loadPhoto(index) {
@@ -46,9 +49,11 @@ function buildFrames() {
     canvas.addEventListener("click", () => setFlip(!R.flipped));
     canvas.addEventListener("keydown", (e) => {
       if (e.key === "Enter" || e.key === " ") { e.preventDefault(); setFlip(!R.flipped); }
+      const step = ARROWS[e.key];
+      if (step && R.photo) { e.preventDefault(); moveCursor(step, e.shiftKey ? 10 : 1); }
     });
     canvas.addEventListener("mousemove", (e) => hover(frame, e));
-    canvas.addEventListener("mouseleave", () => R.frames.forEach((f) => { f.readout.textContent = ""; }));
+    canvas.addEventListener("mouseleave", () => { if (!R.keyCursor) clearReadouts(); });
     R.frames.push(frame);
   }
 }
@@ -73,7 +78,9 @@ function drawFrame(frame) {
   for (let y = 0; y < h; y++) {
     for (let x = 0; x < w; x++) {
       const i = y * w + x, src = x < splitAt ? b : a, o = 4 * i;
-      for (let c = 0; c < 3; c++) out[o + c] = src ? encode8(src[3 * i + c] * gain) : 0;
+      if (src && !(Number.isFinite(src[3 * i]) && Number.isFinite(src[3 * i + 1]) &&
+                   Number.isFinite(src[3 * i + 2]))) out.set(NO_DATA_RGB, o);
+      else for (let c = 0; c < 3; c++) out[o + c] = src ? encode8(src[3 * i + c] * gain) : 0;
       if (de && Number.isFinite(de[i])) {
         // as report_data.overlay_delta_e
         const k = 3 * Math.max(0, Math.min(255, Math.floor(de[i] / vmax * 255)));
@@ -86,6 +93,10 @@ function drawFrame(frame) {
   if (splitAt > 0 && splitAt < w) {
     frame.ctx.fillStyle = "rgba(255,255,255,0.85)";
     frame.ctx.fillRect(splitAt, 0, 1, h);
+  }
+  if (R.keyCursor && R.point) {  // the pixel the arrow keys read, ringed so it can be seen
+    frame.ctx.strokeStyle = "#00e5ff"; frame.ctx.lineWidth = 1;
+    frame.ctx.strokeRect(R.point.x - 1.5, R.point.y - 1.5, 4, 4);
   }
   const shown = R.flipped ? "photo" : "render", other = R.flipped ? "render" : "photo";
   frame.caption.querySelector(".which").textContent = !photo.ref ? "render (no photo)" :
@@ -106,8 +117,37 @@ function hover(frame, event) {
   const x = Math.floor((event.clientX - rect.left) * photo.w / rect.width);
   const y = Math.floor((event.clientY - rect.top) * photo.h / rect.height);
   if (x < 0 || y < 0 || x >= photo.w || y >= photo.h) return;
+  if (R.keyCursor) { R.keyCursor = false; drawAll(); }
+  readAt(x, y);
+}
+
+const ARROWS = {ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, -1], ArrowDown: [0, 1]};
+
+// Arrow keys on a frame read the pixel beside the last one read (Shift: 10 pixels), so that
+// every value the mouse reads can be read from the keyboard; the frame's live region says it.
+function moveCursor([dx, dy], size) {
+  const photo = R.photo;
+  const start = R.point || {x: Math.floor(photo.w / 2) - dx * size, y: Math.floor(photo.h / 2) - dy * size};
+  const x = Math.max(0, Math.min(photo.w - 1, start.x + dx * size));
+  const y = Math.max(0, Math.min(photo.h - 1, start.y + dy * size));
+  R.keyCursor = true;
+  readAt(x, y);
+  drawAll();
+  const focused = R.frames.find((f) => f.canvas === document.activeElement);
+  document.getElementById("frame-live").textContent = focused ? focused.readout.textContent : "";
+}
+
+function clearReadouts() {
+  R.point = null;
+  R.frames.forEach((f) => { f.readout.textContent = ""; });
+}
+
+// Every frame's readout at pixel (x, y) of the photo shown (image pixels, as drawn).
+function readAt(x, y) {
+  const photo = R.photo;
+  R.point = {x, y};
   const i = y * photo.w + x, p = photo.meta;
-  const rgb = (a) => (a ? fmtRGB([a[3 * i], a[3 * i + 1], a[3 * i + 2]]) : "   –");
+  const rgb = (a) => (a ? fmtRGB([a[3 * i], a[3 * i + 1], a[3 * i + 2]], PIXEL_DIGITS) : "   –");
   const col = p.box[2] + x * p.factor, row = p.box[0] + y * p.factor;
   const where = p.factor > 1 ? `(${col}, ${row}) ${p.factor}×${p.factor} mean` : `(${col}, ${row})`;
   for (const f of R.frames) {
@@ -130,7 +170,9 @@ function setStops(stops) {
   const clamped = Math.max(Number(input.min), Math.min(Number(input.max), stops));
   R.stops = Math.round(clamped * 10) / 10;
   input.value = R.stops;
-  document.getElementById("exposure-out").textContent = `${R.stops >= 0 ? "+" : ""}${R.stops.toFixed(1)} EV`;
+  const text = `${R.stops >= 0 ? "+" : ""}${R.stops.toFixed(1)} EV`;
+  document.getElementById("exposure-out").textContent = text;
+  input.setAttribute("aria-valuetext", text);
   drawAll();
 }
 
@@ -150,6 +192,9 @@ async function showPhoto(index) {
   const photo = await loadPhoto(index);
   if (R.index !== index) return;
   R.photo = photo;
+  // the readouts must not keep the photo shown before: read the same pixel of this one
+  if (R.point && R.point.x < photo.w && R.point.y < photo.h) readAt(R.point.x, R.point.y);
+  else { clearReadouts(); R.keyCursor = false; }
   drawAll();
   const p = photo.meta;
   status.textContent = `${p.name}: ${p.width}×${p.height} px shown, the object's box in the ` +
@@ -247,6 +292,10 @@ function initRenders() {
   document.getElementById("photo-prev").addEventListener("click", () => showPhoto(R.index - 1));
   document.getElementById("photo-next").addEventListener("click", () => showPhoto(R.index + 1));
   const exposure = document.getElementById("exposure");
+  // ±20 EV, widened to reach every photo's auto exposure (a photo stored in other units)
+  const autos = META.photos.map((p) => p.auto_stops).filter(Number.isFinite);
+  exposure.min = String(Math.min(-20, Math.floor(Math.min(...autos, 0)) - 5));
+  exposure.max = String(Math.max(20, Math.ceil(Math.max(...autos, 0)) + 5));
   exposure.addEventListener("input", () => setStops(Number(exposure.value)));
   document.getElementById("exposure-auto").addEventListener("click",
     () => setStops(META.photos[R.index].auto_stops));
