@@ -46,11 +46,16 @@ def flash_slice(merl_table):
 
 
 def check_flash_slice(rho, where):
-    """InputError naming `where` when the flash slice rho (90, 3) (flash_slice) holds no value:
-    the table has no data at theta_d = 0, where every method starts."""
+    """InputError naming `where` when the flash slice rho (90, 3) (flash_slice) holds no bin
+    with all three channels: the table has no data at theta_d = 0, where every method starts (a
+    slice.csv row needs R, G and B)."""
     if not np.isfinite(rho).any():
         raise InputError(where, "has no value at theta_d = 0 (every bin of its first theta_d row "
                                 "is negative: no data): its flash slice is empty")
+    if not np.isfinite(rho).all(axis=1).any():
+        raise InputError(where, "has no theta_d = 0 bin with data in all three channels (a "
+                                "channel is negative, no data, throughout): its flash slice is "
+                                "empty")
 
 
 def table_2d(merl_table):

@@ -150,7 +150,7 @@ def run_test_set(merl_dirs, test_dir, out_dir, seed=0, label=None, command=None)
     merl.list_merl_dirs(list(merl_dirs) + [test_dir])
     train = TrainingSet.from_merl_dirs(merl_dirs)
     check_training_size(len(train), "--merl-dir")
-    test = TrainingSet.from_merl_dir(test_dir)
+    test = TrainingSet.from_merl_dir(test_dir, fill=False)  # scored only: holes stay holes
     start = time.perf_counter()
     result = score_methods(train, test, seed=seed)
     label = label or os.path.basename(os.path.normpath(test_dir))

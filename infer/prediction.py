@@ -14,6 +14,7 @@ import numpy as np
 
 from flashbrdf.brdf import merl
 from flashbrdf.files.atomic import write_text
+from flashbrdf.files.errors import InputError
 from flashbrdf.files.outputs import sidecar_json
 from flashbrdf.infer.warning import prediction_warning
 from flashbrdf.infer.slices import (sample_counts, sparse_tail_note, sparse_tail_record,
@@ -51,9 +52,24 @@ def predict_slice(method, rho, n, view, source="slice"):
     start = time.perf_counter()
     table, variance = method.predict(rho, view=view)
     seconds = time.perf_counter() - start
+    check_storable(table, rho, method, source)
     novelty, warning = prediction_warning(method, rho, source)
     return Prediction(table, variance, view, seconds, novelty, warning, ignored, n,
                       int(np.isfinite(rho).all(axis=1).sum()))
+
+
+def check_storable(table, rho, method, source):
+    """InputError naming the slice `source` when the predicted table holds a value no MERL table
+    may (above brdf.merl.MAX_STORED_VALUE): a method extrapolating from a slice far outside its
+    training range (pca from a flat 1e20 1/sr slice reached 2e36) would write a file that
+    nothing, this tool included, reads back."""
+    with np.errstate(invalid="ignore"):
+        top = np.nanmax(np.asarray(table, dtype=np.float64), initial=0.0)
+    if top > merl.MAX_STORED_VALUE:
+        raise InputError(source, f"{method.name}'s prediction reaches {top:.3g} 1/sr, beyond the "
+                                 f"{merl.MAX_STORED_VALUE:g} a MERL table holds: the slice (up to "
+                                 f"{np.nanmax(rho):.3g} 1/sr) lies far outside the training "
+                                 "tables' range; check its units, or use another method")
 
 
 def merl_table(prediction):

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flashbrdf.brdf import merl, views
-from flashbrdf.brdf.bins import valid_bins_3d, valid_flat_3d
+from flashbrdf.brdf.bins import valid_bins_3d, valid_flat_3d, valid_mask_2d
 from flashbrdf.files.errors import InputError
 from flashbrdf.files.threads import thread_budget
 
@@ -19,12 +19,60 @@ def default_threads():
     return thread_budget(4)
 
 
-def _read_views(path, keep_3d, bins_3d):
-    """(flash slice (90, 3), 2D table (90, 90, 3), valid 3D bins (n, 3) float32 or None) of one
-    MERL file."""
+def _read_views(path, keep_3d, bins_3d, fill=True):
+    """(flash slice (90, 3), 2D table (90, 90, 3), valid 3D bins (n, 3) float32 or None, count
+    of 2D bins filled) of one MERL file, its no-data bins filled (fill_missing_2d) or, for a
+    table that is only scored (fill=False), left NaN."""
     table = merl.read_merl(path)
-    rows = table[bins_3d].astype(np.float32) if keep_3d else None
-    return views.flash_slice(table)[0], views.table_2d(table), rows
+    flash_slice = views.flash_slice(table)[0]
+    views.check_flash_slice(flash_slice, path)   # a table with no θd = 0 row is refused, not filled
+    if not fill:
+        return (flash_slice, views.table_2d(table),
+                table[bins_3d].astype(np.float32) if keep_3d else None, 0)
+    table_2d, filled = fill_missing_2d(views.table_2d(table))
+    rows = fill_missing_3d(table[bins_3d], table_2d).astype(np.float32) if keep_3d else None
+    flash_slice = np.where(np.isfinite(flash_slice), flash_slice, table_2d[:, 0])
+    return flash_slice, table_2d, rows, filled
+
+
+_FILL_FLOOR = 1e-6  # 1/sr: ln(ρ + floor) is interpolated, so a black neighbour stays finite
+
+
+def fill_missing_2d(table_2d):
+    """(table (90, 90, 3) with its no-data bins (NaN inside brdf.bins.valid_mask_2d, MERL's
+    negative values in every φd) filled, how many (θh, θd) bins were filled).
+
+    A training table is one row of every method's data matrix: one hole would void a PCA basis,
+    a Gram matrix or a GP's features for every prediction. Each hole gets ln(ρ + 1e-6)
+    interpolated linearly along θh within its θd column (the nearest value past either end), and
+    where a whole column is empty, along θd. MERL's own tables have none."""
+    valid = valid_mask_2d()
+    holes = valid[..., None] & ~np.isfinite(table_2d)
+    if not holes.any():
+        return table_2d, 0
+    log = np.log(np.maximum(table_2d, 0.0) + _FILL_FLOOR)
+    log[~valid] = np.nan
+    for axis in (0, 1):  # along θh in each column, then along θd for what is left
+        moved = np.moveaxis(log, axis, 0)   # a view: writes land in `log`
+        for j in range(moved.shape[1]):
+            for c in range(3):
+                line, inside = moved[:, j, c], np.moveaxis(valid, axis, 0)[:, j]
+                known = np.isfinite(line)
+                gap = inside & ~known
+                if gap.any() and known.any():
+                    line[gap] = np.interp(np.flatnonzero(gap), np.flatnonzero(known), line[known])
+    filled = np.where(holes, np.exp(log) - _FILL_FLOOR, table_2d)
+    return np.maximum(filled, 0.0, where=holes, out=filled), int(holes.any(axis=2).sum())
+
+
+def fill_missing_3d(rows, table_2d):
+    """Valid 3D bins (n, 3) with their no-data values (NaN) set to the (filled) 2D table's value
+    at their (θh, θd): the table's φd mean stands in for the φd bins it lacks."""
+    missing = ~np.isfinite(rows)
+    if not missing.any():
+        return rows
+    ih, jd, _ = valid_bins_3d()
+    return np.where(missing, table_2d[ih, jd], rows)
 
 
 # Fewest training tables (`train` holds a fifth of them out to validate; the GPs need a spread).
@@ -70,14 +118,19 @@ class TrainingSet:
     # median and Gram matrix over every table, ~45 ms of `infer`'s ~1 s). A subset does not
     # carry it.
     fitted_pca: dict = field(default=None, repr=False)
+    # {MERL file: how many of its (θh, θd) bins held no data and were filled (fill_missing_2d)}
+    filled_bins: dict = field(default_factory=dict)
+    fill: bool = True  # table_3d_valid fills no-data bins too (False: tables only scored)
 
     def __len__(self):
         return len(self.names)
 
     @classmethod
-    def from_merl_dir(cls, folder, names=None, keep_3d=False):
+    def from_merl_dir(cls, folder, names=None, keep_3d=False, fill=True):
         """Read the MERL tables of `folder` (all, or those in `names`, in that order).
-        keep_3d: also hold their valid 3D bins as float32 rows (N × 1.1 M × 3 × 4 B)."""
+        keep_3d: also hold their valid 3D bins as float32 rows (N × 1.1 M × 3 × 4 B).
+        fill: fill their no-data bins (fill_missing_2d), as training needs; False for tables
+        that are only scored, whose holes the metrics skip."""
         found = dict(merl.list_merl(folder))
         if not found:
             raise InputError(folder, "no .binary MERL tables in this folder")
@@ -89,12 +142,11 @@ class TrainingSet:
         # each table's arithmetic is the same as read alone (same result for any thread count)
         bins_3d = valid_bins_3d() if keep_3d else None
         with ThreadPoolExecutor(min(default_threads(), len(names))) as pool:
-            read = list(pool.map(lambda n: _read_views(found[n], keep_3d, bins_3d), names))
-        slices, tables, rows = ([r[k] for r in read] for k in range(3))
-        for n, flash_slice in zip(names, slices):
-            views.check_flash_slice(flash_slice, found[n])
+            read = list(pool.map(lambda n: _read_views(found[n], keep_3d, bins_3d, fill), names))
+        slices, tables, rows, filled = ([r[k] for r in read] for k in range(4))
         return cls(names, np.array(slices), np.array(tables), [found[n] for n in names],
-                   np.array(rows) if keep_3d else None)
+                   np.array(rows) if keep_3d else None,
+                   filled_bins={str(found[n]): c for n, c in zip(names, filled) if c}, fill=fill)
 
     @classmethod
     def from_merl_dirs(cls, folders, keep_3d=False):
@@ -109,13 +161,15 @@ class TrainingSet:
                    slices=np.concatenate([p.slices for p in parts]),
                    tables_2d=np.concatenate([p.tables_2d for p in parts]),
                    paths=[q for p in parts for q in p.paths],
-                   valid_3d=np.concatenate([p.valid_3d for p in parts]) if keep_3d else None)
+                   valid_3d=np.concatenate([p.valid_3d for p in parts]) if keep_3d else None,
+                   filled_bins={k: v for p in parts for k, v in p.filled_bins.items()})
 
     def subset(self, index):
         index = list(index)
         return TrainingSet([self.names[i] for i in index], self.slices[index], self.tables_2d[index],
                            None if self.paths is None else [self.paths[i] for i in index],
-                           None if self.valid_3d is None else self.valid_3d[index])
+                           None if self.valid_3d is None else self.valid_3d[index],
+                           fill=self.fill)
 
     @property
     def missing_3d(self):
@@ -137,4 +191,7 @@ class TrainingSet:
         if self.paths[i] is None:  # its 3D table was not found: the 2D table across phi_d
             ih, jd, _ = valid_bins_3d()
             return np.nan_to_num(np.asarray(self.tables_2d[i][ih, jd], dtype=dtype))
-        return merl.read_merl_bins(self.paths[i], valid_flat_3d(), dtype)
+        rows = merl.read_merl_bins(self.paths[i], valid_flat_3d(), dtype)
+        if not self.fill:
+            return rows
+        return fill_missing_3d(rows, self.tables_2d[i]).astype(dtype, copy=False)

@@ -53,6 +53,9 @@ def train(merl_dirs, out, views_text="1d,2d", feature_space="auto", seed=0):
     check_training_size(len(training), folders[0] if len(folders) == 1 else "--merl-dir")
     params = train_model(training, out, views=wanted, seed=seed, feature_space=feature_space,
                          merl_dirs=folders)
+    for path, count in training.filled_bins.items():
+        print(f"note: {path}: {count} (θh, θd) bin(s) hold no data (negative in every φd); "
+              "filled from their neighbours for training")
     print(f"trained on {len(training)} materials from {len(folders)} folder(s) in "
           f"{params['train_seconds']:.1f} s -> {out}")
 

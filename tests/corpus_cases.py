@@ -61,6 +61,10 @@ CASES = [
     ("merl-slice", "every value negative (no data)", lambda w, t: ["merl-slice", str(write(
         t, "m.binary", merl_body(w, lambda body: -np.ones_like(body)))), "--out",
         out_path(t, "s.csv")], "m.binary"),
+    ("merl-slice", "one channel with no data throughout", lambda w, t: ["merl-slice", str(write(
+        t, "m.binary", merl_body(w, lambda body: np.concatenate([
+            body[:len(body) // 3], -np.ones(len(body) // 3), body[2 * len(body) // 3:]])))),
+        "--out", out_path(t, "s.csv")], "m.binary"),
     ("merl-slice", "values of 1e300", lambda w, t: ["merl-slice", str(write(
         t, "m.binary", merl_body(w, lambda body: body * 1e300))), "--out", out_path(t, "s.csv")],
      "m.binary"),
@@ -230,6 +234,11 @@ CASES = [
     ("infer", "slice value 1e300 (its prediction overflowed the table)", lambda w, t: [
         "infer", "--method", "chandraker", "--slice", str(write(t, "s.csv", nan_slice(w).replace(
             "nan", "1e300"))), "--out", out_path(t, "b.binary")], "s.csv"),
+    ("infer", "a flat 1e20 slice pca extrapolates past what a MERL table holds", lambda w, t: [
+        "infer", "--model", str(w.model), "--method", "pca", "--slice", str(write(
+            t, "s.csv", "theta_h_deg,r,g,b,n\n" + "".join(
+                f"{90 * ((i + 0.5) / 90) ** 2},1e20,1e20,1e20,180\n" for i in range(90)))),
+        "--out", out_path(t, "b.binary")], "s.csv"),
     ("infer", "slice n beyond int64", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                     str(write(t, "s.csv", slice_n(w, "9" * 30))),
                                                     "--out", out_path(t, "b.binary")], "s.csv"),

@@ -118,6 +118,18 @@ def test_oracle_projects_training_table_exactly(mixed_set):
     np.testing.assert_allclose(method.predict_truth(truth)[ok], truth[ok], rtol=1e-6, atol=1e-9)
 
 
+def test_oracle_projects_a_table_with_no_data_bins_on_the_bins_it_has(mixed_set):
+    """A true table with holes (MERL's no data) is projected on the bins it holds: a training
+    table is still recovered exactly, holes included (one NaN made every coefficient NaN, and
+    the oracle, the lower bound, scored worst)."""
+    method = Oracle(ridge=0.0).fit(mixed_set)
+    truth = mixed_set.tables_2d[2]
+    holed = truth.copy()
+    holed[30:40, 10:20] = np.nan
+    ok = np.isfinite(truth).all(-1)
+    np.testing.assert_allclose(method.predict_truth(holed)[ok], truth[ok], rtol=1e-6, atol=1e-9)
+
+
 def test_pca_3d_streams_training_tables(mixed_set):
     # all components, training slice: the dual weights select that material, so its 3D comes back
     method = PCA(n_components=None, ridge=0.0).fit(mixed_set)

@@ -42,8 +42,15 @@ class Oracle(PCA):
     def predict_truth(self, true_table_2d):
         """Ridge projection of the true 2D table (90, 90, 3) -> predicted (90, 90, 3), NaN invalid."""
         m = to_mapped(np.asarray(true_table_2d)[valid_mask_2d()], self.ref_, self.w_).ravel()
-        proj = self.components_.T @ (m - self.mean_)
-        c = proj * self.var_ / (self.var_ + self.ridge)
+        known = np.isfinite(m)
+        if known.all():
+            proj = self.components_.T @ (m - self.mean_)
+            c = proj * self.var_ / (self.var_ + self.ridge)
+        else:  # bins the truth lacks: the same ridge fit on the others (U is not orthonormal there)
+            u = self.components_[known]
+            lhs = u.T @ u + np.diag(self.ridge / self.var_)
+            c = np.linalg.solve(lhs + 1e-12 * np.trace(lhs) * np.eye(len(lhs)),
+                                u.T @ (m[known] - self.mean_[known]))
         return self._table_from_mapped(self.mean_ + self.components_ @ c)
 
     def space_3d(self):
