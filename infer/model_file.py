@@ -176,8 +176,11 @@ def load_dsgplvm(blob, training=None, feature_space="lab", features_2d=None):
 
 
 def load_method(path, name, merl_dir=None, **overrides):
-    """A fitted method `name` from MODEL.npz (see infer.make_method); `overrides` replace stored
-    hyperparameters that act at prediction time (e.g. anchor=True for dsgplvm)."""
+    """A fitted method `name` from MODEL.npz (see infer.make_method), as `flashbrdf infer` uses
+    it: dsgplvm is the shipped default (anchor=True; anchor=False is the paper's method).
+    `overrides` replace stored hyperparameters that act at prediction time."""
+    if name == "dsgplvm":
+        overrides = {"anchor": True, **overrides}
     return load_methods(path, [name], merl_dir, {name: overrides})[name]
 
 

@@ -331,3 +331,20 @@ def test_train_fills_a_training_table_s_no_data_bins(merl_proxy, tmp_path, capsy
     assert np.isfinite(filled[merl.merl_valid_mask().any(axis=2)]).all()
     np.testing.assert_allclose(filled[40, 40], truth, rtol=0.02)
     assert training.filled_bins == {str(folder / "holed.binary"): 1}
+
+
+def test_the_python_api_predicts_what_infer_writes(trained, tmp_path):
+    """load_method(model, "dsgplvm") is the method `flashbrdf infer` runs (the shipped default,
+    anchored), not the paper's unanchored one (about twice the error): the same 2D table, to
+    the file's float64 round trip."""
+    from flashbrdf.infer import load_method
+    folder, model, slice_csv = trained
+    out = tmp_path / "cli.binary"
+    assert main(["infer", "--model", str(model), "--slice", str(slice_csv), "--out", str(out)]) == 0
+    rho, _ = views.read_slice_csv(slice_csv)
+    table, _ = load_method(model, "dsgplvm").predict(rho, "2d")
+    written = views.table_2d(merl.read_merl(out))
+    ok = np.isfinite(written).all(-1)
+    np.testing.assert_allclose(table[ok], written[ok], rtol=1e-9, atol=1e-12)
+    paper, _ = load_method(model, "dsgplvm", anchor=False).predict(rho, "2d")
+    assert not np.allclose(paper[ok], written[ok], rtol=1e-3)
