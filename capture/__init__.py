@@ -6,6 +6,7 @@ Gives a validated scene description, float32 linear-RGB photos with per-pixel "u
 
 Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   load_scene(scene_dir) -> Scene(folder, camera, geometry, photos, json_path)
+  photo_labels(photos, folder) -> {photo.index: stem, or path where two photos share a stem}
   camera_rays(camera) -> origins (H, W, 3), directions (H, W, 3)
   pixel_rays(camera, rows, cols) -> origins (N, 3), directions (N, 3)
   view_directions(camera, points, rows=None, cols=None) -> (N, 3) toward the camera
@@ -52,7 +53,8 @@ from flashbrdf.capture.load import (FlashImage, camera_key, iter_flash_images, l
                                     load_photo_entry, load_reference_entry, photo_exists,
                                     same_view)
 from flashbrdf.capture.photo import load_brackets, load_photo, read_float_image, srgb_to_linear
-from flashbrdf.capture.scene import Camera, Geometry, Light, Photo, Scene, load_scene
+from flashbrdf.capture.scene import (Camera, Geometry, Light, Photo, Scene, load_scene,
+                                     photo_labels)
 
 
 __all__ = [
@@ -60,7 +62,8 @@ __all__ = [
     "Surface", "box_pixels", "camera_key", "camera_rays", "embree_rays", "intersect",
     "is_convex", "load_brackets", "iter_flash_images", "load_flash_images", "load_mesh",
     "load_normal_map", "load_photo", "load_photo_entry", "load_reference_entry", "load_scene",
-    "mask_box", "mesh_pixels", "photo_exists", "same_view", "occluded", "pixel_box",
+    "mask_box", "mesh_pixels", "photo_exists", "photo_labels", "same_view", "occluded",
+    "pixel_box",
     "pixel_rays", "project_points", "read_float_image", "scene_intersector", "srgb_to_linear",
     "surface_at_pixels", "surface_from_mesh", "surface_from_normal_map", "view_directions",
 ]

@@ -128,6 +128,24 @@ class Photo:
         return Path(path).stem
 
 
+def photo_labels(photos, folder):
+    """{photo.index: name} for per-photo records (slice.json's photos[], pose shifts): the file
+    stem, or, where two of `photos` share a stem (views in subfolders, ringA/img_0.jpg and
+    ringB/img_0.jpg), the file relative to the scene `folder`, so that no record hides another."""
+    stems = [p.stem for p in photos]
+    labels = {}
+    for p in photos:
+        if stems.count(p.stem) == 1:
+            labels[p.index] = p.stem
+            continue
+        path = Path(p.file if p.file is not None else p.brackets[0][0])
+        try:
+            labels[p.index] = path.relative_to(folder).as_posix()
+        except ValueError:
+            labels[p.index] = path.as_posix()
+    return labels
+
+
 @dataclass(frozen=True, eq=False)
 class Geometry:
     """Either mesh (Path) or normal_map + mask (Paths)."""

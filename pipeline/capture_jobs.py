@@ -4,6 +4,7 @@ Each takes values, checks its outputs against its inputs before any slow work (f
 and writes all or nothing; bad input raises InputError (exit 2).
 """
 
+import sys
 import time
 from pathlib import Path
 
@@ -44,6 +45,8 @@ def extract(scene_dir, out, options=None):
     check_sidecar_replaceable(sidecar_json(out), "slice_csv", "slice report (SLICE.json)")
     result = extract_slice(scene, options)
     write_extraction(out, scene_dir, result, options)
+    for warning in result.report.get("warnings", []):
+        print(f"warning: {warning}", file=sys.stderr)
 
 
 def extract_materials(scene_dir, labels_png, out, options=None, force=False):

@@ -114,7 +114,10 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
                            final_path=settings.final_out / "slice.csv")
     write_labels(out / "labels.png", segmentation, faces)
 
-    predictions, two_d, ood_warnings = {}, [], []
+    predictions, two_d = {}, []
+    ood_warnings = list(result.report.get("warnings", []))  # the flash too far from the lens
+    for w in ood_warnings:
+        print(f"warning: {w}", file=sys.stderr)
     for name in settings.methods:
         prediction = stages.run(f"infer {name}", infer_method, fitted[name], name,
                                 settings.model_path, rho, result.n, out / name, samples.level)

@@ -78,6 +78,9 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
     whole = stages.run("extract", bin_samples, samples)
     write_extraction(out / "slice.csv", settings.scene_dir, whole, ExtractOptions(),
                      final_path=settings.final_out / "slice.csv")
+    for w in whole.report.get("warnings", []):  # the flash too far from the lens: every material
+        print(f"warning: {w}", file=sys.stderr)
+        warnings.insert(0, w)
     for k, result in slices.items():
         if result is None:
             rhos[k] = whole.rho

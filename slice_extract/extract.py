@@ -242,6 +242,7 @@ def collect_samples(scene, options=None):
     t = clock.add("load_mesh", t)
 
     store, per_photo, first = SampleStore(options), [], None
+    names = capture.photo_labels(flashes, scene.json_path.parent)
     traced_camera, surfaces, object_mask, edge = None, None, None, None
     images = capture.iter_flash_images(scene)
     for k in photo_progress(range(len(flashes)), "extract"):
@@ -261,9 +262,10 @@ def collect_samples(scene, options=None):
                 edge |= target_mask
             del depth
             traced_camera = camera
-        stats = dict(photo=image.photo.stem, usable=int(image.usable.sum()),
+        name = names[image.photo.index]
+        stats = dict(photo=name, usable=int(image.usable.sum()),
                      clipped=int(image.clipped.sum()), on_surface=0, **dict.fromkeys(REASONS, 0),
-                     not_needed=0, **({} if poses is None else {"pose": poses[image.photo.stem]}))
+                     not_needed=0, **({} if poses is None else {"pose": poses[name]}))
         t = clock.add("trace", t)
         skip = not needs_shadows or convex or lights[k].at_viewpoint
         parts = []

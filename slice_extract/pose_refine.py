@@ -40,9 +40,9 @@ CONVERGED_PX = 0.05
 
 
 def refine_flash_cameras(scene, measure, iterations=3):
-    """(scene with refined flash cameras, record): record[photo stem] = {"shift_px": [du, dv]
+    """(scene with refined flash cameras, record): record[photo name] = {"shift_px": [du, dv]
     total image shift (applied as a turn of the camera, _turned), "refined": bool, "note": why
-    not, when not}.
+    not, when not}; the name is capture.photo_labels' (the stem, unless two photos share it).
 
     scene: capture.Scene; measure(scene) -> (FlashSamples, rho (90, 3) binned slice): one
     extraction pass (slice_extract.extract supplies it: this module runs no extraction itself).
@@ -76,12 +76,13 @@ def refine_flash_cameras(scene, measure, iterations=3):
             total[key] = np.zeros(2)
     current = _shifted(scene, views, total)
     record = {}
+    names = capture.photo_labels(scene.photos_with_role("flash"), scene.json_path.parent)
     for key, photos in views.items():
         for photo in photos:
-            record[photo.stem] = {"shift_px": [round(float(v), 4) for v in total[key]],
-                                  "refined": key not in notes}
+            record[names[photo.index]] = {"shift_px": [round(float(v), 4) for v in total[key]],
+                                          "refined": key not in notes}
             if key in notes:
-                record[photo.stem]["note"] = notes[key]
+                record[names[photo.index]]["note"] = notes[key]
     return current, record
 
 

@@ -151,8 +151,24 @@ def extraction_report(scene, options, per_photo, theta_h, theta_d, inlier, n, ti
                                                          "silhouette_px", "outlier_k",
                                                          "estimator", "refine_poses")},
             "coverage": coverage, "rejected": {k: int(v) for k, v in rejected.items()},
+            "warnings": theta_d_warnings(rejected, int(inlier.sum()), options.max_theta_d_deg),
             "theta_d_deg": _stats_deg(theta_d[inlier]), "photos": per_photo,
             "n": [int(v) for v in n], "timings_s": {k: round(v, 4) for k, v in timings.items()}}
+
+
+THETA_D_WARN_SHARE = 0.5  # the flash's own sample lost more pixels than it kept
+
+
+def theta_d_warnings(rejected, used, max_theta_d_deg):
+    """[a warning] when most of the object's pixels seen lit fell past max_theta_d_deg: the
+    flash sits far from the lens for the distance shot from (θd ≈ half the angle between them,
+    seen from the object), and the slice rests on a few pixels, or none."""
+    past = int(rejected.get("theta_d", 0))
+    if past == 0 or past <= THETA_D_WARN_SHARE * (past + used):
+        return []
+    return [f"{100 * past / (past + used):.0f}% of the object's pixels lie past θd "
+            f"{max_theta_d_deg:g}° (the flash is far from the lens for this distance): shoot "
+            "from further away or with the flash nearer the lens (docs/capture.md)"]
 
 
 def _stats_deg(values):

@@ -97,6 +97,48 @@ def test_far_light_rejected_by_theta_d(scene, tmp_path, capsys):
                  "--max-theta-d", "20"]) == 0
 
 
+@pytest.mark.parametrize("offset, warned", [(0.02, False), (0.16, False), (0.17, True)])
+def test_a_flash_too_far_from_the_lens_is_warned_of(tmp_path, capsys, offset, warned):
+    """The sphere's front is 0.9 m away: a flash 0.16 m off puts θd ≈ atan(0.16 / 0.9) / 2 =
+    5.0° there and loses a fifth of the pixels; 0.17 m (5.4°) loses nearly all (measured 96%),
+    and the slice then rests on a few dozen pixels: extract says so, and SLICE.json keeps it."""
+    scene = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=3), ggx_lambert(),
+                                  pinhole_camera(64, 64, 200.0), [point_light([offset, 0, 0])])
+    capsys.readouterr()
+    assert main(["extract", str(scene), "--out", str(tmp_path / "s.csv")]) == 0
+    err = capsys.readouterr().err
+    report = json.loads((tmp_path / "s.json").read_text())
+    share = report["rejected"]["theta_d"] / (report["rejected"]["theta_d"]
+                                            + report["coverage"]["pixels_used"])
+    assert (share > 0.5) == warned
+    assert ("lie past θd 5°" in err) == warned and bool(report["warnings"]) == warned
+
+
+def test_photos_that_share_a_stem_are_told_apart_in_the_report(tmp_path):
+    """Views in subfolders (ringA/img_0.exr, ringB/img_0.exr, as an import of a COLMAP model
+    with image folders writes them): slice.json names each photo by its path there, not twice
+    by one stem; a photo whose stem is its own keeps the stem."""
+    scene = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=3), ggx_lambert(),
+                                  pinhole_camera(64, 64, 200.0),
+                                  [point_light([0.01, 0, 0]), point_light([0, 0.01, 0]),
+                                   point_light([-0.01, 0, 0])])
+    flashes = [p for p in json.loads((scene / "scene.json").read_text())["photos"]
+               if p["role"] == "flash"]
+    new_names = ["ringA/img_0.exr", "ringB/img_0.exr", "other.exr"]
+    for photo, name in zip(flashes, new_names):
+        (scene / name).parent.mkdir(exist_ok=True)
+        (scene / photo["file"]).rename(scene / name)
+
+    def rename(doc):
+        for photo, name in zip([p for p in doc["photos"] if p["role"] == "flash"], new_names):
+            photo["file"] = name
+    _edit(scene, rename)
+    assert main(["extract", str(scene), "--out", str(tmp_path / "s.csv")]) == 0
+    report = json.loads((tmp_path / "s.json").read_text())
+    assert [p["photo"] for p in report["photos"]] == ["ringA/img_0.exr", "ringB/img_0.exr",
+                                                      "other"]
+
+
 def test_normal_map_orthographic_directional(tmp_path):
     """Normal-map geometry (no ray casting) with an orthographic camera and a directional light
     along the view, rendered here from the analytic sphere: the slice comes back within 1%."""
