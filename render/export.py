@@ -114,7 +114,10 @@ def gltf_material(params, name="flashbrdf"):
             "clearcoatFactor": float(params["clearcoat"]),
             "clearcoatRoughnessFactor": coat_roughness(params["clearcoat_gloss"])}
     if params["sheen"] > USED:
-        colour = np.clip(params["sheen"] * (1.0 + params["sheen_tint"] * (tint - 1.0)), 0.0, 1.0)
+        # glTF caps the colour at 1: a saturated tint (base / luminance reaches 4.7 for pure red)
+        # is scaled down whole, so its hue stays the one Mitsuba and Blender get
+        colour = np.clip(params["sheen"] * (1.0 + params["sheen_tint"] * (tint - 1.0)), 0.0, None)
+        colour = colour / max(1.0, float(colour.max()))
         extensions["KHR_materials_sheen"] = {"sheenColorFactor": [float(c) for c in colour],
                                              "sheenRoughnessFactor": 0.5}
     material = {"name": name, "pbrMetallicRoughness": {

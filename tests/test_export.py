@@ -12,7 +12,7 @@ from flashbrdf.brdf.models.principled import principled_brdf_angles, principled_
 from flashbrdf.brdf.models.principled_fit import fit_principled
 from flashbrdf.brdf.views import table_2d
 from flashbrdf.cli.main import main
-from flashbrdf.render.export import FORMATS, gltf_material
+from flashbrdf.render.export import FORMATS, blender_parameters, gltf_material
 
 # The issue's four known materials: rough and glossy dielectrics, a rough metal, a clearcoated paint.
 KNOWN = {
@@ -82,6 +82,21 @@ def _gltf_is_valid(doc):
     assert used <= {"KHR_materials_specular", "KHR_materials_ior", "KHR_materials_clearcoat",
                     "KHR_materials_sheen"}
     return material
+
+
+def test_a_saturated_sheen_keeps_its_hue_in_gltf():
+    """Blender and Mitsuba take the sheen tint lerp(1, base / luminance, tint) unclamped ([4.70,
+    0.03, 0.03] for a nearly pure red at tint 1); glTF caps the colour at 1, and clipping per
+    channel turned [1.8, 0.9, 0.3] into [1, 0.9, 0.3], another hue. Scaled down whole, the
+    glTF colour is Blender's up to one factor."""
+    params = {"base_color": [0.9, 0.45, 0.15], "roughness": 0.5, "metallic": 0.0,
+              "specular": 0.5, "spec_tint": 0.0, "sheen": 1.0, "sheen_tint": 1.0,
+              "clearcoat": 0.0, "clearcoat_gloss": 0.0}
+    blender = np.array(blender_parameters(params)["Sheen Tint"][:3])
+    gltf = np.array(_gltf_is_valid(gltf_material(params))["extensions"]["KHR_materials_sheen"]
+                    ["sheenColorFactor"])
+    assert blender.max() > 1 and gltf.max() == pytest.approx(1.0)
+    np.testing.assert_allclose(gltf / gltf.max(), blender / blender.max(), rtol=1e-12)
 
 
 def test_gltf_uses_extensions_only_where_the_fit_does():
