@@ -279,6 +279,29 @@ def test_methods_are_shown_and_hidden_from_the_keyboard(page):
     assert not page.page.evaluate(f"B.hidden.has('{METHODS[1]}')") and box.is_checked()
 
 
+def test_every_brdf_plot_reads_out_from_the_keyboard(page):
+    """Focused, the slice plot (← →: θh bin), the heat maps (↑ ↓: θh, ← →: θd; the first key
+    lands on bin (0, 0)) and the polar plot (the first key lands on θo = 0) give the readouts
+    the mouse gives."""
+    page.page.locator("#slice-plot").focus()
+    for key in ["ArrowRight", "ArrowRight", "ArrowRight"]:
+        page.page.keyboard.press(key)
+    assert page.page.inner_text("#slice-readout").startswith("θh bin 2 (0.07°)")
+    page.page.locator(".heatcard canvas").first.focus()
+    for key in ["ArrowDown", "ArrowDown", "ArrowDown", "Shift+ArrowRight"]:
+        page.page.keyboard.press(key)
+    text = page.page.inner_text("#heat-readout")
+    method = METHODS[0]
+    want = page.page.evaluate(f"""() => {{ const t = dataset(0).methods["{method}"].table;
+        const o = 3 * (90 * 2 + 10); return [t[o], t[o + 1], t[o + 2]]; }}""")
+    assert text.startswith(f"{method}: θh 0.07°, θd 10.5° → ρ (")
+    shown = [float(v) for v in text.split("(")[1].split(")")[0].split()]
+    assert np.allclose(shown, want, rtol=5e-4)             # 4 significant digits of float32
+    page.page.locator("#polar-plot").focus()
+    page.page.keyboard.press("ArrowLeft")
+    assert page.page.inner_text("#polar-readout").startswith("θo 0.0°")
+
+
 def test_the_exposure_control_reaches_every_photo_auto_exposure(browser, sample_page, tmp_path):
     """A photo stored in other units (auto exposure +33 EV) is not clamped at the slider's end."""
     text = sample_page.read_text()

@@ -135,13 +135,18 @@ function slicePlot(canvas, d, channel, readout, legend = true) {
       const deg = canvas.axes.x.sqrt ? 90 * t * t : 90 * t;
       let i = 0;
       for (let k = 1; k < 90; k++) if (Math.abs(THETA_H_DEG[k] - deg) < Math.abs(THETA_H_DEG[i] - deg)) i = k;
-      const ds = dataset(B.dataset), ch = B.channel;
-      const parts = [`θh bin ${i} (${THETA_H_DEG[i].toFixed(2)}°)`];
-      if (ds.observed) parts.push(`observed ${fmtSig(observedValue(ds.observed, i, ch))} (${ds.observed.n[i]} px)`);
-      for (const m of Object.keys(ds.methods)) parts.push(`${m} ${fmtSig(tableValue(ds.methods[m].table, i, 0, ch))}`);
-      readout.textContent = readoutPrefix() + parts.join(" · ") + " 1/sr";
+      sliceReadout(readout, i);
     });
+    keyCursor(canvas, [1, 90], (_, i) => sliceReadout(readout, i));  // ← →: the θh bin
   }
+}
+
+function sliceReadout(readout, i) {
+  const ds = dataset(B.dataset), ch = B.channel;
+  const parts = [`θh bin ${i} (${THETA_H_DEG[i].toFixed(2)}°)`];
+  if (ds.observed) parts.push(`observed ${fmtSig(observedValue(ds.observed, i, ch))} (${ds.observed.n[i]} px)`);
+  for (const m of Object.keys(ds.methods)) parts.push(`${m} ${fmtSig(tableValue(ds.methods[m].table, i, 0, ch))}`);
+  readout.textContent = readoutPrefix() + parts.join(" · ") + " 1/sr";
 }
 
 // One method shown or hidden on every slice plot, from a legend click or its box (the boxes are
@@ -255,7 +260,12 @@ function polarHover(e) {
   const y = (e.clientY - rect.top) * (canvas.height / canvas.dataset.ratio) / rect.height;
   const a = Math.atan2(x - p.cx, p.cy - y) * 180 / Math.PI;
   if (Math.abs(a) > 90) return;
-  const k = Math.max(0, Math.min(p.angles.length - 1, Math.round((a + 89.5) / 0.5)));
+  polarReadout(Math.max(0, Math.min(p.angles.length - 1, Math.round((a + 89.5) / 0.5))));
+}
+
+function polarReadout(k) {  // k: the index of θo in the plot's angles
+  const p = document.getElementById("polar-plot").polar;
+  if (!p) return;
   const thetaI = Number(document.getElementById("theta-i").value);
   const [th, td] = halfDiff(thetaI * Math.PI / 180, p.angles[k] * Math.PI / 180);
   document.getElementById("polar-readout").textContent = readoutPrefix() +
@@ -315,6 +325,7 @@ function heatCanvas(values, lo, hi, lut, title, barLabel, onHover) {
     const j = Math.floor((x - ax.box.left) / ax.box.width * 90), i = Math.floor((y - ax.box.top) / ax.box.height * 90);
     if (i >= 0 && i < 90 && j >= 0 && j < 90) onHover(i, j);
   });
+  keyCursor(canvas, [90, 90], onHover);  // ↑ ↓: θh, ← →: θd
   return canvas;
 }
 
@@ -452,6 +463,7 @@ function initBrdf() {
   });
   document.getElementById("lobe-log").addEventListener("change", polarPlot);
   document.getElementById("polar-plot").addEventListener("mousemove", polarHover);
+  keyCursor(document.getElementById("polar-plot"), [1, 359], (_, k) => polarReadout(k), [0, 179]);
   methodToggles();
   drawBrdf();
   principled();

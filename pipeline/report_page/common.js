@@ -223,3 +223,20 @@ function drawLegend(ctx, items, x, y) {
   }
   return boxes;
 }
+
+// Arrow keys on a focused plot move a cursor over its cells (Shift: 10), so that every readout
+// the mouse gives is reachable from the keyboard. size: [rows, cols]; onMove(row, col).
+function keyCursor(canvas, size, onMove, start = [0, 0]) {
+  canvas.tabIndex = 0;
+  let at = null;
+  canvas.addEventListener("keydown", (e) => {
+    const step = {ArrowUp: [-1, 0], ArrowDown: [1, 0], ArrowLeft: [0, -1], ArrowRight: [0, 1]}[e.key];
+    if (!step) return;
+    e.preventDefault();
+    const n = e.shiftKey ? 10 : 1;
+    at = at ? [at[0] + step[0] * n, at[1] + step[1] * n] : start.slice();
+    at = [Math.max(0, Math.min(size[0] - 1, at[0])), Math.max(0, Math.min(size[1] - 1, at[1]))];
+    onMove(at[0], at[1]);
+  });
+}
+
