@@ -68,6 +68,8 @@ def register(variant=None):
     """
     import mitsuba as mi
     if variant is not None:
+        if variant not in mi.variants():  # Mitsuba's own message for 42 is about str.join
+            raise ValueError(f"variant must be one of {', '.join(mi.variants())}; got {variant!r}")
         mi.set_variant(variant)
     elif mi.variant() is None:
         mi.set_variant("llvm_ad_rgb" if llvm_available() else "scalar_rgb")

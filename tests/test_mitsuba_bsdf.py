@@ -153,3 +153,12 @@ def test_drjit_bin_lookup_agrees_with_the_numpy_one():
     step[2] = np.minimum(step[2], 180 - step[2])   # φd wraps at 180°
     assert (ours != theirs).mean() <= 0.005
     assert step.max() <= 1
+
+
+def test_register_names_the_variants_when_given_another():
+    """register(42) raised Mitsuba's TypeError about str.join; now a ValueError naming the
+    variants, as for a name Mitsuba lacks (its own ImportError lists them too)."""
+    with pytest.raises(ValueError, match=r"variant must be one of .*scalar_rgb.*; got 42"):
+        mbsdf.register(42)
+    with pytest.raises(ValueError, match="got 'scalar_rbg'"):
+        mbsdf.register("scalar_rbg")
