@@ -165,13 +165,14 @@ def list_merl(folder):
     return [(n[: -len(".binary")], os.path.join(folder, n)) for n in names]
 
 
-def list_merl_dirs(folders):
+def list_merl_dirs(folders, options="the --merl-dir folders", why=""):
     """{name: path} of the `*.binary` files of every folder in `folders` (a path or a list of
     paths), in folder order then name order; reads no table.
 
     Material names must be unique across folders, since models and `infer --merl-dir` match tables
     by name: InputError naming both files otherwise. An empty or missing folder is an InputError
-    naming it (list_merl).
+    naming it (list_merl). options: what the folders are on the command line, and why: the
+    reason names must differ, for the messages.
     """
     if isinstance(folders, (str, os.PathLike)):
         folders = [folders]
@@ -179,12 +180,12 @@ def list_merl_dirs(folders):
     for folder in folders:
         real = os.path.realpath(folder)
         if real in seen:
-            raise InputError(folder, f"is given twice (also as {seen[real]}); give each "
-                                     "--merl-dir folder once")
+            raise InputError(folder, f"is given twice (also as {seen[real]}); give each of "
+                                     f"{options} once")
         seen[real] = folder
         for name, path in list_merl(folder):
             if name in found:
                 raise InputError(path, f"material name {name!r} is also {found[name]}; names must "
-                                       "be unique across --merl-dir folders")
+                                       f"be unique across {options}{why}")
             found[name] = path
     return found

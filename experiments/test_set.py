@@ -147,7 +147,8 @@ def run_test_set(merl_dirs, test_dir, out_dir, seed=0, label=None, command=None)
     label: how the test data is named in the report (default: the test folder's name). Material
     names must be unique across all folders, the test folder's included (InputError naming both
     files): a test table is never also a training table."""
-    merl.list_merl_dirs(list(merl_dirs) + [test_dir])
+    merl.list_merl_dirs(list(merl_dirs) + [test_dir], "the --merl-dir and --test-dir folders",
+                        ": a test table is never also a training table")
     train = TrainingSet.from_merl_dirs(merl_dirs)
     check_training_size(len(train), "--merl-dir")
     test = TrainingSet.from_merl_dir(test_dir, fill=False)  # scored only: holes stay holes

@@ -69,7 +69,8 @@ def test_train_refuses_duplicate_names_and_empty_folders(folders, tmp_path, caps
     eval_out = tmp_path / "eval"
     assert main(["evaluate", "--merl-dir", str(a), "--merl-dir", str(b), "--test-dir", str(dup),
                  "--out", str(eval_out)]) == 2
-    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    err = capsys.readouterr().err.strip().splitlines()   # it names the test folder as one
+    assert len(err) == 1 and "across the --merl-dir and --test-dir folders" in err[0]
     assert not out.exists() and not eval_out.exists()
     assert not list(tmp_path.glob(".*"))                      # no staged leftovers
 
