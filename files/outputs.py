@@ -167,6 +167,19 @@ def folder_inventory(folder, only=None, skip=()):
             for p in sorted(folder.rglob("*")) if p.is_file() and p.name not in skip}
 
 
+def files_fingerprint(paths):
+    """{path: [size in bytes, mtime in ns]} of `paths`, or None when one cannot be read: what
+    tells a later run that an input changed since an output was made from it."""
+    found = {}
+    for path in paths:
+        try:
+            st = os.stat(path)
+        except OSError:
+            return None
+        found[os.fspath(path)] = [st.st_size, st.st_mtime_ns]
+    return found
+
+
 def sidecar_json(path):
     """The JSON written beside a file output: SLICE.csv -> SLICE.json (x.json -> x.report.json)."""
     path = os.fspath(path)

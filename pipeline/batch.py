@@ -47,6 +47,7 @@ from flashbrdf.files.errors import InputError
 from flashbrdf.pipeline import dask_engine
 from flashbrdf.pipeline.batch_summary import (SUMMARY_HEADS, failed_row, row_from_report,
                                               write_summary)
+from flashbrdf.pipeline.options import inputs_fingerprint
 from flashbrdf.pipeline.report_index import INDEX_NAME
 from flashbrdf.files.outputs import MARKER as RUN_MARKER, folder_inventory
 from flashbrdf.files.outputs import check_writable_folder
@@ -71,11 +72,13 @@ def find_captures(captures_dir):
     return captures
 
 
-def completed_row(folder, requested=None):
+def completed_row(folder, requested=None, inputs=None):
     """The summary row in `folder`'s marker when a batch finished it with the run options
-    `requested` (a dict of RUN_OPTIONS as the batch was asked them; None: any), else None (no
-    marker, one that cannot be read, or other options: the capture is run again, since its
-    folder is not what `run` with these options writes, e.g. no export/ for a later --export)."""
+    `requested` (a dict of RUN_OPTIONS as the batch was asked them; None: any) from the inputs
+    `inputs` (files_fingerprint of run_inputs; None: any), else None (no marker, one that cannot
+    be read, other options or changed inputs: the capture is run again, since its folder is not
+    what `run` with these options writes from these files, e.g. no export/ for a later
+    --export, or the BRDF of photos since retaken)."""
     try:
         row = json.loads((Path(folder) / MARKER).read_text())
     except (OSError, ValueError):
@@ -86,6 +89,8 @@ def completed_row(folder, requested=None):
     if isinstance(asked, dict):  # a marker from before --refine-poses ran without it
         asked = {"refine_poses": False} | asked
     if requested is not None and asked != requested:
+        return None
+    if inputs is not None and row.get("inputs") != inputs:
         return None
     files = row.get("files")
     if isinstance(files, dict) and files != folder_inventory(folder, files):
@@ -219,6 +224,7 @@ def run_capture(scene_dir, out_dir, options):
         print(f"--- {time.strftime('%Y-%m-%d %H:%M:%S')} {name}: started on {worker}, "
               f"{threads} thread(s)", file=log)
         try:
+            inputs = inputs_fingerprint(scene_dir, options)
             # final_out: the paths run records (slice.json's slice.csv, --export's table) are
             # those of the capture's folder once published, not of this staging folder
             run(str(scene_dir), str(staging), model=options["model"],
@@ -236,7 +242,8 @@ def run_capture(scene_dir, out_dir, options):
             # lists every file run wrote, so one that loses a file later is not taken as complete
             files = folder_inventory(staging, skip=(MARKER,))
             write_text(staging / MARKER, json.dumps(
-                row | {"run_options": requested, "files": files}, indent=1) + "\n")
+                row | {"run_options": requested, "files": files, "inputs": inputs},
+                indent=1) + "\n")
             _publish(staging, out_dir / name)
         except InputError as err:
             shutil.rmtree(staging, ignore_errors=True)
@@ -428,7 +435,8 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
     requested = dict(options)  # what a capture's output depends on, as asked
     rows, todo = {}, []
     for c in captures:
-        row = None if force else completed_row(out / c.name, requested)
+        row = None if force else completed_row(out / c.name, requested,
+                                                inputs_fingerprint(c, options))
         if row is not None:
             row["reason"] = "complete from an earlier batch: skipped (--force reruns it)"
             rows[c.name] = row

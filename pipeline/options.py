@@ -5,6 +5,7 @@ InputError naming the option."""
 from pathlib import Path
 
 from flashbrdf.files.errors import InputError, no_file
+from flashbrdf.files.outputs import files_fingerprint
 
 # The model `run` and `batch` use when none is given; beside the package (sample_data/ in the
 # repository, flashbrdf/sample_data/ in a wheel).
@@ -45,6 +46,25 @@ def model_path(model, methods):
         return DEFAULT_MODEL
     raise InputError("--model", f"no model given and the default {DEFAULT_MODEL} is missing "
                                 "(make it with `flashbrdf train`)")
+
+
+def run_inputs(scene_dir, model, methods, envmap=None):
+    """Every file `run` of the capture `scene_dir` reads with these options: the scene's own
+    (capture.Scene.input_files), the model it loads and --envmap. InputError as run raises it."""
+    from flashbrdf import capture
+    files = capture.load_scene(scene_dir).input_files()
+    return files + [f for f in (model_path(model, method_names(methods)), envmap) if f is not None]
+
+
+def inputs_fingerprint(scene_dir, options):
+    """files_fingerprint of run_inputs for batch's run options (a dict: model, methods, envmap);
+    {} when the scene cannot be read (no marker matches it: the capture is run, and fails with
+    its reason)."""
+    try:
+        return files_fingerprint(run_inputs(scene_dir, options["model"], options["methods"],
+                                            options.get("envmap"))) or {}
+    except InputError:
+        return {}
 
 
 def samples_per_pixel(spp):

@@ -159,6 +159,21 @@ def test_resume_force_and_one_worker(two_workers, sequential, scheduler, capture
                  *RUN_OPTIONS]) == 0
     assert (out / "a" / "slice.csv").is_file() and "skipped" not in _summary(out)["a"]["reason"]
 
+    # an input changed since its output was made (a photo retaken): that capture is rerun, not
+    # kept with the old photos' BRDF; the marker holds each input's size and mtime
+    assert str((captures / "a" / "scene.json").resolve()) in json.loads(
+        (out / "a" / MARKER).read_text())["inputs"]
+    photo = next(p for p in (captures / "a").iterdir() if p.suffix == ".exr")
+    stat = photo.stat()
+    os.utime(photo, ns=(stat.st_atime_ns, stat.st_mtime_ns + 10 ** 9))
+    try:
+        assert main(["batch", str(captures), "--out", str(out), "--scheduler", scheduler,
+                     *RUN_OPTIONS]) == 0
+        rows = _summary(out)
+        assert "skipped" not in rows["a"]["reason"] and "skipped" in rows["b"]["reason"]
+    finally:
+        os.utime(photo, ns=(stat.st_atime_ns, stat.st_mtime_ns))
+
     for log in (out / "logs").glob("*.log"):
         log.unlink()
     assert main(["batch", str(captures), "--out", str(out), "--scheduler", scheduler, "--force",
