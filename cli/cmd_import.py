@@ -20,9 +20,11 @@ def add_parsers(sub):
 def import_diligent(args):
     from flashbrdf.capture.importers.diligent import import_diligent as write_scene
     from flashbrdf.files.progress import photo_progress
+    from flashbrdf.slice_extract import ExtractOptions
     scene = write_scene(args.obj_dir, args.flash, args.out,
                         progress=lambda photos: photo_progress(photos, "import-diligent"),
-                        force=args.force, notify=print)
+                        force=args.force, notify=print,
+                        max_theta_d_deg=ExtractOptions.max_theta_d_deg)
     n_ref = sum(p["role"] == "reference" for p in scene["photos"])
     flash = next(p for p in scene["photos"] if p["role"] == "flash")
     print(f"wrote {args.out}: flash {flash['file']}, {n_ref} reference photos, "

@@ -352,3 +352,28 @@ def test_rim_normals_facing_away_are_not_compared(tmp_path):
     for stem in ("002", "003", "004"):
         got = json.loads((tmp_path / "r" / f"{stem}_compare.json").read_text())
         assert got["delta_e_log_mean"] < 0.05, (stem, got)
+
+
+def test_a_flash_too_far_off_the_view_is_warned_of_at_import(tmp_path, capsys):
+    """A directional light and an orthographic view: θd is half the angle between them, the
+    same at every pixel. The ball's light 60 is 11.0° off (θd 5.5°, past extract's 5°): the
+    import says so, and names the lights near the view (52, the one 0.0° off, first); light 52
+    gets no warning. (The run of such a scene exited 2 with no hint of the cause.)"""
+    from flashbrdf.capture.importers.diligent import off_axis_note
+    directions = np.loadtxt(BALL / "light_directions.txt")
+    note = off_axis_note(directions, 60, 5.0)
+    assert note.startswith("warning: light 60 is 11.0° off the view (θd 5.5°")
+    assert note.endswith("lights near the view: 52, 4, 53, 5")
+    assert off_axis_note(directions, 52, 5.0) is None
+    small = tmp_path / "ball"
+    small.mkdir()
+    for k in (51, 59):
+        (small / f"{k + 1:03d}.png").symlink_to(BALL / f"{k + 1:03d}.png")
+    for name in ("mask.png", "Normal_gt.mat"):
+        (small / name).symlink_to(BALL / name)
+    np.savetxt(small / "light_directions.txt", directions[[51, 59]])
+    intensities = np.loadtxt(BALL / "light_intensities.txt")
+    np.savetxt(small / "light_intensities.txt", intensities[[51, 59]])
+    capsys.readouterr()
+    assert main(["import-diligent", str(small), "--flash", "2", "--out", str(tmp_path / "s")]) == 0
+    assert "warning: light 2 is 11.0° off the view" in capsys.readouterr().out

@@ -200,13 +200,32 @@ def normals_to_camera(normals_diligent):
     return np.asarray(normals_diligent) @ CAMERA_FROM_DILIGENT.T
 
 
-def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, notify=None):
+def off_axis_note(light_directions, flash_index, max_theta_d_deg):
+    """A warning when light `flash_index` (1-based) of `light_directions` (K, 3), DiLiGenT's
+    frame (z toward the camera), is so far off the view that its θd, half the angle between
+    light and view for a directional light and an orthographic camera, passes max_theta_d_deg:
+    extraction would keep no pixel. It names the lights that would do. None otherwise."""
+    d = np.asarray(light_directions, dtype=np.float64)
+    theta_d = np.degrees(np.arccos(np.clip(d[:, 2] / np.linalg.norm(d, axis=1), -1, 1))) / 2
+    k = flash_index - 1
+    if theta_d[k] <= max_theta_d_deg:
+        return None
+    near = [int(i) + 1 for i in np.argsort(theta_d) if theta_d[i] <= max_theta_d_deg]
+    return (f"warning: light {flash_index} is {2 * theta_d[k]:.1f}° off the view (θd "
+            f"{theta_d[k]:.1f}°, past the {max_theta_d_deg:g}° extract keeps): extract and run "
+            "will find no pixel; lights near the view: "
+            + (", ".join(map(str, near[:6])) if near else "none"))
+
+
+def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, notify=None,
+                    max_theta_d_deg=None):
     """Write the contract scene folder for a DiLiGenT object; returns the scene dict.
 
     flash_index: 1-based index of the photo used as the flash (directional light near the view).
     progress: optional callable wrapping an iterable (e.g. tqdm) for the photo loop.
     force: replace an existing out_dir that flashbrdf made (files.outputs.staged_output_dir).
-    notify: optional callable taking one line (the reduced-precision note for 8-bit photos).
+    notify: optional callable taking one line (the reduced-precision note for 8-bit photos; the
+    flash's θd past max_theta_d_deg, extraction's limit, when given).
     """
     import cv2
 
@@ -214,6 +233,10 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
     k_photos = len(obj.photo_paths)
     if not 1 <= int(flash_index) <= k_photos:
         raise InputError("--flash", f"index {flash_index} outside 1..{k_photos}")
+    if notify is not None and max_theta_d_deg is not None:
+        note = off_axis_note(obj.light_directions, int(flash_index), max_theta_d_deg)
+        if note:
+            notify(note)
     height, width = obj.mask.shape
     # The view is along -z: a normal with n_z <= 0 (the silhouette's n_z = 0 in Normal_gt, 72
     # pixels of the ball; a registered mesh's rim facing away) is a surface the camera cannot
