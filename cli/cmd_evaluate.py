@@ -11,12 +11,14 @@ def add_parsers(sub):
     add_force(s)
     s.add_argument("--test-dir", metavar="DIR",
                    help="train on every --merl-dir table, score every method on these tables")
-    s.add_argument("--render", action="store_true")
+    s.add_argument("--render", action="store_true",
+                   help="also Table 2: render each test prediction on a sphere under the maps")
     s.add_argument("--envmap", action="append", metavar="FILE",
                    help="with --render: a lat-long map for Table 2 (repeat it for several; "
                         "default two maps made in code, render.envmap.default_envmaps: a sky "
                         "with a sun and a studio)")
-    s.add_argument("--quick", action="store_true")
+    s.add_argument("--quick", action="store_true",
+                   help="one experiment (the first split) instead of 25: a few minutes")
     s.add_argument("--experiments", type=int, help="number of experiments (default 25)")
     s.add_argument("--time-budget", type=float, metavar="SECONDS",
                    help="stop starting experiments when this wall time would be exceeded")

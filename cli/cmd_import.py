@@ -11,7 +11,9 @@ def add_parsers(sub):
     _add_import_colmap(sub)
     s = sub.add_parser("import-diligent", help="turn a DiLiGenT object folder into a scene folder")
     s.add_argument("obj_dir", metavar="OBJ_DIR")
-    s.add_argument("--flash", required=True, type=int, metavar="INDEX")
+    s.add_argument("--flash", required=True, type=int, metavar="INDEX",
+                   help="1-based index of the photo to use as the flash (a light near the view: "
+                        "52 for the ball); every other photo becomes a reference")
     s.add_argument("--out", required=True, metavar="SCENE_DIR")
     add_force(s)
     s.set_defaults(handler=import_diligent)

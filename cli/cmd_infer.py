@@ -1,16 +1,18 @@
 """`flashbrdf infer --model MODEL.npz --slice SLICE.csv --out BRDF.binary [--method ...]`."""
 
-from flashbrdf.cli.options import ANCHOR_HELP
+from flashbrdf.cli.options import ANCHOR_HELP, MODEL_HELP
 
 METHOD_CHOICES = ["dsgplvm", "pca", "noll", "chandraker", "ashikhmin"]
 
 
 def add_parsers(sub):
     s = sub.add_parser("infer", help="infer a full BRDF from a slice")
-    s.add_argument("--model", metavar="MODEL.npz")
+    s.add_argument("--model", metavar="MODEL.npz", help=MODEL_HELP)
     s.add_argument("--slice", required=True, metavar="SLICE.csv")
     s.add_argument("--out", required=True, metavar="BRDF.binary")
-    s.add_argument("--method", default="dsgplvm", choices=METHOD_CHOICES)
+    s.add_argument("--method", default="dsgplvm", choices=METHOD_CHOICES,
+                   help="default dsgplvm (the shipped default: the anchored DS-GPLVM averaged "
+                        "with noll and pca)")
     s.add_argument("--merl-dir", action="append", metavar="DIR",
                    help="the model's training tables, for 3D (repeat it for a model trained on "
                         "several folders)")

@@ -15,13 +15,18 @@ def add_parsers(sub):
                         "material's diffuse floor")
     s.add_argument("--out", required=True, metavar="OUT_DIR")
     add_force(s)
-    s.add_argument("--spp", type=int, default=64)
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--spp", type=int, default=64,
+                   help="samples per pixel for environment maps (default 64)")
+    s.add_argument("--seed", type=int, default=0, help="the samples' seed (default 0)")
     s.add_argument("--interpolate", action="store_true",
                    help="interpolate the BRDF table between bin centres (default: nearest bin)")
     s.set_defaults(handler=render)
 
-    s = sub.add_parser("compare", help="log-CIELAB Delta E between two images")
+    s = sub.add_parser("compare", help="log-CIELAB Delta E between two images",
+                       description="Writes OUT_DIR/compare.json (delta_e_log_mean, "
+                                   "delta_e_log_median, rel_rmse, pixels) and a false-colour "
+                                   "Delta E PNG, over the mask, or where both images are finite "
+                                   "and nonzero.")
     s.add_argument("pred", metavar="PRED.exr")
     s.add_argument("ref", metavar="REF.exr")
     s.add_argument("--mask", metavar="MASK.png")

@@ -7,7 +7,8 @@ def add_parsers(sub):
     s = sub.add_parser("segment", help="label the flash photo's pixels by material")
     s.add_argument("scene_dir", metavar="SCENE_DIR")
     s.add_argument("--out", required=True, metavar="LABELS.png")
-    s.add_argument("--materials", default="auto", metavar="auto|K")
+    s.add_argument("--materials", default="auto", metavar="auto|K",
+                   help="the number of materials, or auto (default): chosen, 1 for one material")
     s.add_argument("--albedo", metavar="ALBEDO.exr",
                    help="also write a per-pixel diffuse albedo map (textured materials)")
     s.set_defaults(handler=segment)

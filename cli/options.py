@@ -3,6 +3,9 @@ the Dask engine's (batch, evaluate)."""
 
 import argparse
 
+MODEL_HELP = ("a trained model (flashbrdf train); default: the shipped one, trained on the 100 "
+              "MERL (NBRDF proxy) and 22 RGL (NBRDF proxy) tables "
+              "(sample_data/models/merl100_1d2d.npz)")
 FORCE_HELP = "replace OUT_DIR if an earlier flashbrdf command made it (never any other folder)"
 ANCHOR_HELP = ("dsgplvm: keep the paper's prediction as is; by default it is corrected along "
                "theta_h to pass through the observed slice, carried over theta_d, and blended "
@@ -38,9 +41,12 @@ def add_force(parser, help_text=FORCE_HELP):
 
 def add_run_options(parser):
     """The options `run` takes, shared by `batch`."""
-    parser.add_argument("--model", metavar="MODEL.npz")
-    parser.add_argument("--methods", default="dsgplvm")
-    parser.add_argument("--spp", type=int, default=64, help="samples per pixel for environment maps")
+    parser.add_argument("--model", metavar="MODEL.npz", help=MODEL_HELP)
+    parser.add_argument("--methods", default="dsgplvm", metavar="M[,M...]",
+                        help="comma-separated, each rendered and compared: dsgplvm, pca, noll, "
+                             "chandraker, ashikhmin (default dsgplvm)")
+    parser.add_argument("--spp", type=int, default=64,
+                        help="samples per pixel for environment maps (default 64)")
     parser.add_argument("--materials", default="auto", metavar="auto|K",
                         help="segment into materials first (default auto: K chosen, 1 for one "
                              "material)")

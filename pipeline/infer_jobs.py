@@ -11,7 +11,7 @@ import time
 from flashbrdf.brdf import merl, views
 from flashbrdf.files.errors import InputError
 from flashbrdf.files.outputs import check_outputs, check_sidecar_replaceable, sidecar_json
-from flashbrdf.pipeline.options import existing_model_file
+from flashbrdf.pipeline.options import model_path
 
 
 def merl_dirs_list(value):
@@ -66,16 +66,14 @@ def infer(model, slice_path, out, method_name="dsgplvm", merl_dirs=None, anchor=
     from flashbrdf.infer import load_method, make_method
     from flashbrdf.infer.prediction import brdf_record, predict_slice, write_prediction
     t0 = time.perf_counter()
+    model = model_path(model, [method_name])  # the shipped model, as run takes it; chandraker: none
     check_outputs(inputs=[model, slice_path, *merl_inputs(merl_dirs)],
                   outputs=[out, sidecar_json(out)])
     check_sidecar_replaceable(sidecar_json(out), "method", "BRDF.json")
     rho, n = views.read_slice_csv(slice_path)
     if model is None:
-        if method_name != "chandraker":
-            raise InputError("--model", f"method {method_name} needs a trained model")
         method, has_3d = make_method("chandraker").fit(None), True
     else:
-        existing_model_file(model)
         overrides = {"anchor": anchor} if method_name == "dsgplvm" else {}
         method = load_method(model, method_name, merl_dirs, **overrides)
         has_3d = method.can_predict_3d()

@@ -34,12 +34,13 @@ FILES = {"mitsuba": ("mitsuba_tabulated.xml", "mitsuba_principled.xml"),
          "principled": ("principled.json",), "gltf": ("material.gltf",)}
 RENDER_SIZE, RENDER_SPP = 96, 64
 USED = 0.01  # a lobe weight below this is treated as unused (no glTF extension for it)
-MITSUBA_USAGE = ("Mitsuba 3: `pip install -e \".[mitsuba]\"`, then in Python "
-                 "`import mitsuba as mi; mi.set_variant(\"llvm_ad_rgb\"); "
-                 "import flashbrdf.render.mitsuba_bsdf as m; m.register(); "
-                 "bsdf = mi.load_file(\"mitsuba_tabulated.xml\")` (llvm_ad_rgb needs "
-                 "DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 on Debian 12); "
-                 "mitsuba_principled.xml needs no plugin.")
+MITSUBA_USAGE = ("Mitsuba 3: `pip install mitsuba` (in a checkout: `pip install -e "
+                 "\".[mitsuba]\"`), then in Python `import mitsuba as mi; "
+                 "mi.set_variant(\"llvm_ad_rgb\"); import flashbrdf.render.mitsuba_bsdf as m; "
+                 "m.register(); bsdf = mi.load_file(\"mitsuba_tabulated.xml\")` (llvm_ad_rgb "
+                 "needs LLVM >= 16: on Debian 12 `apt-get install libllvm19`, which "
+                 "flashbrdf.render.mitsuba_bsdf finds by itself); mitsuba_principled.xml needs "
+                 "no plugin.")
 
 
 def parse_formats(text):

@@ -66,7 +66,11 @@ def register(variant=None):
     variant: set this variant first; with none set yet, llvm_ad_rgb when available, else
     scalar_rgb. Call again after switching variants (plugins are per variant).
     """
-    import mitsuba as mi
+    try:
+        import mitsuba as mi
+    except ImportError as err:
+        raise ImportError("Mitsuba 3 is not installed: `pip install mitsuba` (in a checkout: "
+                          "`pip install -e \".[mitsuba]\"`)") from err
     if variant is not None:
         if variant not in mi.variants():  # Mitsuba's own message for 42 is about str.join
             raise ValueError(f"variant must be one of {', '.join(mi.variants())}; got {variant!r}")

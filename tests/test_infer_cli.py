@@ -348,3 +348,13 @@ def test_the_python_api_predicts_what_infer_writes(trained, tmp_path):
     np.testing.assert_allclose(table[ok], written[ok], rtol=1e-9, atol=1e-12)
     paper, _ = load_method(model, "dsgplvm", anchor=False).predict(rho, "2d")
     assert not np.allclose(paper[ok], written[ok], rtol=1e-3)
+
+
+def test_infer_without_model_uses_the_shipped_one_as_run_does(trained, tmp_path):
+    """`infer --slice S --out B` as `run` does it: the shipped model, named in BRDF.json (it
+    exited 2, "needs a trained model", while -h showed --model as optional)."""
+    from flashbrdf.pipeline.options import DEFAULT_MODEL
+    _, _, slice_csv = trained
+    out = tmp_path / "b.binary"
+    assert main(["infer", "--slice", str(slice_csv), "--out", str(out)]) == 0
+    assert json.loads(out.with_suffix(".json").read_text())["model"] == str(DEFAULT_MODEL)
