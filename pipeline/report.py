@@ -61,6 +61,9 @@ HOW_TO_READ = """\
 - **Observed vs predicted.** A flash photo measures only the θd = 0 slice ρ(θh) of the BRDF. Every
   value at θd > 0, and every θh bin with no observed pixels, is predicted by the method from what
   it learned from the model's training tables (MERL, plus RGL for the shipped model), not measured.
+- **Uncertainty panels**: the predictive variance σ² of each bin in the model's feature space,
+  which the panel's label names (the shipped model: ln(1 + ρ/ε) per channel, ε = 1e-3 1/sr). A
+  central 90% interval on ρ is then (ρ + ε)·exp(±1.645 σ) − ε: σ = 0.3 is about ×0.6 to ×1.6.
 """
 
 
@@ -94,7 +97,7 @@ def coverage(theta_h_deg, observed):
             "theta_h_observed_deg": [low, high]}
     warnings = []
     if filled["last_bin"] < merl.N_THETA_H - 1:
-        warnings.append(f"θh above {high:.0f}° not observed: the prediction there comes "
+        warnings.append(f"θh above {high:.1f}° not observed: the prediction there comes "
                         "from the prior")
     if filled["first_bin"] > 0:
         warnings.append(f"θh below {low:.2g}° not observed (the specular peak): the peak "
@@ -356,7 +359,8 @@ def _markdown(report, n_photos, sections=()):
         if cover and cover.get("bins_observed"):
             lo, hi = cover["theta_h_observed_deg"]
             lines += [f"The flash photo filled {cover['bins_observed']} of 90 θh bins "
-                      f"({cover['samples']} pixels), covering θh {lo:.1f}°–{hi:.1f}°. Dots are the "
+                      f"({cover['samples']} pixels), the bins from θh {lo:.2g}° to {hi:.1f}° (bin "
+                      "edges). Dots are the "
                       "observed bins (bars: spread), lines each method's prediction.", ""]
         lines += [f"![slice]({figures['slice']})", ""]
     brdf_figs = [k for k in figures if k.startswith("brdf_")]

@@ -89,7 +89,8 @@ def summary_html(report, level_note=None, how_to_read=None):
     if cover and cover.get("bins_observed"):
         low, high = cover["theta_h_observed_deg"]
         parts.append(f"<p>The flash photo filled {cover['bins_observed']} of 90 θh bins "
-                     f"({cover['samples']} pixels), covering θh {low:.1f}°–{high:.1f}°.</p>")
+                     f"({cover['samples']} pixels), the bins from θh {low:.2g}° to {high:.1f}° "
+                     "(bin edges).</p>")
     warnings = report.get("warnings") or []
     if warnings:
         parts.append("<h3>Coverage warnings</h3><ul class=\"warnings\">"

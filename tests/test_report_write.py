@@ -77,13 +77,13 @@ def test_report_files_keys_and_numbers(tmp_path):
     assert summary["references"] == 2
     assert summary["rel_rmse"]["mean"] == pytest.approx((0.1 + 0.02) / 2, rel=1e-9)
     # Coverage: bins with theta_h < 40 deg were observed, so the report says the rest is prior.
-    assert "θh above 40° not observed: the prediction there comes from the prior" in loaded["warnings"]
+    assert "θh above 40.0° not observed: the prediction there comes from the prior" in loaded["warnings"]
     assert loaded["coverage"]["bins_observed"] == 60 and loaded["coverage"]["samples"] == 3000
     assert loaded["slice"]["rho"][70] == [None, None, None]  # NaN is null in JSON
     np.testing.assert_allclose(loaded["predictions"]["pca"]["theta_d0"],
                                predictions["pca"][:, 0, :])
     md = (out / "report.md").read_text()
-    for needle in ("How to read the numbers", "θh above 40° not observed", "![slice](figures/slice.png)",
+    for needle in ("How to read the numbers", "θh above 40.0° not observed", "![slice](figures/slice.png)",
                    "figures/ref_ref_a.png", "| **total** | **4.62** |", "| ref_b.exr | dsgplvm | 1.50 |"):
         assert needle in md, needle
 
