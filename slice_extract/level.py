@@ -31,9 +31,10 @@ def relative_record(scene):
     powers = sorted({tuple(p.light.intensity_rgb.tolist()) if p.light.type == "point"
                      else tuple(p.light.irradiance_rgb.tolist())
                      for p in scene.photos_with_role("flash")})
+    given = "; ".join(", ".join(f"{v:g}" for v in rgb) for rgb in powers)
     return {"absolute": False, "source": "relative",
             "note": "relative: rho is known up to one factor, the same in every bin: the flash's "
-                    f"intensity is taken as given ({', '.join(map(str, powers))}) in the scene's "
+                    f"intensity is taken as given ({given}) in the scene's "
                     "units; fix it with a target of known reflectance or a calibrated flash "
                     "(scene.json \"level\", docs/capture.md)"}
 
