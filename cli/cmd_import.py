@@ -3,6 +3,7 @@ import-diligent OBJ_DIR --flash INDEX --out SCENE_DIR`: another tool's capture a
 (capture.importers)."""
 
 import re
+import sys
 
 from flashbrdf.cli.options import add_force
 
@@ -25,7 +26,9 @@ def import_diligent(args):
     from flashbrdf.slice_extract import ExtractOptions
     scene = write_scene(args.obj_dir, args.flash, args.out,
                         progress=lambda photos: photo_progress(photos, "import-diligent"),
-                        force=args.force, notify=print,
+                        force=args.force,
+                        notify=lambda line: print(line, file=sys.stderr if line.startswith(
+                            "warning") else sys.stdout),
                         max_theta_d_deg=ExtractOptions.max_theta_d_deg)
     n_ref = sum(p["role"] == "reference" for p in scene["photos"])
     flash = next(p for p in scene["photos"] if p["role"] == "flash")

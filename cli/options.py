@@ -3,9 +3,9 @@ the Dask engine's (batch, evaluate)."""
 
 import argparse
 
-MODEL_HELP = ("a trained model (flashbrdf train); default: the shipped one, trained on the 100 "
-              "MERL (NBRDF proxy) and 22 RGL (NBRDF proxy) tables "
-              "(sample_data/models/merl100_1d2d.npz)")
+MODEL_HELP = ("a trained model (flashbrdf train); default: the shipped one, trained on 99 MERL "
+              "(NBRDF proxy) tables (red-specular-plastic held out for the sample capture) and "
+              "the 22 RGL (NBRDF proxy) ones (sample_data/models/merl100_1d2d.npz)")
 FORCE_HELP = "replace OUT_DIR if an earlier flashbrdf command made it (never any other folder)"
 ANCHOR_HELP = ("dsgplvm: keep the paper's prediction as is; by default it is corrected along "
                "theta_h to pass through the observed slice, carried over theta_d, and blended "

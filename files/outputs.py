@@ -168,15 +168,17 @@ def folder_inventory(folder, only=None, skip=()):
 
 
 def files_fingerprint(paths):
-    """{path: [size in bytes, mtime in ns]} of `paths`, or None when one cannot be read: what
-    tells a later run that an input changed since an output was made from it."""
+    """{real path: [size in bytes, mtime in ns], or None for a file that is not there (an
+    optional reference photo)}: what tells a later run that an input changed since an output
+    was made from it. Keyed by the resolved path, so a link or a `..` names the same file."""
     found = {}
     for path in paths:
         try:
             st = os.stat(path)
         except OSError:
-            return None
-        found[os.fspath(path)] = [st.st_size, st.st_mtime_ns]
+            found[os.path.realpath(path)] = None
+            continue
+        found[os.path.realpath(path)] = [st.st_size, st.st_mtime_ns]
     return found
 
 

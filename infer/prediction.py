@@ -60,14 +60,17 @@ def predict_slice(method, rho, n, view, source="slice"):
 
 def check_storable(table, rho, method, source):
     """InputError naming the slice `source` when the predicted table holds a value no MERL table
-    may (above brdf.merl.MAX_STORED_VALUE): a method extrapolating from a slice far outside its
-    training range (pca from a flat 1e20 1/sr slice reached 2e36) would write a file that
-    nothing, this tool included, reads back."""
-    with np.errstate(invalid="ignore"):
-        top = np.nanmax(np.asarray(table, dtype=np.float64), initial=0.0)
+    may (stored, ρ / brdf.merl.MERL_SCALE, above brdf.merl.MAX_STORED_VALUE): a method
+    extrapolating from a slice far outside its training range (pca from a flat 1e17 1/sr slice
+    reached 1.8e28 1/sr, 2.7e31 stored) would write a file that nothing, this tool included,
+    reads back."""
+    table = np.asarray(table, dtype=np.float64)
+    with np.errstate(invalid="ignore"):  # the limit is on stored values: rho / MERL_SCALE
+        top = np.nanmax(table / merl.MERL_SCALE, initial=0.0)
     if top > merl.MAX_STORED_VALUE:
-        raise InputError(source, f"{method.name}'s prediction reaches {top:.3g} 1/sr, beyond the "
-                                 f"{merl.MAX_STORED_VALUE:g} a MERL table holds: the slice (up to "
+        raise InputError(source, f"{method.name}'s prediction reaches {np.nanmax(table):.3g} 1/sr, "
+                                 f"beyond what a MERL table holds ({merl.MAX_STORED_VALUE:g} "
+                                 "stored, rho / MERL's scale): the slice (up to "
                                  f"{np.nanmax(rho):.3g} 1/sr) lies far outside the training "
                                  "tables' range; check its units, or use another method")
 

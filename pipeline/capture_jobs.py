@@ -67,6 +67,9 @@ def extract_materials(scene_dir, labels_png, out, options=None, force=False):
         faces = read_face_labels(labels_png, int(labels.max()), scene)
         slices = extract_material_slices(samples, labels, labels_png, faces)
         write_material_slices(staged, scene_dir, slices, options, labels)
+    warned = {w for r in slices.values() if r is not None for w in r.report.get("warnings", [])}
+    for warning in sorted(warned):  # the flash's distance is the capture's, not a material's
+        print(f"warning: {warning}", file=sys.stderr)
 
 
 def segment(scene_dir, out, materials="auto", albedo_out=None):

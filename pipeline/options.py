@@ -53,7 +53,11 @@ def run_inputs(scene_dir, model, methods, envmap=None):
     (capture.Scene.input_files), the model it loads and --envmap. InputError as run raises it."""
     from flashbrdf import capture
     files = capture.load_scene(scene_dir).input_files()
-    return files + [f for f in (model_path(model, method_names(methods)), envmap) if f is not None]
+    # the names as given: validating them imports flashbrdf.infer (0.8 s), which a batch's
+    # client otherwise never does; run refuses a bad name itself
+    names = methods if isinstance(methods, (list, tuple)) else str(methods).split(",")
+    return files + [f for f in (model_path(model, [n.strip() for n in names]), envmap)
+                    if f is not None]
 
 
 def inputs_fingerprint(scene_dir, options):
@@ -62,7 +66,7 @@ def inputs_fingerprint(scene_dir, options):
     its reason)."""
     try:
         return files_fingerprint(run_inputs(scene_dir, options["model"], options["methods"],
-                                            options.get("envmap"))) or {}
+                                            options.get("envmap")))
     except InputError:
         return {}
 

@@ -164,9 +164,11 @@ def theta_d_warnings(rejected, used, max_theta_d_deg):
     flash sits far from the lens for the distance shot from (θd ≈ half the angle between them,
     seen from the object), and the slice rests on a few pixels, or none."""
     past = int(rejected.get("theta_d", 0))
-    if past == 0 or past <= THETA_D_WARN_SHARE * (past + used):
+    # the pixels that reached the θd test: those it passed were used or rejected after it
+    reached = past + used + int(rejected.get("shadowed", 0)) + int(rejected.get("outlier", 0))
+    if past == 0 or past <= THETA_D_WARN_SHARE * reached:
         return []
-    return [f"{100 * past / (past + used):.0f}% of the object's pixels lie past θd "
+    return [f"{100 * past / reached:.0f}% of the object's pixels lie past θd "
             f"{max_theta_d_deg:g}° (the flash is far from the lens for this distance): shoot "
             "from further away or with the flash nearer the lens (docs/capture.md)"]
 

@@ -239,6 +239,12 @@ CASES = [
             t, "s.csv", "theta_h_deg,r,g,b,n\n" + "".join(
                 f"{90 * ((i + 0.5) / 90) ** 2},1e20,1e20,1e20,180\n" for i in range(90)))),
         "--out", out_path(t, "b.binary")], "s.csv"),
+    ("infer", "a flat 1e17 slice: pca's table fits in 1/sr but not in MERL's stored units",
+     lambda w, t: [
+        "infer", "--model", str(w.model), "--method", "pca", "--slice", str(write(
+            t, "s.csv", "theta_h_deg,r,g,b,n\n" + "".join(
+                f"{90 * ((i + 0.5) / 90) ** 2},1e17,1e17,1e17,180\n" for i in range(90)))),
+        "--out", out_path(t, "b.binary")], "s.csv"),
     ("infer", "slice n beyond int64", lambda w, t: ["infer", "--method", "chandraker", "--slice",
                                                     str(write(t, "s.csv", slice_n(w, "9" * 30))),
                                                     "--out", out_path(t, "b.binary")], "s.csv"),

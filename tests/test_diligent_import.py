@@ -376,4 +376,4 @@ def test_a_flash_too_far_off_the_view_is_warned_of_at_import(tmp_path, capsys):
     np.savetxt(small / "light_intensities.txt", intensities[[51, 59]])
     capsys.readouterr()
     assert main(["import-diligent", str(small), "--flash", "2", "--out", str(tmp_path / "s")]) == 0
-    assert "warning: light 2 is 11.0° off the view" in capsys.readouterr().out
+    assert "warning: light 2 is 11.0° off the view" in capsys.readouterr().err

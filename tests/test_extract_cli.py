@@ -108,8 +108,9 @@ def test_a_flash_too_far_from_the_lens_is_warned_of(tmp_path, capsys, offset, wa
     assert main(["extract", str(scene), "--out", str(tmp_path / "s.csv")]) == 0
     err = capsys.readouterr().err
     report = json.loads((tmp_path / "s.json").read_text())
-    share = report["rejected"]["theta_d"] / (report["rejected"]["theta_d"]
-                                            + report["coverage"]["pixels_used"])
+    rejected = report["rejected"]
+    share = rejected["theta_d"] / (rejected["theta_d"] + rejected["shadowed"]
+                                   + rejected["outlier"] + report["coverage"]["pixels_used"])
     assert (share > 0.5) == warned
     assert ("lie past θd 5°" in err) == warned and bool(report["warnings"]) == warned
 

@@ -247,3 +247,22 @@ def test_a_sidecar_another_command_wrote_is_not_replaced(world, tmp_path, capsys
     assert main(["extract", str(world.scene), "--out", str(tmp_path / "y.csv")]) == 2
     assert json.loads((tmp_path / "y.json").read_text())["method"] == "chandraker"
     assert main(["extract", str(world.scene), "--out", str(slice_csv)]) == 0  # its own: replaced
+
+
+def test_files_fingerprint_sees_one_file_through_links_and_a_missing_one(tmp_path):
+    """A batch compares its markers' input fingerprints with the capture's: a link or a `..`
+    must name the same file (the client and the worker spell the model's path differently),
+    and a file that is not there (an optional reference photo) is recorded as such, not void
+    the whole fingerprint (then a changed photo beside it went unseen)."""
+    from flashbrdf.files.outputs import files_fingerprint
+    real = tmp_path / "models" / "m.npz"
+    real.parent.mkdir()
+    real.write_bytes(b"x" * 10)
+    (tmp_path / "link.npz").symlink_to(real)
+    by_link = files_fingerprint([tmp_path / "link.npz", tmp_path / "gone.exr"])
+    by_dots = files_fingerprint([tmp_path / "models" / ".." / "models" / "m.npz",
+                                 tmp_path / "gone.exr"])
+    assert by_link == by_dots and by_link[os.path.realpath(real)][0] == 10
+    assert by_link[os.path.realpath(tmp_path / "gone.exr")] is None
+    os.utime(real, ns=(0, 10 ** 9))
+    assert files_fingerprint([real, tmp_path / "gone.exr"]) != by_link

@@ -128,14 +128,13 @@ def require_target_facing_a_camera(mesh, has_normals, cameras, min_cos, path, oc
 def _hidden_behind(occluder, points, to_camera):
     """(N,) bool: the object (a capture.MeshIntersector) blocks the sight line from each point
     (N, 3) to its camera (to_camera (N, 3), from the point), short of the point by more than
-    TOLERANCE_FRACTION of the object's diagonal (a card touching the object is not hidden)."""
+    TOLERANCE_FRACTION of the object's size (MeshIntersector.scale: a card touching the object is
+    not hidden)."""
     from flashbrdf.capture.geometry import intersect
     length = np.linalg.norm(to_camera, axis=1)
     centre = points + to_camera
     hits = intersect(occluder, centre, -to_camera / length[:, None])
-    vertices = occluder.vertices
-    tolerance = TOLERANCE_FRACTION * float(np.linalg.norm(vertices.max(0) - vertices.min(0)))
-    return hits.distance < length - tolerance
+    return hits.distance < length - TOLERANCE_FRACTION * occluder.scale
 
 
 def check_mesh_frame(intersector, points, observed_point, observer_centre, cameras):
