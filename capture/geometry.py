@@ -7,10 +7,10 @@ slice extraction rejects and reports ("backfacing"), so a wrongly wound mesh is 
 silently "fixed".
 
 Embree works in float32. Vertices no face uses are dropped on load, the scene is re-centred on
-the mesh's bounding-box centre, and hit points are recomputed in float64 from Embree's
-barycentrics on the original vertices, so points sit on the triangle to float64 precision. Shadow
-rays start a small distance (1e-4 x the mesh's bounding box diagonal) along the ray, which clears
-float32 self-hits at cos(theta_i) >= 0.01.
+the median of the vertices (a stray far piece does not move it), and hit points are recomputed
+in float64 from Embree's barycentrics on the original vertices, so points sit on the triangle to
+float64 precision. Shadow rays start a small distance (1e-4 x the diagonal of the vertices'
+central 99%) along the ray, which clears float32 self-hits at cos(theta_i) >= 0.01.
 """
 
 from dataclasses import dataclass

@@ -127,14 +127,30 @@ def require_target_facing_a_camera(mesh, has_normals, cameras, min_cos, path, oc
 
 def _hidden_behind(occluder, points, to_camera):
     """(N,) bool: the object (a capture.MeshIntersector) blocks the sight line from each point
-    (N, 3) to its camera (to_camera (N, 3), from the point), short of the point by more than
-    TOLERANCE_FRACTION of the object's size (MeshIntersector.scale: a card touching the object is
-    not hidden)."""
+    (N, 3) to its camera (to_camera (N, 3), from the point), short of the point by more than the
+    frame check's tolerance (a card touching the object is not hidden)."""
+    return (_sight_gaps(occluder, points, points + to_camera)
+            < -TOLERANCE_FRACTION * _diagonal(occluder))
+
+
+def _diagonal(intersector):
+    """The bounding-box diagonal of a capture.MeshIntersector's vertices (model units)."""
+    vertices = intersector.vertices
+    return float(np.linalg.norm(vertices.max(0) - vertices.min(0)))
+
+
+def _sight_gaps(intersector, points, centres):
+    """(N,) where the sight line from each camera centre (N, 3) toward its point (N, 3) first
+    meets the mesh, less the distance to the point: ~0 when it ends on the point, negative when
+    the mesh hides the point, inf when the line misses the mesh (and for a point at its centre)."""
     from flashbrdf.capture.geometry import intersect
-    length = np.linalg.norm(to_camera, axis=1)
-    centre = points + to_camera
-    hits = intersect(occluder, centre, -to_camera / length[:, None])
-    return hits.distance < length - TOLERANCE_FRACTION * occluder.scale
+    sight = points - centres
+    length = np.linalg.norm(sight, axis=1)
+    gaps = np.full(len(points), np.inf)
+    valid = length > 0
+    hits = intersect(intersector, centres[valid], sight[valid] / length[valid, None])
+    gaps[valid] = hits.distance - length[valid]
+    return gaps
 
 
 def check_mesh_frame(intersector, points, observed_point, observer_centre, cameras):
@@ -144,9 +160,8 @@ def check_mesh_frame(intersector, points, observed_point, observer_centre, camer
     observed_point (M,) int index into points and observer_centre (M, 3): one camera-point
     sight line per row; cameras: contract camera dicts of the photos.
     """
-    from flashbrdf.capture.geometry import intersect
     vertices = intersector.vertices
-    diagonal = float(np.linalg.norm(vertices.max(0) - vertices.min(0)))
+    diagonal = _diagonal(intersector)
     tolerance = TOLERANCE_FRACTION * diagonal
     rng = np.random.default_rng(0)
     pick = rng.choice(len(vertices), size=min(VERTICES_CHECKED, len(vertices)), replace=False)
@@ -157,13 +172,9 @@ def check_mesh_frame(intersector, points, observed_point, observer_centre, camer
     hidden_point = np.zeros(len(points), dtype=bool)
     on = hidden = 0
     if len(observed_point):
-        sight = points[observed_point] - observer_centre
-        length = np.linalg.norm(sight, axis=1)
-        valid = length > 0
-        hits = intersect(intersector, observer_centre[valid], sight[valid] / length[valid, None])
-        gap = hits.distance - length[valid]           # inf where the line misses the mesh
+        gap = _sight_gaps(intersector, points[observed_point], observer_centre)
         on_line, hidden_line = np.abs(gap) <= tolerance, gap < -tolerance
-        lines_of = observed_point[valid]
+        lines_of = observed_point
         count = np.bincount(lines_of, minlength=len(points))
         on_point = np.bincount(lines_of, on_line, minlength=len(points)) > 0
         # most of its sight lines blocked, none ending on it: one line alone may graze an edge
