@@ -64,11 +64,12 @@ def check_storable(table, rho, method, source):
     extrapolating from a slice far outside its training range (pca from a flat 1e17 1/sr slice
     reached 1.8e28 1/sr, 2.7e31 stored) would write a file that nothing, this tool included,
     reads back."""
-    table = np.asarray(table, dtype=np.float64)
-    with np.errstate(invalid="ignore"):  # the limit is on stored values: rho / MERL_SCALE
-        top = np.nanmax(table / merl.MERL_SCALE, initial=0.0)
-    if top > merl.MAX_STORED_VALUE:
-        raise InputError(source, f"{method.name}'s prediction reaches {np.nanmax(table):.3g} 1/sr, "
+    # per channel, no copy of the table (35 MB in 3D): the limit is on rho / MERL_SCALE
+    table = np.asarray(table)
+    with np.errstate(invalid="ignore"):
+        tops = [float(np.nanmax(table[..., c], initial=0.0)) for c in range(3)]
+    if max(t / s for t, s in zip(tops, merl.MERL_SCALE)) > merl.MAX_STORED_VALUE:
+        raise InputError(source, f"{method.name}'s prediction reaches {max(tops):.3g} 1/sr, "
                                  f"beyond what a MERL table holds ({merl.MAX_STORED_VALUE:g} "
                                  "stored, rho / MERL's scale): the slice (up to "
                                  f"{np.nanmax(rho):.3g} 1/sr) lies far outside the training "

@@ -75,10 +75,11 @@ def find_captures(captures_dir):
 def completed_row(folder, requested=None, inputs=None):
     """The summary row in `folder`'s marker when a batch finished it with the run options
     `requested` (a dict of RUN_OPTIONS as the batch was asked them; None: any) from the inputs
-    `inputs` (files_fingerprint of run_inputs; None: any), else None (no marker, one that cannot
-    be read, other options or changed inputs: the capture is run again, since its folder is not
-    what `run` with these options writes from these files, e.g. no export/ for a later
-    --export, or the BRDF of photos since retaken)."""
+    `inputs()` (a callable giving options.inputs_fingerprint, asked only of a marker that matches
+    so far: it reads the scene; None: any), else None (no marker, one that cannot be read, other
+    options or changed inputs: the capture is run again, since its folder is not what `run`
+    with these options writes from these files, e.g. no export/ for a later --export, or the
+    BRDF of photos since retaken)."""
     try:
         row = json.loads((Path(folder) / MARKER).read_text())
     except (OSError, ValueError):
@@ -90,11 +91,11 @@ def completed_row(folder, requested=None, inputs=None):
         asked = {"refine_poses": False} | asked
     if requested is not None and asked != requested:
         return None
-    if inputs is not None and row.get("inputs") != inputs:
-        return None
     files = row.get("files")
     if isinstance(files, dict) and files != folder_inventory(folder, files):
         return None      # a file the marker lists is gone or changed: not what run wrote
+    if inputs is not None and row.get("inputs") != inputs():
+        return None
     return row
 
 
@@ -436,7 +437,7 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
     rows, todo = {}, []
     for c in captures:
         row = None if force else completed_row(out / c.name, requested,
-                                                inputs_fingerprint(c, options))
+                                                lambda c=c: inputs_fingerprint(c, options))
         if row is not None:
             row["reason"] = "complete from an earlier batch: skipped (--force reruns it)"
             rows[c.name] = row

@@ -14,12 +14,17 @@ METHODS_NEEDING_NO_MODEL = ("chandraker",)
 MAX_SPP = 1 << 20  # samples per pixel; 16,384 times the default
 
 
+def split_names(methods):
+    """--methods "a,b" (or a list) as the list of names given, unchecked."""
+    text = methods if isinstance(methods, str) else ",".join(methods)
+    return [m.strip() for m in text.split(",") if m.strip()]
+
+
 def method_names(methods):
     """--methods "a,b" (or a list) as a list of distinct method names, in order; InputError for
     an unknown name or none."""
     from flashbrdf.infer import METHODS, make_method
-    text = methods if isinstance(methods, str) else ",".join(methods)
-    names = [m.strip() for m in text.split(",") if m.strip()]
+    names = split_names(methods)
     usable = [m for m in METHODS if not make_method(m).evaluation_only]
     unknown = [m for m in names if m not in usable]
     if not names or unknown:
@@ -53,11 +58,9 @@ def run_inputs(scene_dir, model, methods, envmap=None):
     (capture.Scene.input_files), the model it loads and --envmap. InputError as run raises it."""
     from flashbrdf import capture
     files = capture.load_scene(scene_dir).input_files()
-    # the names as given: validating them imports flashbrdf.infer (0.8 s), which a batch's
-    # client otherwise never does; run refuses a bad name itself
-    names = methods if isinstance(methods, (list, tuple)) else str(methods).split(",")
-    return files + [f for f in (model_path(model, [n.strip() for n in names]), envmap)
-                    if f is not None]
+    # the names unchecked: checking imports flashbrdf.infer (0.8 s), which a batch's client
+    # otherwise never does; run refuses a bad name itself
+    return files + [f for f in (model_path(model, split_names(methods)), envmap) if f is not None]
 
 
 def inputs_fingerprint(scene_dir, options):
