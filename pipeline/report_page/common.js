@@ -225,17 +225,20 @@ function drawLegend(ctx, items, x, y) {
 }
 
 // Arrow keys on a focused plot move a cursor over its cells (Shift: 10), so that every readout
-// the mouse gives is reachable from the keyboard. size: [rows, cols]; onMove(row, col).
-function keyCursor(canvas, size, onMove, start = [0, 0]) {
+// the mouse gives is reachable from the keyboard; the first key lands on `start`. size: [rows,
+// cols], start: [row, col], or functions giving them; onMove(row, col). current(): where the
+// cursor is now, when something else (the mouse) moves it too; by default its own last cell.
+function keyCursor(canvas, size, onMove, start = [0, 0], current = null) {
   canvas.tabIndex = 0;
   let at = null;
+  const value = (v) => (typeof v === "function" ? v() : v);
   canvas.addEventListener("keydown", (e) => {
     const step = {ArrowUp: [-1, 0], ArrowDown: [1, 0], ArrowLeft: [0, -1], ArrowRight: [0, 1]}[e.key];
     if (!step) return;
     e.preventDefault();
-    const n = e.shiftKey ? 10 : 1;
-    at = at ? [at[0] + step[0] * n, at[1] + step[1] * n] : start.slice();
-    at = [Math.max(0, Math.min(size[0] - 1, at[0])), Math.max(0, Math.min(size[1] - 1, at[1]))];
+    const n = e.shiftKey ? 10 : 1, [rows, cols] = value(size), now = current ? current() : at;
+    at = now ? [now[0] + step[0] * n, now[1] + step[1] * n] : value(start).slice();
+    at = [Math.max(0, Math.min(rows - 1, at[0])), Math.max(0, Math.min(cols - 1, at[1]))];
     onMove(at[0], at[1]);
   });
 }

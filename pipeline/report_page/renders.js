@@ -49,9 +49,11 @@ function buildFrames() {
     canvas.addEventListener("click", () => setFlip(!R.flipped));
     canvas.addEventListener("keydown", (e) => {
       if (e.key === "Enter" || e.key === " ") { e.preventDefault(); setFlip(!R.flipped); }
-      const step = ARROWS[e.key];
-      if (step && R.photo) { e.preventDefault(); moveCursor(step, e.shiftKey ? 10 : 1); }
     });
+    // one cursor for every frame and the mouse; the first key reads the centre
+    keyCursor(canvas, () => (R.photo ? [R.photo.h, R.photo.w] : [0, 0]), (y, x) => keyRead(x, y),
+              () => (R.photo ? [R.photo.h >> 1, R.photo.w >> 1] : [0, 0]),
+              () => (R.point ? [R.point.y, R.point.x] : null));
     canvas.addEventListener("mousemove", (e) => hover(frame, e));
     canvas.addEventListener("mouseleave", () => { if (!R.keyCursor) clearReadouts(); });
     R.frames.push(frame);
@@ -121,15 +123,9 @@ function hover(frame, event) {
   readAt(x, y);
 }
 
-const ARROWS = {ArrowLeft: [-1, 0], ArrowRight: [1, 0], ArrowUp: [0, -1], ArrowDown: [0, 1]};
-
-// Arrow keys on a frame read the pixel beside the last one read (Shift: 10 pixels), so that
-// every value the mouse reads can be read from the keyboard; the frame's live region says it.
-function moveCursor([dx, dy], size) {
-  const photo = R.photo;
-  const start = R.point || {x: Math.floor(photo.w / 2) - dx * size, y: Math.floor(photo.h / 2) - dy * size};
-  const x = Math.max(0, Math.min(photo.w - 1, start.x + dx * size));
-  const y = Math.max(0, Math.min(photo.h - 1, start.y + dy * size));
+// The arrow keys' pixel (keyCursor): read, marked on the frames, and said by the live region.
+function keyRead(x, y) {
+  if (!R.photo) return;
   R.keyCursor = true;
   readAt(x, y);
   drawAll();
