@@ -37,6 +37,8 @@ def export(args):
              if render else "; no --envmap, render check skipped"), file=sys.stderr)
     for name in result["files"]:
         print(Path(args.out) / name)
+    for line in result["warnings"]:
+        print(f"warning: {line}", file=sys.stderr)
     if "mitsuba" in formats:
         try:
             import mitsuba  # noqa: F401  (only to say whether the plugin can run here)

@@ -44,5 +44,6 @@ def export_for_report(out, method, envmap=None, final_out=None, material=None):
             + (f" and sphere Delta E log {fit['render_delta_e_log']:.2f} under "
                f"{Path(envmap).name} (the map file as stored: not the scene's rotation or scale)"
                if fit["render_delta_e_log"] is not None else "")
-            + f"; its renders are the method `{method}-principled`.")
+            + f"; its renders are the method `{method}-principled`."
+            + "".join(f" Warning: {line}." for line in result["warnings"]))
     return f"{method}-principled", tabulate_principled(result["params"]), note

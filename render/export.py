@@ -22,8 +22,8 @@ from flashbrdf.files.errors import InputError
 from flashbrdf.files.outputs import check_outputs, staged_output_dir
 from flashbrdf.brdf.merl import read_merl
 from flashbrdf.brdf.metrics import brdf_error
-from flashbrdf.brdf.models.principled import MITSUBA_LUMINANCE, PARAMETER_NAMES, eta_from_specular, \
-    tabulate_principled
+from flashbrdf.brdf.models.principled import MITSUBA_LUMINANCE, PARAMETER_NAMES, clearcoat_alpha, \
+    eta_from_specular, tabulate_principled
 from flashbrdf.brdf.models.principled_fit import FIT_OFFSET, fit_principled
 from flashbrdf.brdf.views import table_2d
 from flashbrdf.render.compare import compare_images
@@ -66,9 +66,15 @@ def tint_colour(base_color):
 
 
 def coat_roughness(clearcoat_gloss):
-    """The GGX-style roughness (sqrt alpha) of Mitsuba's clearcoat GTR1 alpha =
-    lerp(0.1, 0.001, gloss), for renderers whose coat takes a roughness."""
-    return float(np.sqrt(0.1 + (0.001 - 0.1) * clearcoat_gloss))
+    """The roughness (GGX alpha = roughness²) of a GGX coat, glTF's and Blender's, whose highlight
+    peaks as high as Mitsuba's GTR1 clearcoat of alpha a = lerp(0.1, 0.001, gloss).
+
+    Both distributions are normalised, so at one alpha GGX's peak 1 / (π a²) is −ln(a²) / (1 − a²)
+    times GTR1's (4.6× at a = 0.1, 14× at 0.001): the same alpha would make the coat's highlight
+    that much brighter. Matching the peak, GGX's alpha is a √(−ln(a²) / (1 − a²)); GTR1's long
+    tail is what GGX cannot carry."""
+    a = clearcoat_alpha(clearcoat_gloss)
+    return float(np.sqrt(a * np.sqrt(-np.log(a * a) / (1.0 - a * a))))
 
 
 def blender_parameters(params):
@@ -77,8 +83,9 @@ def blender_parameters(params):
     Blender 4 replaced `Specular` by an IOR (`IOR`, with `Specular IOR Level` 0.5 = as the IOR
     says) and made the tints colours; the tint colours here are lerp(white, base/lum, tint), the
     colour Mitsuba's tint fraction blends towards. Mitsuba's clearcoat is Blender's coat at
-    IOR 1.5 (Schlick R0 = 0.04) with the GTR1 alpha's square root as roughness. Mitsuba's sheen
-    is Burley's Schlick sheen; Blender 4's is a microfibre lobe, so `Sheen Weight` is approximate.
+    IOR 1.5 (Schlick R0 = 0.04) with the roughness of coat_roughness (the same peak). Mitsuba's
+    sheen is Burley's Schlick sheen; Blender 4's is a microfibre lobe, so `Sheen Weight` is
+    approximate.
     """
     base = [float(c) for c in params["base_color"]]
     tint = tint_colour(base)
@@ -185,14 +192,21 @@ def export_table(table, table_path, out_dir, formats=FORMATS, envmap=None, final
     file will be once a staged output folder is renamed into place (`run --export`), recorded
     instead of table_path (default: table_path). envmap: for the render check (None skips it).
     Returns {"files": [...], "params": dict, "fit": dict,
-    "images": {"tabulated", "fitted"} sphere renders, or None without envmap}.
+    "images": {"tabulated", "fitted"} sphere renders, or None without envmap,
+    "warnings": [one line each]}.
     """
     check_table(table, table_path)
     table_path = table_path if final_path is None else final_path  # the path the files record
-    files, images = [], None
+    files, images, warnings = [], None, []
     if "mitsuba" in formats:
         write_text(os.path.join(out_dir, FILES["mitsuba"][0]), mitsuba_tabulated_xml(table_path))
         files.append(FILES["mitsuba"][0])
+        if "$" in os.path.abspath(os.fspath(table_path)):
+            # Mitsuba's XML parser substitutes $name in every attribute and has no escape for it
+            warnings.append(f"{FILES['mitsuba'][0]}: the table's path holds '$', which "
+                            "Mitsuba's load_file reads as a scene parameter: load it with "
+                            "mi.load_dict({'type': 'flashbrdf_tabulated', 'filename': ...}) or "
+                            "keep the table where its path has no '$'")
     # Every format holds the fit (mitsuba: mitsuba_principled.xml).
     result = fit_principled(table)
     params = result["params"]
@@ -220,7 +234,7 @@ def export_table(table, table_path, out_dir, formats=FORMATS, envmap=None, final
         doc = gltf_material(params, name=os.path.splitext(os.path.basename(table_path))[0])
         write_text(os.path.join(out_dir, "material.gltf"), json.dumps(doc, indent=2) + "\n")
         files.append("material.gltf")
-    return {"files": files, "params": params, "fit": fit, "images": images}
+    return {"files": files, "params": params, "fit": fit, "images": images, "warnings": warnings}
 
 
 def export_brdf(brdf_path, out_dir, formats=FORMATS, envmap=None, force=False, final_path=None):

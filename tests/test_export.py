@@ -8,7 +8,10 @@ import pytest
 
 from flashbrdf.brdf.merl import write_merl
 from flashbrdf.brdf.metrics import brdf_error
-from flashbrdf.brdf.models.principled import principled_brdf_angles, principled_brdf_local, tabulate_principled
+from flashbrdf.brdf.models.microfacet import ggx_d, gtr1_d
+from flashbrdf.brdf.models.principled import (clearcoat_alpha, main_lobe_exists,
+                                              principled_brdf_angles, principled_brdf_local,
+                                              tabulate_principled)
 from flashbrdf.brdf.models.principled_fit import fit_principled
 from flashbrdf.brdf.views import table_2d
 from flashbrdf.cli.main import main
@@ -34,6 +37,20 @@ def test_principled_at_normal_incidence_is_burley_diffuse_plus_ggx_peak():
                                          "specular": specular})
     peak = ((eta - 1) / (eta + 1)) ** 2 / (4 * np.pi * rough ** 4)
     np.testing.assert_allclose(value, base / np.pi + peak, rtol=1e-12)
+
+
+def test_principled_has_no_main_lobe_at_specular_zero_as_in_mitsuba():
+    """Mitsuba's principled evaluates its main lobe only where the dielectric Fresnel term is
+    positive: at specular 0 (eta = 1) a metal is black (test_mitsuba_bsdf checks it against
+    Mitsuba itself), and the port must say so, or a fit landing there reports a material Mitsuba
+    does not render. At specular 1e-3 the metal's peak is whole."""
+    n = np.array([0.0, 0.0, 1.0])
+    metal = {"base_color": [0.9, 0.6, 0.3], "roughness": 0.1, "metallic": 1.0}
+    peak = np.array(metal["base_color"]) / (4 * np.pi * 0.1 ** 4)     # F = base at normal, G = 1
+    assert np.all(principled_brdf_local(n, n, metal | {"specular": 0.0}) == 0)
+    assert not main_lobe_exists(1e-14) and main_lobe_exists(1e-3)
+    np.testing.assert_allclose(principled_brdf_local(n, n, metal | {"specular": 1e-3}),
+                               peak, rtol=1e-12)
 
 
 def test_principled_is_zero_below_horizon_and_reciprocal():
@@ -99,6 +116,23 @@ def test_a_saturated_sheen_keeps_its_hue_in_gltf():
     np.testing.assert_allclose(gltf / gltf.max(), blender / blender.max(), rtol=1e-12)
 
 
+@pytest.mark.parametrize("gloss", [0.0, 0.5, 0.8, 1.0])
+def test_gltf_and_blender_coat_peaks_as_high_as_mitsubas(gloss):
+    """glTF's and Blender's coat is GGX, Mitsuba's GTR1: with GTR1's alpha as GGX's the coat's
+    highlight was −ln(a²) / (1 − a²) times too bright (4.6× at gloss 0, 14× at gloss 1). At
+    θh = 0 and normal incidence every other factor of the two coats is the same (Fresnel 0.04,
+    masking 1; Mitsuba's 0.25 weight is GGX's 1 / (4 cos θi cos θo)), so the distributions'
+    peaks must agree."""
+    params = {**KNOWN["clearcoat_paint"], "metallic": 0.0, "specular": 0.5, "spec_tint": 0.0,
+              "sheen": 0.0, "sheen_tint": 0.0, "clearcoat_gloss": gloss}
+    roughness = blender_parameters(params)["Coat Roughness"]
+    assert roughness == gltf_material(params)["materials"][0]["extensions"][
+        "KHR_materials_clearcoat"]["clearcoatRoughnessFactor"]
+    ggx_peak = ggx_d(1.0, roughness ** 2)
+    gtr1_peak = gtr1_d(1.0, clearcoat_alpha(gloss))
+    assert ggx_peak == pytest.approx(gtr1_peak, rel=1e-9)
+
+
 def test_gltf_uses_extensions_only_where_the_fit_does():
     plain = _gltf_is_valid(gltf_material(KNOWN["rough_dielectric"] | {"metallic": 0.0,
         "spec_tint": 0.0, "sheen": 0.0, "sheen_tint": 0.0, "clearcoat": 0.0,
@@ -108,8 +142,11 @@ def test_gltf_uses_extensions_only_where_the_fit_does():
         "specular": 0.8, "spec_tint": 0.5, "sheen": 0.0, "sheen_tint": 0.0}))
     ext = coat["extensions"]
     assert ext["KHR_materials_clearcoat"]["clearcoatFactor"] == 1.0
-    # gloss 0.8 -> GTR1 alpha = 0.1 - 0.099 * 0.8 = 0.0208, roughness sqrt(alpha)
-    assert ext["KHR_materials_clearcoat"]["clearcoatRoughnessFactor"] == pytest.approx(0.0208 ** 0.5)
+    # gloss 0.8 -> GTR1 alpha a = 0.1 - 0.099 * 0.8 = 0.0208; GGX alpha a sqrt(-ln a² / (1 - a²))
+    a = 0.0208
+    ggx_alpha = a * np.sqrt(-np.log(a * a) / (1 - a * a))
+    assert ext["KHR_materials_clearcoat"]["clearcoatRoughnessFactor"] == pytest.approx(
+        ggx_alpha ** 0.5)
     assert ext["KHR_materials_ior"]["ior"] == pytest.approx(2 / (1 - (0.08 * 0.8) ** 0.5) - 1)
     assert "KHR_materials_specular" in ext and "KHR_materials_sheen" not in ext
 
@@ -203,3 +240,21 @@ def test_export_reads_an_envmap_only_when_a_flag_names_it(tmp_path):
     doc = json.loads((tmp_path / "lit" / "principled.json").read_text())
     assert doc["fit"]["render"]["envmap"] == "sky_latlong.exr"
     assert doc["fit"]["render_delta_e_log"] == pytest.approx(0.0, abs=0.5)
+
+
+def test_export_warns_when_mitsubas_xml_cannot_hold_the_tables_path(paint_table, tmp_path, capsys):
+    """Mitsuba's load_file substitutes $name in every attribute, with no escape: a table under
+    a folder named 'a$spp' makes mitsuba_tabulated.xml fail to load ("undefined parameter") or
+    load another file. The export says so, once, and how to load the table instead."""
+    folder = tmp_path / "a$spp"
+    folder.mkdir()
+    table = folder / "paint.binary"
+    table.write_bytes(paint_table.read_bytes())
+    assert main(["export", str(table), "--out", str(tmp_path / "dollar"), "--formats",
+                 "mitsuba"]) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warning")]
+    assert len(warned) == 1 and "'$'" in warned[0] and "load_dict" in warned[0]
+    assert main(["export", str(paint_table), "--out", str(tmp_path / "plain"), "--formats",
+                 "mitsuba"]) == 0
+    assert not [line for line in capsys.readouterr().err.splitlines()
+                if line.startswith("warning")]

@@ -111,7 +111,11 @@ def test_llvm_sphere_matches_our_renderer(plastic, llvm):
     {"base_color": [0.5, 0.05, 0.05], "roughness": 0.5, "clearcoat": 1.0, "clearcoat_gloss": 0.8},
     {"base_color": [0.2, 0.4, 0.2], "roughness": 0.3, "metallic": 0.4, "specular": 0.8,
      "spec_tint": 0.6, "sheen": 0.7, "sheen_tint": 0.5},
-], ids=["rough_dielectric", "rough_metal", "clearcoat_paint", "everything"])
+    # specular 0: eta = 1, and Mitsuba drops the main lobe, metallic part and all
+    {"base_color": [0.9, 0.6, 0.3], "roughness": 0.1, "metallic": 1.0, "specular": 0.0},
+    {"base_color": [0.9, 0.6, 0.3], "roughness": 0.1, "metallic": 1.0, "specular": 1e-3},
+], ids=["rough_dielectric", "rough_metal", "clearcoat_paint", "everything", "metal_specular_0",
+        "metal_specular_min"])
 def test_numpy_principled_is_mitsubas(params, llvm):
     """brdf.models.principled against Mitsuba 3's own `principled` plugin, f cos theta_o."""
     from flashbrdf.brdf.models.principled import principled_brdf_local

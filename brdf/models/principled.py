@@ -10,6 +10,8 @@ only (spec_trans = 0, flatness = 0, anisotropic = 0), so a table made here is wh
 - main specular: F D G / (4 cos_i cos_o), GGX with alpha = max(0.001, roughness^2) and separable
   Smith G; F = (1 - m)(1 - spec_tint) F_dielectric(eta) + m Schlick(base_color)
   + (1 - m) spec_tint Schlick(base_color / lum * R0(eta)), eta = 2 / (1 - sqrt(0.08 specular)) - 1;
+  Mitsuba evaluates this lobe only where F_dielectric > 0: at specular ~0 (eta = 1 in float32)
+  it is gone, metallic part included;
 - clearcoat: 0.25 clearcoat Schlick(0.04) D_GTR1(lerp(0.1, 0.001, clearcoat_gloss)) G_cc with
   Smith GGX alpha 0.25 (Mitsuba's lobe has no 1/(4 cos cos) either).
 Mitsuba's eval returns f cos theta_o; the values here are f itself, in 1/sr. lum is Mitsuba's RGB
@@ -79,7 +81,11 @@ def principled_brdf_angles(cos_i, cos_o, cos_h, cos_d, params):
         c_sheen = 1.0 + p["sheen_tint"] * (tint - 1.0)
         value = value + (p["sheen"] * (1.0 - metal) * f_d)[..., None] * c_sheen
 
-    # Main specular lobe.
+    # Main specular lobe. Mitsuba evaluates it only where its dielectric Fresnel term is positive,
+    # so at eta = 1 (specular ~0: below ~1e-13 in float32) the metallic and tinted reflection go
+    # too; the port does the same, or a fit there would not be what Mitsuba renders.
+    if not main_lobe_exists(p["specular"]):
+        return _with_clearcoat(value, p, ci, co, cos_h, cos_d, f_d, above)
     alpha = max(MIN_ALPHA, rough * rough)
     g = smith_g1(ci, cos_d, alpha) * smith_g1(co, cos_d, alpha)
     spec = ggx_d(cos_h, alpha) * g / (4.0 * ci * co)
@@ -90,12 +96,29 @@ def principled_brdf_angles(cos_i, cos_o, cos_h, cos_d, params):
         + metal * (base + (1.0 - base) * w) \
         + (1.0 - metal) * p["spec_tint"] * (tint * r0 + (1.0 - tint * r0) * w)
     value = value + fresnel * spec[..., None]
+    return _with_clearcoat(value, p, ci, co, cos_h, cos_d, f_d, above)
 
+
+def main_lobe_exists(specular):
+    """Whether Mitsuba's main specular lobe is there: its eta, computed in float32 as Mitsuba
+    computes it, above 1."""
+    s = np.float32(specular)
+    eta = np.float32(2.0) / (np.float32(1.0) - np.sqrt(np.float32(0.08) * s)) - np.float32(1.0)
+    return bool(eta > np.float32(1.0))
+
+
+def clearcoat_alpha(clearcoat_gloss):
+    """Mitsuba's GTR1 alpha of the clearcoat: lerp(0.1, 0.001, clearcoat_gloss)."""
+    return 0.1 + (0.001 - 0.1) * clearcoat_gloss
+
+
+def _with_clearcoat(value, p, ci, co, cos_h, cos_d, f_d, above):
+    """value plus the clearcoat lobe, zero below the horizon."""
     if p["clearcoat"] > 0:
-        cc_alpha = 0.1 + (0.001 - 0.1) * p["clearcoat_gloss"]
         f_cc = 0.04 + 0.96 * f_d
         g_cc = smith_g1(ci, cos_d, CLEARCOAT_G_ALPHA) * smith_g1(co, cos_d, CLEARCOAT_G_ALPHA)
-        value = value + (0.25 * p["clearcoat"] * f_cc * gtr1_d(cos_h, cc_alpha) * g_cc)[..., None]
+        value = value + (0.25 * p["clearcoat"] * f_cc * gtr1_d(cos_h, clearcoat_alpha(
+            p["clearcoat_gloss"])) * g_cc)[..., None]
     return np.where(above[..., None], value, 0.0)
 
 
