@@ -117,9 +117,7 @@ def iter_flash_images(scene, prefetch=True):
     """
     if not isinstance(scene, Scene):
         scene = load_scene(scene)
-    flashes = scene.photos_with_role("flash")
-    if not flashes:
-        raise InputError(f"{scene.json_path}: photos", "no photo has role 'flash'")
+    flashes = scene.flash_photos()
     ambient_of = _AmbientCache(scene)
 
     def prepared(photo):

@@ -184,6 +184,14 @@ class Scene:
         """The photos whose role is `role`, in file order."""
         return [p for p in self.photos if p.role == role]
 
+    def flash_photos(self):
+        """The `flash` photos, in file order; InputError naming photos when there is none (a
+        scene of ambient or reference photos alone can be rendered, not measured)."""
+        flashes = self.photos_with_role("flash")
+        if not flashes:
+            raise InputError(f"{self.json_path}: photos", "no photo has role 'flash'")
+        return flashes
+
     def references(self, outputs=lambda stem: [f"{stem}.exr"]):
         """The `reference` photos, in file order, for the commands that write files per photo
         under its stem (render, run: OUT_DIR/<stem>.exr, <stem>_compare.json, ...).

@@ -220,7 +220,7 @@ def collect_samples(scene, options=None):
         scene, poses = refine_flash_cameras(scene, lambda s: _measured(s, plain))
         t0 = clock.add("refine_poses", t0)
     normal_map = scene.geometry.mesh is None
-    flashes = scene.photos_with_role("flash")
+    flashes = scene.flash_photos()
     for photo in flashes:
         if normal_map and photo.light.type == "point":
             raise InputError(f"{photo.where}.light.type", "a point light needs surface depth, "

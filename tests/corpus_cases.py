@@ -92,6 +92,13 @@ CASES = [
         "extract", str(scene_copy(w, t, lambda doc: doc["photos"].append(
             {"file": "flash0.exr", "role": "ambient"}))), "--out", out_path(t, "s.csv")],
      "flash0.exr"),
+    *[(command, "no flash photo, only an ambient one (an IndexError traceback)",
+       lambda w, t, command=command, extra=extra, name=name: [command, str(scene_copy(
+           w, t, lambda doc: doc.__setitem__("photos", [{**doc["photos"][0], "role": "ambient"}]
+                                             ))), *extra, "--out", out_path(t, name)],
+       "scene.json: photos")
+      for command, extra, name in (("extract", [], "s.csv"), ("segment", [], "l.png"),
+                                   ("run", ["--methods", "pca"], "run"))],
     ("extract", "camera.width NaN", lambda w, t: ["extract", str(scene_copy(
         w, t, set_field(("camera", "width"), float("nan")))), "--out", out_path(t, "s.csv")],
      "scene.json: camera.width"),
