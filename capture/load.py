@@ -3,7 +3,8 @@
 Pixel model (contract): pixel = (flash - ambient) / scale_flash. When the ambient photo sets its
 own `scale` explicitly, it is taken to be in its own units, so the ambient in flash units is
 ambient * scale_flash / scale_ambient; several ambient photos are averaged. Usability propagates:
-a pixel is usable only if usable in the flash photo and in every ambient photo. Values are never
+a pixel is usable only if usable in the flash photo and measured in every ambient photo (not
+clipped, finite: an ambient pixel at 0 is a dark room, not a lost measurement). Values are never
 clamped: noise can make (flash - ambient) negative, which keeps per-bin estimates unbiased.
 """
 
@@ -92,7 +93,11 @@ def _ambient(scene, photo):
     for a in ambients:
         if a.camera.shape != photo.camera.shape:
             raise InputError(a.where, "ambient photo's camera differs in size from the flash's")
-        rgb, ok = load_photo_entry(a)
+        rgb, _, clipped = load_photo_entry(a, return_clipped=True)
+        # An ambient pixel at 0 (or below one code) is what a dark room gives: it measures "no
+        # ambient light" to within the flash photo's own quantisation, so only a clipped or
+        # non-finite ambient pixel makes its flash pixel unusable.
+        ok = ~clipped & np.isfinite(rgb).all(axis=-1)
         total = rgb if total is None else total + rgb
         usable = ok if usable is None else usable & ok
     scales = {a.scale if a.scale_given else None for a in ambients}

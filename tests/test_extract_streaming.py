@@ -227,3 +227,40 @@ def test_a_multiview_flash_photo_without_its_views_ambient_is_refused(tmp_path):
     next(images)  # the first view has its ambient photo
     with pytest.raises(InputError, match=r"photos\[2\].*no ambient photo"):
         next(images)
+
+
+@pytest.mark.parametrize("photo_format", ["exr", "png16"])
+def test_a_dark_rooms_ambient_photo_of_zeros_costs_no_flash_pixel(tmp_path, photo_format):
+    """An ambient photo at 0 (a dark room; below one code in 8/16 bits) measures no ambient light:
+    subtracting it must leave the flash photo's usable pixels as they are. Zeros made the flash
+    pixels under them unusable: half a black ambient photo dropped half the samples, a wholly
+    black one exited 2 ("no usable pixel", naming the flash photo). A clipped ambient pixel
+    still makes its flash pixel unusable."""
+    import json
+
+    from flashbrdf import capture
+    from synthetic import write_exr, write_png16
+    scene = write_synthetic_scene(tmp_path / "s", sphere_mesh(subdivisions=3), ggx_lambert(),
+                                  pinhole_camera(48, 48, 160.0), [point_light([0.02, 0, 0])],
+                                  photo_format=photo_format)
+    (plain,) = capture.iter_flash_images(capture.load_scene(scene))
+    n_usable = int(plain.usable.sum())
+    assert n_usable > 500
+    ambient = np.zeros((48, 48, 3))
+    ambient[:24] = 1.0        # the top half clipped (the 16-bit code's ceiling, or past 0.9)
+    name = f"ambient.{'exr' if photo_format == 'exr' else 'png'}"
+    if photo_format == "exr":
+        write_exr(scene / name, ambient)
+        entry = {"file": name, "role": "ambient", "saturation": 0.9}
+    else:
+        write_png16(scene / name, ambient, 1.0)
+        entry = {"file": name, "role": "ambient", "encoding": "linear"}
+    doc = json.loads((scene / "scene.json").read_text())
+    doc["photos"].append(entry)
+    (scene / "scene.json").write_text(json.dumps(doc))
+    (dark,) = capture.iter_flash_images(capture.load_scene(scene))
+    bottom = np.zeros((48, 48), bool)
+    bottom[24:] = True
+    # every usable flash pixel under the ambient's zeros stays usable, none under its clipped half
+    assert int(dark.usable.sum()) == int((plain.usable & bottom).sum()) > 200
+    np.testing.assert_array_equal(dark.radiance[bottom], plain.radiance[bottom])
