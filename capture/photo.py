@@ -287,12 +287,11 @@ def _load_photo(path, encoding, saturation, shape):
 def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_clipped=False):
     """Merge an exposure bracket [(path, exposure_s), ...] into one HDR photo.
 
-    8-bit brackets without an `encoding`: OpenCV's Debevec camera-response calibration and a
-    Debevec log-domain merge (relative radiance: OpenCV normalises the response to 1 at code 128).
-    Other brackets, and 8-bit ones whose `encoding` ("srgb" or "linear") says how to linearise
-    them (the contract's photo formats): each is linearised as load_photo does, then per pixel
-    the maximum-likelihood radiance for Poisson counts, sum(value) / sum(exposure) over the
-    brackets where the pixel is usable. A merged pixel is usable when at least one bracket saw
+    Each bracket is linearised as load_photo does (8-bit without an `encoding` as sRGB, 16-bit
+    as linear), then per pixel the maximum-likelihood radiance for Poisson counts,
+    sum(value) / sum(exposure) over the brackets where the pixel is usable. (A camera-response
+    calibration such as Debevec's fixes the response only up to a scale, a different one for
+    each photo: it gave 4.6 times the truth while the level was reported absolute.) A merged pixel is usable when at least one bracket saw
     it usable, clipped when every bracket saw it clipped.
     Returns rgb (H, W, 3) float32 in units per second of exposure, usable (H, W) bool (and
     clipped (H, W) bool with return_clipped).
@@ -304,9 +303,6 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
         for p, img in zip(paths, raw):
             if img is None:
                 raise no_file(p) if not p.is_file() else InputError(p, "cannot read image")
-        if encoding is None and all(img.dtype == np.uint8 for img in raw):
-            out = _merge_debevec(paths, raw, times, shape)
-            return out if return_clipped else out[:2]
         # linearised as load_photo does, from the pixels decoded above (not read again)
         loaded = [_linear_from_cv(img, p, encoding, saturation) for p, img in zip(paths, raw)]
         for p, (rgb, _, _) in zip(paths, loaded):
@@ -328,35 +324,3 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
     shortest = loaded[int(np.argmin(times))][0] / times.min()
     rgb = np.where(usable[..., None], rgb, shortest).astype(np.float32)
     return (rgb, usable, clipped) if return_clipped else (rgb, usable)
-
-
-def _merge_debevec(paths, images, times, shape):
-    for p, img in zip(paths, images):
-        if img.ndim != 3 or img.shape[2] != 3:
-            raise InputError(p, "8-bit brackets must be 3-channel colour images")
-        if img.shape != images[0].shape:
-            raise InputError(p, "bracket images differ in size")
-        if shape is not None and img.shape[:2] != tuple(shape):
-            raise InputError(p, f"image is {img.shape[1]}x{img.shape[0]} but the camera is "
-                                f"{shape[1]}x{shape[0]}")
-    # OpenCV's camera-response calibration (Debevec & Malik 1997), then the same log-domain
-    # weighted merge as cv2.MergeDebevec but with zero weight at and above the clipping code:
-    # MergeDebevec gives code 255 a weight of 1, which biases bright pixels low by up to ~15%.
-    response = cv2.createCalibrateDebevec(samples=300).process(images, times)[:, 0, ::-1]
-    log_response = np.log(np.maximum(response, 1e-30)).astype(np.float32)  # (256, 3) RGB
-    top = SATURATION_FRACTION * 255
-    codes = np.arange(256, dtype=np.float32)
-    weight_of = np.where((codes > 0) & (codes < top), np.minimum(codes, 255 - codes), 0)
-    total = np.zeros(images[0].shape, dtype=np.float32)
-    weights = np.zeros(images[0].shape, dtype=np.float32)
-    channel = np.arange(3)
-    for img, t in zip(images, times):
-        rgb = img[..., ::-1]
-        w = weight_of[rgb]
-        total += w * (log_response[rgb, channel] - np.log(t))
-        weights += w
-    usable = np.all(weights > 0, axis=-1)
-    hdr = np.exp(total / np.where(weights > 0, weights, 1)).astype(np.float32)
-    stack = np.stack(images)
-    clipped = np.all(np.any(stack >= top, axis=-1), axis=0) & ~usable
-    return np.ascontiguousarray(hdr), usable, clipped

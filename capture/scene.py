@@ -146,6 +146,10 @@ def photo_labels(photos, folder):
     return labels
 
 
+# OpenCV's distortion vector lengths; the contract's is 5, [k1, k2, p1, p2, k3]
+DISTORTION_LENGTHS = (4, 5, 8, 12, 14)
+
+
 @dataclass(frozen=True, eq=False)
 class Geometry:
     """Either mesh (Path) or normal_map + mask (Paths)."""
@@ -245,7 +249,10 @@ def _camera(f):
         # the contract's [k1, k2, p1, p2, k3]; OpenCV's other lengths are accepted too
         raw = f.get("distortion")
         size = len(raw) if isinstance(raw, list) else 0
-        distortion = f.array("distortion", (size if size in (4, 5, 8, 12, 14) else 5,))
+        if isinstance(raw, list) and size not in DISTORTION_LENGTHS:
+            f.fail("distortion", f"expected [k1, k2, p1, p2, k3] (OpenCV's 4, 8, 12 or 14 "
+                                 f"coefficients are read too), got {size} numbers")
+        distortion = f.array("distortion", (size if size in DISTORTION_LENGTHS else 5,))
         if not np.any(distortion):
             distortion = None
     fx, fy = (f.number(k, positive=True, factor=True) for k in ("fx", "fy"))

@@ -319,3 +319,17 @@ def test_gltf_node_with_a_singular_transform_is_bad_input(tmp_path):
     scene.export(tmp_path / "t.glb")
     with pytest.raises(InputError, match="t.glb"):
         capture.load_mesh(tmp_path / "t.glb")
+
+
+@pytest.mark.parametrize("length", [2, 3, 6, 9])
+def test_a_distortion_of_a_length_opencv_cannot_read_says_what_lengths_are_read(tmp_path, length):
+    """4, 8, 12 and 14 coefficients are read as OpenCV reads them; any other length was refused
+    with "expected 5 numbers", which a user with 8 that worked could not square with 3 that did
+    not."""
+    doc = _doc()
+    doc["camera"]["distortion"] = [0.01] * length
+    with pytest.raises(InputError) as err:
+        capture.load_scene(_write(tmp_path, doc))
+    assert str(err.value) == (f"{tmp_path / 'scene.json'}: camera.distortion: expected [k1, k2, "
+                              "p1, p2, k3] (OpenCV's 4, 8, 12 or 14 coefficients are read too), "
+                              f"got {length} numbers")
