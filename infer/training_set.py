@@ -4,7 +4,7 @@ one at a time (MERL files or stored rows). Values in 1/sr, NaN where MERL has no
 
 import hashlib
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -81,7 +81,8 @@ MIN_TRAINING_TABLES = 4
 
 def check_distinct(paths, tables_2d):
     """InputError when fewer than MIN_TRAINING_TABLES of the training tables differ (2D view, bit
-    for bit), naming the first copy; for a training set only (a test set may hold copies).
+    for bit in float32, as MODEL.npz stores and train fits them: tables 1e-9 apart are one),
+    naming the first copy; for a training set only (a test set may hold copies).
     Copies of a table (one material under two names, links to one file) are allowed as
     near-duplicates are: the jittered Cholesky takes a repeated row. But five copies of one table
     leave nothing to learn (the GP covariances went singular: a LinAlgError traceback)."""
@@ -89,7 +90,7 @@ def check_distinct(paths, tables_2d):
         return  # too few in any case: check_training_size names the folder
     seen, first_copy = {}, None
     for path, table in zip(paths, tables_2d):
-        key = hashlib.sha256(np.ascontiguousarray(table).tobytes()).hexdigest()
+        key = hashlib.sha256(np.ascontiguousarray(table, np.float32).tobytes()).hexdigest()
         if key in seen and first_copy is None:
             first_copy = (path, seen[key])
         seen.setdefault(key, path)
@@ -163,6 +164,13 @@ class TrainingSet:
                    paths=[q for p in parts for q in p.paths],
                    valid_3d=np.concatenate([p.valid_3d for p in parts]) if keep_3d else None,
                    filled_bins={k: v for p in parts for k, v in p.filled_bins.items()})
+
+    def as_stored(self):
+        """This set with its 2D tables rounded to float32, as MODEL.npz stores them: what a
+        model is fitted on, so that a load rebuilds exactly the training rows it was fitted on
+        (near-duplicate tables differ by little more than float32's rounding)."""
+        return replace(self, tables_2d=np.asarray(self.tables_2d, np.float32).astype(np.float64),
+                       fitted_pca=None)
 
     def subset(self, index):
         index = list(index)
