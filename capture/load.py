@@ -94,9 +94,10 @@ def _ambient(scene, photo):
         if a.camera.shape != photo.camera.shape:
             raise InputError(a.where, "ambient photo's camera differs in size from the flash's")
         rgb, _, clipped = load_photo_entry(a, return_clipped=True)
-        # An ambient pixel at 0 (or below one code) is what a dark room gives: it measures "no
-        # ambient light" to within the flash photo's own quantisation, so only a clipped or
-        # non-finite ambient pixel makes its flash pixel unusable.
+        # An ambient pixel at 0 (below one code) is what a dark room gives: "no ambient light",
+        # to half a code of the ambient photo (the flash photo's own rounding when both are taken
+        # alike, as docs/capture.md asks), so only a clipped or non-finite ambient pixel makes
+        # its flash pixel unusable.
         ok = ~clipped & np.isfinite(rgb).all(axis=-1)
         total = rgb if total is None else total + rgb
         usable = ok if usable is None else usable & ok

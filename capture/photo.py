@@ -289,9 +289,9 @@ def load_brackets(brackets, encoding=None, saturation=None, shape=None, return_c
 
     Each bracket is linearised as load_photo does (8-bit without an `encoding` as sRGB, 16-bit
     as linear), then per pixel the maximum-likelihood radiance for Poisson counts,
-    sum(value) / sum(exposure) over the brackets where the pixel is usable. (A camera-response
-    calibration such as Debevec's fixes the response only up to a scale, a different one for
-    each photo: it gave 4.6 times the truth while the level was reported absolute.) A merged pixel is usable when at least one bracket saw
+    sum(value) / sum(exposure) over the brackets where the pixel is usable. (A calibrated camera
+    response, Debevec's, is known only up to a scale, another one for each photo: no absolute
+    level.) A merged pixel is usable when at least one bracket saw
     it usable, clipped when every bracket saw it clipped.
     Returns rgb (H, W, 3) float32 in units per second of exposure, usable (H, W) bool (and
     clipped (H, W) bool with return_clipped).

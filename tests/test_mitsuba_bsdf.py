@@ -114,8 +114,10 @@ def test_llvm_sphere_matches_our_renderer(plastic, llvm):
     # specular 0: eta = 1, and Mitsuba drops the main lobe, metallic part and all
     {"base_color": [0.9, 0.6, 0.3], "roughness": 0.1, "metallic": 1.0, "specular": 0.0},
     {"base_color": [0.9, 0.6, 0.3], "roughness": 0.1, "metallic": 1.0, "specular": 1e-3},
+    # the fit's lower bound (brdf.models.principled_fit): the lobe is there, clear of the edge
+    {"base_color": [0.9, 0.6, 0.3], "roughness": 0.1, "metallic": 1.0, "specular": 1e-12},
 ], ids=["rough_dielectric", "rough_metal", "clearcoat_paint", "everything", "metal_specular_0",
-        "metal_specular_min"])
+        "metal_specular_1e-3", "metal_specular_fit_bound"])
 def test_numpy_principled_is_mitsubas(params, llvm):
     """brdf.models.principled against Mitsuba 3's own `principled` plugin, f cos theta_o."""
     from flashbrdf.brdf.models.principled import principled_brdf_local

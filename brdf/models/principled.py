@@ -10,8 +10,8 @@ only (spec_trans = 0, flatness = 0, anisotropic = 0), so a table made here is wh
 - main specular: F D G / (4 cos_i cos_o), GGX with alpha = max(0.001, roughness^2) and separable
   Smith G; F = (1 - m)(1 - spec_tint) F_dielectric(eta) + m Schlick(base_color)
   + (1 - m) spec_tint Schlick(base_color / lum * R0(eta)), eta = 2 / (1 - sqrt(0.08 specular)) - 1;
-  Mitsuba evaluates this lobe only where F_dielectric > 0: at specular ~0 (eta = 1 in float32)
-  it is gone, metallic part included;
+  Mitsuba evaluates this lobe only where F_dielectric > 0: at specular below 1.1e-14 (eta = 1
+  in float32) it is gone, metallic part included;
 - clearcoat: 0.25 clearcoat Schlick(0.04) D_GTR1(lerp(0.1, 0.001, clearcoat_gloss)) G_cc with
   Smith GGX alpha 0.25 (Mitsuba's lobe has no 1/(4 cos cos) either).
 Mitsuba's eval returns f cos theta_o; the values here are f itself, in 1/sr. lum is Mitsuba's RGB
@@ -82,7 +82,7 @@ def principled_brdf_angles(cos_i, cos_o, cos_h, cos_d, params):
         value = value + (p["sheen"] * (1.0 - metal) * f_d)[..., None] * c_sheen
 
     # Main specular lobe. Mitsuba evaluates it only where its dielectric Fresnel term is positive,
-    # so at eta = 1 (specular ~0: below ~1e-13 in float32) the metallic and tinted reflection go
+    # so at eta = 1 (specular below 1.1e-14, in float32) the metallic and tinted reflection go
     # too; the port does the same, or a fit there would not be what Mitsuba renders.
     if not main_lobe_exists(p["specular"]):
         return _with_clearcoat(value, p, ci, co, cos_h, cos_d, f_d, above)

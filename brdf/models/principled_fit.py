@@ -24,6 +24,12 @@ OPTIMISER = "scipy.optimize.least_squares (trf, bounded), multi-start"
 # Vector layout: base_color r, g, b, then the other parameters in PARAMETER_NAMES order.
 _SCALARS = PARAMETER_NAMES[1:]
 _LOWER = np.array([0.0, 0.0, 0.0, 0.03] + [0.0] * (len(_SCALARS) - 1))
+# specular >= 1e-12 (eta - 1 = 6e-7): Mitsuba drops the main lobe, metallic part and all, where
+# eta is 1 in float32 (specular below 1.1e-14), and a fit reaching for a pure metal would stop on
+# that edge, where a renderer's float32 rounding decides whether the lobe is there. The dielectric
+# Fresnel of eta - 1 = 6e-7 stays below 1e-6 up to θd 89° (1.4e-5 in MERL's last bin, 89.5°):
+# a Lambertian is still one.
+_LOWER[3 + _SCALARS.index("specular")] = 1e-12
 _UPPER = np.ones(3 + len(_SCALARS))
 
 
