@@ -5,11 +5,13 @@ contract metrics (brdf.metrics.brdf_errors) are accumulated as count-weighted ch
 """
 
 import os
+from typing import NamedTuple
 
 import numpy as np
 
 from flashbrdf.brdf import colour, merl, metrics
 from flashbrdf.infer.baselines import dual_weights
+from flashbrdf.infer.training_set import fill_missing_3d
 from flashbrdf.brdf.bins import valid_bins_3d
 from flashbrdf.infer.estimator import clip_to_range
 
@@ -31,19 +33,46 @@ class RowsView:
         return self.array[self.index[i]]
 
 
-def build_cache(paths, filename):
-    """Write ρ on the valid bins of every MERL table in `paths` to a float32 memmap; return it."""
+class Cache3D(NamedTuple):
+    """build_cache's result: the rows (training's, no-data bins filled) and the filled bins."""
+    rows: np.ndarray
+    holes: dict
+
+
+def holes_file(filename):
+    """The cache's record of no-data bins, beside it."""
+    return filename + ".holes.npz"
+
+
+def build_cache(paths, filename, tables_2d):
+    """Write ρ on the valid bins of every MERL table in `paths` to a float32 memmap, no-data
+    bins filled as training fills them (infer.training_set.fill_missing_3d from the filled 2D
+    tables_2d (N, 90, 90, 3)), and which bins those were beside it (holes_file). Returns
+    Cache3D(rows (N, n_valid, 3) memmap, holes {material index: flat indices of its no-data
+    valid bins})."""
     ih, jd, kd = valid_bins_3d()
     shape = (len(paths), len(ih), 3)
-    if os.path.exists(filename) and os.path.getsize(filename) == np.prod(shape) * 4:
-        return np.memmap(filename, np.float32, "r", shape=shape)
+    if os.path.exists(filename) and os.path.getsize(filename) == np.prod(shape) * 4 and \
+            os.path.exists(holes_file(filename)):
+        with np.load(holes_file(filename)) as z:
+            holes = {int(k): z[k] for k in z.files}
+        return Cache3D(np.memmap(filename, np.float32, "r", shape=shape), holes)
     rows = np.memmap(filename + ".part", np.float32, "w+", shape=shape)
+    holes = {}
     for i, path in enumerate(paths):
-        rows[i] = merl.read_merl(path)[ih, jd, kd]
+        raw = merl.read_merl(path)[ih, jd, kd]
+        missing = ~np.isfinite(raw).all(axis=-1)
+        if missing.any():
+            holes[i] = np.flatnonzero(missing)
+            raw = fill_missing_3d(raw, tables_2d[i])
+        rows[i] = raw
     rows.flush()
     del rows
+    with open(holes_file(filename) + ".part", "wb") as f:
+        np.savez(f, **{str(i): v for i, v in holes.items()})
+    os.replace(holes_file(filename) + ".part", holes_file(filename))
     os.replace(filename + ".part", filename)
-    return np.memmap(filename, np.float32, "r", shape=shape)
+    return Cache3D(np.memmap(filename, np.float32, "r", shape=shape), holes)
 
 
 def _chunks(n_valid, chunk, stride):
@@ -89,14 +118,16 @@ def _error_sums(pred_t, true_t):
     return out
 
 
-def evaluate_3d(cache, train, test, methods, slices, chunk=CHUNK, stride=1):
+def evaluate_3d(cache, train, test, methods, slices, chunk=CHUNK, stride=1, holes=None):
     """3D errors {method: [brdf_errors dict per test material]}.
 
     cache: (N_all, n_valid, 3) rows; train/test: index arrays into it; methods: {name: fitted
     method} (trained on the `train` rows); slices: (T, 90, 3) test flash slices. stride > 1 keeps
-    every stride-th φd bin only (quick smoke runs). Errors equal brdf.metrics.brdf_errors on the
-    same bins (the truth's ε and Lab are computed once per chunk and shared by all methods).
+    every stride-th φd bin only (quick smoke runs). holes: {row: flat valid-bin indices} whose
+    cached values were filled (build_cache): not scored. Errors equal brdf.metrics.brdf_errors on
+    the same bins (the truth's ε and Lab are computed once per chunk and shared by all methods).
     """
+    holes = holes or {}
     chunks = _chunks(cache.shape[1], chunk, stride)
     plans = {}
     for name, m in methods.items():
@@ -115,6 +146,9 @@ def evaluate_3d(cache, train, test, methods, slices, chunk=CHUNK, stride=1):
             (lambda rows: cache[rows][:, sel])
         true = np.asarray(read(test), np.float64)
         ok = np.isfinite(true).all(axis=-1)
+        for t, row in enumerate(test):
+            if int(row) in holes:
+                ok[t] &= ~_in_chunk(holes[int(row)], sel, ok.shape[1])
         counts += ok.sum(axis=1)
         true_t = [_transformed(true[t][ok[t]]) for t in range(len(test))]
         x_train = np.asarray(read(train), np.float64)
@@ -135,6 +169,17 @@ def evaluate_3d(cache, train, test, methods, slices, chunk=CHUNK, stride=1):
                     sums[name][t][k] += v
     return {name: [{k: v / max(counts[t], 1) for k, v in per.items()} for t, per in enumerate(s)]
             for name, s in sums.items()}
+
+
+def _in_chunk(flat, sel, size):
+    """(size,) bool: which bins of the chunk `sel` (a slice or index array of valid bins) are in
+    the sorted flat indices `flat`."""
+    if isinstance(sel, slice):
+        out = np.zeros(size, bool)
+        inside = flat[(flat >= sel.start) & (flat < sel.stop)]
+        out[inside - sel.start] = True
+        return out
+    return np.isin(sel, flat)
 
 
 def metrics_keys():

@@ -22,7 +22,7 @@ import numpy as np
 from flashbrdf.brdf import merl
 from flashbrdf.brdf.bins import valid_mask_2d
 from flashbrdf.brdf.shadowing import inverse_denominator
-from flashbrdf.experiments.eval3d import RowsView, build_cache, evaluate_3d
+from flashbrdf.experiments.eval3d import RowsView, build_cache, evaluate_3d, holes_file
 from flashbrdf.experiments.table1_files import mean_performing, write_table1
 from flashbrdf.files.errors import InputError
 from flashbrdf.infer import TrainingSet, make_method, method_from_model
@@ -99,7 +99,7 @@ def run_experiment(k, split, data, cache, quick, costs, points, ablations, measu
     measure: tracemalloc peaks (default: when `costs` is still empty, i.e. the first experiment)."""
     train_idx, valid_idx, test_idx = split
     train = data.subset(train_idx)
-    train.valid_3d = RowsView(cache, train_idx) if cache is not None else None
+    train.valid_3d = RowsView(cache.rows, train_idx) if cache is not None else None
     n_train = len(train_idx)
     fitted, chosen, record = {}, {}, {"experiment": k, "test": [data.names[i] for i in test_idx],
                                       "errors_2d": {}}
@@ -234,7 +234,8 @@ def experiment_task(k, split, data, cache_file, quick, with_ablations):
     merge_experiment adds in experiment order, giving the sequential loop's numbers."""
     t0 = time.perf_counter()
     warm_up()
-    cache = build_cache(data.paths, cache_file) if cache_file else None  # opens the shared file
+    # opens the shared file
+    cache = build_cache(data.paths, cache_file, data.tables_2d) if cache_file else None
     costs, points, ablations = {}, [], {} if with_ablations else None
     record, _ = run_experiment(k, split, data, cache, quick, costs, points, ablations,
                                measure=(k == 0))
@@ -264,7 +265,8 @@ def merge_experiment(part, records, costs, points, ablations):
 def experiment_3d_task(chosen, split, data, cache_file, first, stride):
     """run_3d of one experiment as a task: -> (errors_3d, {method: 3D inference s or None})."""
     record, costs = {"chosen": chosen}, {name: {} for name in chosen}
-    run_3d(record, split, data, build_cache(data.paths, cache_file), costs, first, stride)
+    run_3d(record, split, data, build_cache(data.paths, cache_file, data.tables_2d), costs, first,
+           stride)
     return record["errors_3d"], {name: c.get("infer_3d_s") for name, c in costs.items()}
 
 
@@ -363,7 +365,7 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
     n_3d = (1 if quick else 2) if experiments_3d is None else experiments_3d
     os.makedirs(out_dir, exist_ok=True)
     cache_file = os.path.join(cache_dir or out_dir, f".cache_valid_3d_{os.getpid()}.f32")
-    cache = build_cache(data.paths, cache_file) if n_3d else None
+    cache = build_cache(data.paths, cache_file, data.tables_2d) if n_3d else None
     command = command or "flashbrdf " + " ".join(sys.argv[1:])
     notes = [f"{n} materials; {len(all_splits)} experiment(s) planned of "
              f"{len(all_splits[0][0])} train / {len(all_splits[0][1])} validation / "
@@ -422,8 +424,9 @@ def run_evaluation(merl_dir, out_dir, quick=False, experiments=None, experiments
                      f"{resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB.")
         write_table1(out_dir, result, records, costs, points, ablations, len(all_splits))
     finally:
-        if not keep_cache and os.path.exists(cache_file):
-            os.remove(cache_file)
+        for path in (cache_file, holes_file(cache_file)) if not keep_cache else ():
+            if os.path.exists(path):
+                os.remove(path)
     return result
 
 
@@ -431,7 +434,7 @@ def run_3d(record, split, data, cache, costs, first, stride=1):
     """Refit the chosen methods of one experiment and add its 3D errors to the record."""
     train_idx, _, test_idx = split
     train = data.subset(train_idx)
-    train.valid_3d = RowsView(cache, train_idx)
+    train.valid_3d = RowsView(cache.rows, train_idx)
     methods = {name: build_method(name, **params).fit(train)
                for name, params in record["chosen"].items()}
     slices = data.slices[test_idx]
@@ -441,4 +444,5 @@ def run_3d(record, split, data, cache, costs, first, stride=1):
                 t0 = time.perf_counter()
                 m.predict(slices[0], "3d")
                 costs[name]["infer_3d_s"] = time.perf_counter() - t0
-    record["errors_3d"] = evaluate_3d(cache, train_idx, test_idx, methods, slices, stride=stride)
+    record["errors_3d"] = evaluate_3d(cache.rows, train_idx, test_idx, methods, slices,
+                                      stride=stride, holes=cache.holes)

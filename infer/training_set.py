@@ -20,19 +20,20 @@ def default_threads():
 
 
 def _read_views(path, keep_3d, bins_3d, fill=True):
-    """(flash slice (90, 3), 2D table (90, 90, 3), valid 3D bins (n, 3) float32 or None, count
-    of 2D bins filled) of one MERL file, its no-data bins filled (fill_missing_2d) or, for a
-    table that is only scored (fill=False), left NaN."""
+    """(flash slice (90, 3), 2D table (90, 90, 3), valid 3D bins (n, 3) float32 or None, the
+    (90, 90) bool mask of the 2D bins that held no data) of one MERL file, its no-data bins
+    filled (fill_missing_2d) or, for a table that is only scored (fill=False), left NaN."""
     table = merl.read_merl(path)
     flash_slice = views.flash_slice(table)[0]
     views.check_flash_slice(flash_slice, path)   # a table with no θd = 0 row is refused, not filled
+    raw_2d = views.table_2d(table)
+    holes = ~np.isfinite(raw_2d).all(axis=-1) & valid_mask_2d()
     if not fill:
-        return (flash_slice, views.table_2d(table),
-                table[bins_3d].astype(np.float32) if keep_3d else None, 0)
-    table_2d, filled = fill_missing_2d(views.table_2d(table))
+        return flash_slice, raw_2d, table[bins_3d].astype(np.float32) if keep_3d else None, holes
+    table_2d, _ = fill_missing_2d(raw_2d)
     rows = fill_missing_3d(table[bins_3d], table_2d).astype(np.float32) if keep_3d else None
     flash_slice = np.where(np.isfinite(flash_slice), flash_slice, table_2d[:, 0])
-    return flash_slice, table_2d, rows, filled
+    return flash_slice, table_2d, rows, holes
 
 
 _FILL_FLOOR = 1e-6  # 1/sr: ln(ρ + floor) is interpolated, so a black neighbour stays finite
@@ -122,6 +123,8 @@ class TrainingSet:
     # {MERL file: how many of its (θh, θd) bins held no data and were filled (fill_missing_2d)}
     filled_bins: dict = field(default_factory=dict)
     fill: bool = True  # table_3d_valid fills no-data bins too (False: tables only scored)
+    # (N, 90, 90) bool: the 2D bins that held no data (filled for training, not scored), or None
+    holes_2d: np.ndarray = field(default=None, repr=False)
 
     def __len__(self):
         return len(self.names)
@@ -144,10 +147,12 @@ class TrainingSet:
         bins_3d = valid_bins_3d() if keep_3d else None
         with ThreadPoolExecutor(min(default_threads(), len(names))) as pool:
             read = list(pool.map(lambda n: _read_views(found[n], keep_3d, bins_3d, fill), names))
-        slices, tables, rows, filled = ([r[k] for r in read] for k in range(4))
+        slices, tables, rows, holes = ([r[k] for r in read] for k in range(4))
+        counts = [int(h.sum()) if fill else 0 for h in holes]
         return cls(names, np.array(slices), np.array(tables), [found[n] for n in names],
                    np.array(rows) if keep_3d else None,
-                   filled_bins={str(found[n]): c for n, c in zip(names, filled) if c}, fill=fill)
+                   filled_bins={str(found[n]): c for n, c in zip(names, counts) if c}, fill=fill,
+                   holes_2d=np.array(holes) if any(h.any() for h in holes) else None)
 
     @classmethod
     def from_merl_dirs(cls, folders, keep_3d=False):
@@ -163,7 +168,10 @@ class TrainingSet:
                    tables_2d=np.concatenate([p.tables_2d for p in parts]),
                    paths=[q for p in parts for q in p.paths],
                    valid_3d=np.concatenate([p.valid_3d for p in parts]) if keep_3d else None,
-                   filled_bins={k: v for p in parts for k, v in p.filled_bins.items()})
+                   filled_bins={k: v for p in parts for k, v in p.filled_bins.items()},
+                   holes_2d=None if all(p.holes_2d is None for p in parts) else np.concatenate(
+                       [np.zeros((len(p), 90, 90), bool) if p.holes_2d is None else p.holes_2d
+                        for p in parts]))
 
     def as_stored(self):
         """This set with its 2D tables rounded to float32, as MODEL.npz stores them: what a
@@ -177,7 +185,15 @@ class TrainingSet:
         return TrainingSet([self.names[i] for i in index], self.slices[index], self.tables_2d[index],
                            None if self.paths is None else [self.paths[i] for i in index],
                            None if self.valid_3d is None else self.valid_3d[index],
-                           fill=self.fill)
+                           fill=self.fill,
+                           holes_2d=None if self.holes_2d is None else self.holes_2d[index])
+
+    def scored_table(self, i):
+        """Material i's 2D table as a metric scores it: the bins that held no data NaN (the
+        metrics skip them), not the values training filled them with."""
+        if self.holes_2d is None or not self.holes_2d[i].any():
+            return self.tables_2d[i]
+        return np.where(self.holes_2d[i][..., None], np.nan, self.tables_2d[i])
 
     @property
     def missing_3d(self):

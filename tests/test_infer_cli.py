@@ -383,3 +383,35 @@ def test_near_duplicate_training_tables_give_a_model_that_loads(merl_proxy, tmp_
     truth = views.table_2d(table)
     assert np.isfinite(predicted[merl.merl_valid_mask().any(axis=2)]).all()
     np.testing.assert_allclose(predicted[:, 0], truth[:, 0], rtol=0.01)
+
+
+def test_evaluate_scores_no_data_bins_as_missing_and_survives_them(merl_proxy, tmp_path):
+    """MERL's negative values mean no data. evaluate's cross-validation filled them for training
+    (as it must) but then scored predictions against the filled values, and in 3D one no-data bin
+    made the oracle's Gram NaN (a LinAlgError traceback). A table with a whole (θh, θd) bin and
+    one more 3D bin of no data: its 2D errors are brdf.metrics' over the bins that hold data,
+    exactly, and the 3D figures are finite."""
+    from flashbrdf.brdf import metrics
+    from flashbrdf.infer import make_method
+    folder = tmp_path / "merl"
+    folder.mkdir()
+    for p in merl_proxy(*TRAIN, TEST):
+        shutil.copy(p, folder / p.name)
+    table = merl.read_merl(folder / f"{TRAIN[1]}.binary")
+    table[50, 60] = np.nan                  # write_merl stores NaN as MERL's no-data value
+    table[45, 10, 90] = np.nan
+    merl.write_merl(folder / f"{TRAIN[1]}.binary", table)
+    out = tmp_path / "eval"
+    assert main(["evaluate", "--merl-dir", str(folder), "--out", str(out), "--quick",
+                 "--experiments", "5"]) == 0
+    result = json.loads((out / "table1.json").read_text())
+    (reported,) = [e["errors_2d"]["chandraker"][e["test"].index(TRAIN[1])]
+                   for e in result["per_experiment"] if TRAIN[1] in e["test"]]
+    truth = views.table_2d(table)
+    assert np.isnan(truth[50, 60]).all()
+    prediction = make_method("chandraker").fit(None).predict(views.flash_slice(table)[0], "2d")[0]
+    want = metrics.brdf_errors(prediction, truth)
+    for key, value in want.items():
+        assert reported[key] == pytest.approx(value, rel=1e-9), key
+    for m in ("dsgplvm", "pca", "noll", "chandraker", "ashikhmin", "oracle"):
+        assert np.isfinite(result["summary"]["3d"][m]["lab_log"]["mean"])
