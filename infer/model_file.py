@@ -175,6 +175,48 @@ def load_dsgplvm(blob, training=None, feature_space="lab", features_2d=None):
     return model
 
 
+def _finite(value):
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and \
+        bool(np.isfinite(value))
+
+
+def _count(value):
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 1
+
+
+# what a stored hyperparameter must be (train never writes anything else): a value outside
+# these gave a traceback (a feature space of "xyz"), or numbers of no meaning at exit 0 (a
+# negative calibration made variances negative; ashikhmin's r0 of -3 wrote 28,062 bins of -1)
+HYPERPARAMETER_RULES = {
+    "calibration": ("a positive number", lambda v: _finite(v) and v > 0),
+    "ridge": ("a number >= 0", lambda v: _finite(v) and v >= 0),
+    "r0": ("a number in [0, 1] or null", lambda v: v is None or (_finite(v) and 0 <= v <= 1)),
+    "n_components": ("a count >= 1 or null", lambda v: v is None or _count(v)),
+    "q": ("a count >= 1 or null", lambda v: v is None or _count(v)),
+    "beta": ("a number >= 0", lambda v: _finite(v) and v >= 0),
+    "seed": ("an integer", lambda v: isinstance(v, int) and not isinstance(v, bool)),
+    "feature_space": ('"lab" or "rgb"', lambda v: v in ("lab", "rgb")),
+    "views": ('views among "1d", "2d", "3d" with "1d" and "2d"',
+              lambda v: isinstance(v, list) and {"1d", "2d"} <= set(v) <= {"1d", "2d", "3d"}),
+}
+
+
+def check_hyperparameters(path, name, params):
+    """InputError naming the model file and the hyperparameter when a stored value is one train
+    never writes (HYPERPARAMETER_RULES); pca_params is checked as pca's own."""
+    for key, value in params.items():
+        if key == "pca_params" and value is not None:
+            if not isinstance(value, dict):
+                raise InputError(path, f"damaged model: params[{name!r}]['pca_params'] is not a "
+                                       "JSON object")
+            check_hyperparameters(path, f"{name}.pca_params", value)
+            continue
+        what, ok = HYPERPARAMETER_RULES.get(key, (None, None))
+        if ok is not None and not ok(value):
+            raise InputError(path, f"damaged model: params[{name!r}][{key!r}] is {value!r}, "
+                                   f"expected {what}")
+
+
 def load_method(path, name, merl_dir=None, **overrides):
     """A fitted method `name` from MODEL.npz (see infer.make_method), as `flashbrdf infer` uses
     it: dsgplvm is the shipped default (anchor=True; anchor=False is the paper's method).
@@ -199,8 +241,9 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
         kw = {**stored, **(overrides or {}).get(name, {})}
         try:
             make_method(name, **kw)  # hyperparameters the method does not take: a damaged file
-        except TypeError as err:
+        except (TypeError, ValueError) as err:
             raise InputError(path, f"damaged model: params[{name!r}] ({err})") from None
+        check_hyperparameters(path, name, kw)
         if name == "dsgplvm":
             if blob is None:
                 raise InputError(path, "model holds no DS-GPLVM")

@@ -392,6 +392,14 @@ def model_with_params(w, tmp, params):
     return path
 
 
+def model_with_param(w, tmp, method, key, value):
+    """A copy of the shipped model whose params[method][key] is `value`, the rest as stored."""
+    with np.load(w.model, allow_pickle=False) as z:
+        params = json.loads(str(z["params"]))
+    params[method][key] = value
+    return model_with_params(w, tmp, params)
+
+
 def model_edited(w, tmp, key, edit):
     """A copy of the shipped model with array `key` replaced by edit(array)."""
     path = tmp / "model.npz"

@@ -18,6 +18,7 @@ from corpus_inputs import (
     merl_body,
     merl_copy,
     model_edited,
+    model_with_param,
     model_with_params,
     no_theta_d_0,
     npz_bytes,
@@ -197,6 +198,16 @@ SWEEP_CASES = [
     ("infer", "model params with an unknown hyperparameter", lambda w, t: [
         "infer", "--method", "noll", "--model", str(model_with_params(w, t, {"noll": {"k": 1}})),
         "--slice", str(w.slice), "--out", out_path(t, "b.binary")], "model.npz"),
+    *[("infer", f"model params {method}.{key} = {value!r} ({why})",
+       lambda w, t, method=method, key=key, value=value: [
+           "infer", "--method", method, "--model", str(model_with_param(w, t, method, key, value)),
+           "--slice", str(w.slice), "--out", out_path(t, "b.binary")],
+       f"params['{method}']['{key}']")
+      for method, key, value, why in (
+          ("dsgplvm", "feature_space", "xyz", "a ValueError traceback"),
+          ("dsgplvm", "calibration", "abc", "a traceback"),
+          ("dsgplvm", "calibration", -1, "negative variances, exit 0"),
+          ("ashikhmin", "r0", -3, "28,062 bins written as no data, exit 0"))],
     ("infer", "model slices of inf (noll: a traceback)", lambda w, t: [
         "infer", "--method", "noll", "--model", str(model_edited(
             w, t, "slices", lambda a: np.full_like(a, np.inf))), "--slice", str(w.slice),
