@@ -112,6 +112,27 @@ def read_merl(path):
     return table
 
 
+def read_theta_d_row(path, theta_d_bin=0):
+    """ρ (90, 180, 3) in 1/sr of one θd row of a MERL file (NaN where no data), reading only
+    that row through a memory map (a 90th of the file); the size and header are checked."""
+    path = os.fspath(path)
+    try:
+        if os.path.getsize(path) != MERL_FILE_SIZE:
+            raise InputError(path, f"not a MERL table: {os.path.getsize(path)} bytes, expected "
+                                   f"{MERL_FILE_SIZE}")
+        header = np.fromfile(path, dtype="<i4", count=3)
+        if tuple(header) != MERL_SHAPE:
+            raise InputError(path, f"wrong MERL header {tuple(int(h) for h in header)}, "
+                                   f"expected {MERL_SHAPE}")
+        body = np.memmap(path, "<f8", "r", offset=12, shape=(3,) + MERL_SHAPE)
+        row = np.array(body[:, :, theta_d_bin, :])
+    except OSError as err:
+        raise InputError(path, f"cannot read: {err.strerror or err}") from None
+    row = np.moveaxis(row, 0, -1) * MERL_SCALE
+    row[~(row >= 0)] = np.nan
+    return row
+
+
 def read_merl_bins(path, flat_index, dtype=np.float64):
     """Read only some bins of a MERL `.binary` file, checked like read_merl.
 

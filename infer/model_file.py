@@ -20,7 +20,7 @@ from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.infer.adapter import table_features
 from flashbrdf.infer.dsgplvm import DSGPLVM
 from flashbrdf.infer.methods import make_method, method_from_model
-from flashbrdf.infer.training_set import TrainingSet
+from flashbrdf.infer.training_set import TrainingSet, check_3d_tables
 from flashbrdf.infer.viewdata import restore_rows
 
 FORMAT = "flashbrdf-infer-model-1"
@@ -140,6 +140,7 @@ def read_model(path, merl_dir=None):
         # some of them: the absent tables stand in by their stored 2D tables copied across phi_d
         # (TrainingSet.table_3d_valid), and the caller warns (TrainingSet.missing_3d).
         training.paths = [found.get(n) for n in names]
+        check_3d_tables(training)
     return training, params, blob
 
 

@@ -102,6 +102,34 @@ def check_distinct(paths, tables_2d):
                                f"{MIN_TRAINING_TABLES} different ones")
 
 
+SAME_TABLE_LN = 0.01       # a table whose θd = 0 slice is off by more (median |Δ ln ρ|) differs
+OTHER_MATERIAL_LN = np.log(2.0)  # off by more than a factor 2: another material
+
+
+def check_3d_tables(training):
+    """Compare each table at training.paths (a --merl-dir's, matched by name) with the model's
+    stored flash slice, reading only its θd = 0 row. Records the tables off by a median |Δ ln ρ|
+    over SAME_TABLE_LN in training.differing_3d (the 3D prediction mixes the files given, not the
+    model's tables: real MERL files beside a model trained on proxies); InputError naming the
+    file when one is off by more than a factor 2 (another material under the model's name, a
+    3D prediction of no meaning)."""
+    training.differing_3d = []
+    for name, path, stored in zip(training.names, training.paths, training.slices):
+        if path is None:
+            continue
+        given = views.flash_slice(merl.read_theta_d_row(path)[:, None])[0]
+        ok = np.isfinite(given) & np.isfinite(stored)
+        if not ok.any():
+            continue
+        off = float(np.median(np.abs(np.log((given[ok] + 1e-4) / (stored[ok] + 1e-4)))))
+        if off > OTHER_MATERIAL_LN:
+            raise InputError(path, f"is not the table {name!r} the model was trained on: its "
+                                   f"θd = 0 slice is off by a median factor {np.exp(off):.3g}; "
+                                   "give --merl-dir the folder the model was trained from")
+        if off > SAME_TABLE_LN:
+            training.differing_3d.append((name, off))
+
+
 @dataclass
 class TrainingSet:
     """Training materials: names (N,), flash slices (N, 90, 3), 2D tables (N, 90, 90, 3), in 1/sr.
@@ -125,6 +153,9 @@ class TrainingSet:
     fill: bool = True  # table_3d_valid fills no-data bins too (False: tables only scored)
     # (N, 90, 90) bool: the 2D bins that held no data (filled for training, not scored), or None
     holes_2d: np.ndarray = field(default=None, repr=False)
+    # [(name, median |Δ ln ρ| of its θd = 0 slice)]: `paths` tables that are not quite the ones
+    # the model was trained on (check_3d_tables)
+    differing_3d: list = field(default_factory=list)
 
     def __len__(self):
         return len(self.names)

@@ -4,6 +4,7 @@ Each takes values and checks its outputs against its inputs before any slow work
 (files.outputs); bad input raises InputError (exit 2).
 """
 
+import math
 import os
 import sys
 import time
@@ -88,6 +89,12 @@ def infer(model, slice_path, out, method_name="dsgplvm", merl_dirs=None, anchor=
         print(f"warning: {len(missing)} of the model's training tables are not in --merl-dir "
               f"(e.g. {', '.join(missing[:3])}); their share of the 3D prediction is their 2D "
               f"table copied across phi_d", file=sys.stderr)
+    differing = training.differing_3d if view == "3d" and training is not None else []
+    if differing:
+        worst = max(differing, key=lambda d: d[1])
+        print(f"warning: {len(differing)} of the --merl-dir tables differ from the ones the model "
+              f"was trained on (θd = 0 slice off by a median {100 * math.expm1(worst[1]):.0f}% "
+              f"at most, {worst[0]}); the 3D prediction mixes the tables given", file=sys.stderr)
     t1 = time.perf_counter()
     prediction = predict_slice(method, rho, n, view, source=slice_path)
     if prediction.tail_note:
@@ -98,7 +105,9 @@ def infer(model, slice_path, out, method_name="dsgplvm", merl_dirs=None, anchor=
     record = brdf_record(prediction, method, method_name, model)
     record.update(slice=str(slice_path), level=views.slice_level(slice_path),
                   observed_theta_h_bins=prediction.observed_bins,
-                  training_tables_2d_only=missing, params=method.fitted_params())
+                  training_tables_2d_only=missing,
+                  training_tables_differing={n: round(math.expm1(d), 4) for n, d in differing},
+                  params=method.fitted_params())
 
     def with_timings():  # once the table is written
         t3 = time.perf_counter()

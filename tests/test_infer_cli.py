@@ -415,3 +415,31 @@ def test_evaluate_scores_no_data_bins_as_missing_and_survives_them(merl_proxy, t
         assert reported[key] == pytest.approx(value, rel=1e-9), key
     for m in ("dsgplvm", "pca", "noll", "chandraker", "ashikhmin", "oracle"):
         assert np.isfinite(result["summary"]["3d"][m]["lab_log"]["mean"])
+
+
+def test_infer_3d_checks_that_merl_dir_holds_the_models_tables(trained, tmp_path, capsys):
+    """The 3D prediction mixes the --merl-dir tables matched by name, and tables under the
+    model's names but of other materials gave LAB-log 30 where the right ones give 4, at exit 0.
+    Another material (its θd = 0 slice off by more than a factor 2) is refused, naming the file;
+    a table off by 5% (real MERL files beside a model trained on proxies) is used, with a
+    warning and a record in BRDF.json."""
+    folder, model, slice_csv = trained
+    swapped, scaled = tmp_path / "swapped", tmp_path / "scaled"
+    for d in (swapped, scaled):
+        shutil.copytree(folder, d)
+    shutil.copy(folder / f"{TRAIN[4]}.binary", swapped / f"{TRAIN[0]}.binary")  # nickel as gold
+    table = merl.read_merl(folder / f"{TRAIN[1]}.binary")
+    merl.write_merl(scaled / f"{TRAIN[1]}.binary", table * 1.05)
+    capsys.readouterr()
+    out = tmp_path / "a.binary"
+    assert main(["infer", "--model", str(model), "--slice", str(slice_csv), "--out", str(out),
+                 "--merl-dir", str(swapped)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{TRAIN[0]}.binary: is not the table" in err[0] and not out.exists()
+    assert main(["infer", "--model", str(model), "--slice", str(slice_csv), "--out", str(out),
+                 "--merl-dir", str(scaled)]) == 0
+    err = capsys.readouterr().err
+    assert "1 of the --merl-dir tables differ" in err and "5%" in err
+    record = json.loads(out.with_suffix(".json").read_text())
+    # 5%, less what the comparison's 1e-4 1/sr offset takes off dark bins (ρ ~ 0.02 there: 0.5%)
+    assert record["training_tables_differing"] == {TRAIN[1]: pytest.approx(0.05, rel=0.01)}
