@@ -251,6 +251,11 @@ class DSGPLVMMethod(InferenceMethod):
                 variance = variance + self.calibration * np.where(np.isnan(variance), np.nan,
                                                                   spread)
                 table = consensus_table(stack)
+        if view == "3d":
+            # the 3D table's (θh, θd) level is the 2D prediction's (anchored, consensus): so is
+            # its per-bin variance, the same across φd (the GP's own 3D variance is one number)
+            variance_2d = self.predict(flash_slice, "2d")[1]
+            variance = np.broadcast_to(variance_2d[:, :, None, :], table.shape)
         return table, variance
 
     def member_tables(self, flash_slice, own_table=None):
@@ -306,7 +311,8 @@ class DSGPLVMMethod(InferenceMethod):
 
     def _predict_3d(self, rho):
         """Streamed 3D mean; the variance is the GP's per-dimension predictive variance (a scalar:
-        one isotropic GP per view, in feature units²)."""
+        one isotropic GP per view, in feature units²; predict replaces it by the 2D view's
+        per-bin variance across φd)."""
         weights, space, var = self._combination(rho)
         return scatter_valid(stream_combination(self.training_, weights, space)), np.float64(var)
 

@@ -443,3 +443,19 @@ def test_infer_3d_checks_that_merl_dir_holds_the_models_tables(trained, tmp_path
     record = json.loads(out.with_suffix(".json").read_text())
     # 5%, less what the comparison's 1e-4 1/sr offset takes off dark bins (ρ ~ 0.02 there: 0.5%)
     assert record["training_tables_differing"] == {TRAIN[1]: pytest.approx(0.05, rel=0.01)}
+
+
+def test_a_3d_prediction_carries_the_2d_views_per_bin_variance(trained, tmp_path):
+    """A 3D prediction's variance was the GP's one number for the whole table (mean = median =
+    max in BRDF.json), uncalibrated, while the docs promise a per-bin variance; it is the 2D
+    prediction's per-(θh, θd, channel) variance, calibrated, the same across φd."""
+    from flashbrdf.infer import load_method
+    folder, model, slice_csv = trained
+    method = load_method(model, "dsgplvm", folder)
+    rho = views.read_slice_csv(slice_csv)[0]
+    table_3d, variance_3d = method.predict(rho, "3d")
+    variance_2d = method.predict(rho, "2d")[1]
+    assert variance_3d.shape == table_3d.shape == (90, 90, 180, 3)
+    np.testing.assert_array_equal(variance_3d[:, :, 37], variance_2d)
+    finite = variance_2d[np.isfinite(variance_2d)]
+    assert finite.size > 10_000 and finite.max() > 2 * np.median(finite)
