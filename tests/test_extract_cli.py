@@ -198,3 +198,30 @@ def test_half_diff_thetas_match_brdf_angles():
     assert np.abs(ours_h - th).max() < 1e-12 and np.abs(ours_d - td).max() < 1e-12
     h32, d32 = half_diff_thetas(*(v.astype(np.float32) for v in (wi, wo, n)))
     assert np.abs(h32 - th).max() < 1e-5 and np.abs(d32 - td).max() < 1e-5  # float32 path
+
+
+@pytest.mark.parametrize("long_scale, warned", [(16.0, True), (1.0, False)])
+def test_an_exposure_series_given_as_separate_photos_is_warned_of(tmp_path, capsys, long_scale,
+                                                                  warned):
+    """One view and flash twice, the second 16 times as long and clipped at 1.5 times the short
+    photo's brightest pixel: its clipped samples count as brighter than every measured sample of
+    their θh bin, and a probe's slice lost 70 of its 73 bins. extract names both photos and
+    points to `brackets`; two photos at one scale (repeats to average noise) are not warned of."""
+    from flashbrdf.capture import load_photo
+    scene = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=3), ggx_lambert(),
+                                  pinhole_camera(64, 64, 200.0), [point_light([0.01, 0, 0])])
+    image = load_photo(scene / "flash0.exr")[0]
+    write_exr(scene / "long.exr", image * long_scale)
+
+    def add(doc):
+        doc["photos"].append({**doc["photos"][0], "file": "long.exr", "scale": long_scale,
+                              "saturation": 1.5 * float(image.max())})
+    _edit(scene, add)
+    capsys.readouterr()
+    assert main(["extract", str(scene), "--out", str(tmp_path / "s.csv")]) == 0
+    lines = [w for w in json.loads((tmp_path / "s.json").read_text())["warnings"]
+             if "brackets" in w]
+    assert len(lines) == int(warned)
+    if warned:
+        assert lines[0].startswith("photos[1] clips ") and "photos[0] is the same view" in lines[0]
+        assert lines[0] in capsys.readouterr().err
