@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from flashbrdf.capture.photo import load_brackets, load_photo, load_photo_measured
-from flashbrdf.capture.scene import Scene, load_scene
+from flashbrdf.capture.scene import Scene, camera_key, load_scene
 from flashbrdf.files.errors import InputError
 from flashbrdf.files.threads import thread_budget
 
@@ -56,14 +56,6 @@ def load_reference_entry(photo):
         return load_photo_measured(photo.file, photo.encoding, photo.saturation,
                                    photo.camera.shape)
     return load_photo_entry(photo)
-
-
-def camera_key(camera):
-    """What identifies a camera's pixel grid, intrinsics, distortion and pose, exactly: photos
-    with equal keys are one view (they share primary rays, label and albedo images, ambient)."""
-    return (camera.model, camera.width, camera.height, camera.fx, camera.fy, camera.cx,
-            camera.cy, camera.pixel_size, np.asarray(camera.world_from_camera).tobytes(),
-            None if camera.distortion is None else np.asarray(camera.distortion).tobytes())
 
 
 def same_view(a, b):

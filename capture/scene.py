@@ -146,6 +146,14 @@ def photo_labels(photos, folder):
     return labels
 
 
+def camera_key(camera):
+    """What identifies a camera's pixel grid, intrinsics, distortion and pose, exactly: photos
+    with equal keys are one view (they share primary rays, label and albedo images, ambient)."""
+    return (camera.model, camera.width, camera.height, camera.fx, camera.fy, camera.cx,
+            camera.cy, camera.pixel_size, np.asarray(camera.world_from_camera).tobytes(),
+            None if camera.distortion is None else np.asarray(camera.distortion).tobytes())
+
+
 # OpenCV's distortion vector lengths; the contract's is 5, [k1, k2, p1, p2, k3]
 DISTORTION_LENGTHS = (4, 5, 8, 12, 14)
 
@@ -354,6 +362,16 @@ def load_scene(scene_dir):
         root.fail("photos", "expected a non-empty list")
     photos = [_photo(Fields(str(json_path), f"photos[{i}]", p), i, folder, camera)
               for i, p in enumerate(items)]
+    if geometry.normal_map is not None:
+        for photo in photos:
+            if camera_key(photo.camera) != camera_key(camera):
+                # its normals and mask are the scene camera's pixels: another view would be
+                # rendered through them, rotated by the other pose (a torus: ΔE-log 16 where the
+                # true BRDF gives 1.2)
+                Fields(str(json_path), f"photos[{photo.index}]", {}).fail(
+                    "camera", "differs from the scene's camera, and a normal map gives the "
+                              "surface seen from the scene's camera only: give a mesh for "
+                              "several views")
     level = _level(root.sub("level"), folder, geometry) if root.has("level") else None
     return Scene(folder=folder, camera=camera, geometry=geometry, photos=photos,
                  json_path=json_path.resolve(), level=level)

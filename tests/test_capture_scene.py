@@ -60,6 +60,10 @@ def test_load_scene_fields(tmp_path):
      "photos[2].brackets[0].exposure_s"),
     (lambda d: d["photos"][0].update(brackets=[]), "photos[0]"),
     (lambda d: d.update(photos=[]), "photos"),
+    # a normal map is the scene camera's view only: another camera's photo was rendered through
+    # it, rotated by the other pose, at exit 0
+    (lambda d: (d.update(geometry={"normal_map": "n.npy", "mask": "m.png"}),
+                d["photos"][2].update(camera={**d["camera"], "fx": 60.0})), "photos[2].camera"),
 ])
 def test_bad_fields_name_file_and_field(tmp_path, edit, field):
     doc = _doc()
