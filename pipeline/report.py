@@ -28,6 +28,7 @@ from flashbrdf.files.atomic import write_text
 from flashbrdf.brdf.merl import theta_h_centres
 from flashbrdf.brdf.metrics import summarise
 from flashbrdf.brdf.views import slice_coverage, table_2d_view, variance_2d_view
+from flashbrdf.capture.photo import CV_EXTENSIONS, FLOAT_EXTENSIONS, RAW_EXTENSIONS
 from flashbrdf.brdf.metrics import delta_e_log
 from flashbrdf.render.compare import compare_images, comparison_mask
 from flashbrdf.pipeline import report_figures as figs
@@ -112,6 +113,9 @@ def coverage(theta_h_deg, observed):
     return info, warnings
 
 
+PHOTO_EXTENSIONS = FLOAT_EXTENSIONS + CV_EXTENSIONS + RAW_EXTENSIONS
+
+
 def _number(value):
     """A metric as float, NaN when missing (None: the photo had no reference to compare with)."""
     try:
@@ -154,11 +158,18 @@ def _reference_rows(references, fig_dir, max_figures):
     for photo, entry in list(by_photo.items())[:max_figures]:
         if entry["reference"] is None and all(r is None for r in entry["renders"].values()):
             continue
-        name = f"ref_{Path(str(photo)).stem}.png"
+        name = f"ref_{_figure_stem(photo)}.png"
         figs.reference_figure(fig_dir / name, photo, entry["reference"], entry["renders"],
                               entry["maps"], entry["means"])
         figures[photo] = f"figures/{name}"
     return rows, figures, len(by_photo)
+
+
+def _figure_stem(photo):
+    """A reference photo's name for its figure: its file name without a photo extension; a stem
+    as `run` gives it stays whole (ref.dir and ref.cam2 were both "ref", one figure for two)."""
+    path = Path(str(photo))
+    return path.stem if path.suffix.lower() in PHOTO_EXTENSIONS else path.name
 
 
 def _summary(rows, sources=None):
@@ -171,7 +182,8 @@ def _summary(rows, sources=None):
         mine = [r for r in rows if r["method"] == method]
         out[method] = {key: summarise([r[key] for r in mine])
                        for key in ("delta_e_log_mean", "rel_rmse")}
-        out[method]["references"] = len(mine)
+        # the references compared: a reference photo missing on disk is rendered, not scored
+        out[method]["references"] = sum(bool(np.isfinite(r["delta_e_log_mean"])) for r in mine)
         levels = [r["level_ratio_rgb"] for r in mine if r.get("level_ratio_rgb") is not None]
         if levels:
             with warnings.catch_warnings():     # an all-NaN channel stays NaN

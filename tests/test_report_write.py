@@ -206,3 +206,22 @@ def test_level_matched_error_removes_one_shared_offset(tmp_path):
     assert dark["level_matched"]["delta_e_log_mean"]["mean"] == pytest.approx(0.0, abs=1e-9)
     assert wrong["level_matched"]["delta_e_log_mean"]["mean"] > 1.0
     assert "level-matched" in (tmp_path / "report.md").read_text()
+
+
+def test_photos_with_dots_get_a_figure_each_and_missing_photos_are_not_counted(tmp_path):
+    """run names rows by the photo's stem: ref.dir and ref.cam2 both became figures/ref_ref.png
+    (one overwrote the other). A reference photo missing on disk is rendered but not compared:
+    the summary said "over 3 references" with the mean over 2."""
+    reference, mask = _images()
+    refs = [{"photo": "ref.dir", "method": "pca", "render": reference * 1.1,
+             "reference": reference, "mask": mask},
+            {"photo": "ref.cam2", "method": "pca", "render": reference * 0.9,
+             "reference": reference, "mask": mask},
+            {"photo": "ref_missing", "method": "pca", "render": reference,
+             "delta_e_log_mean": None, "rel_rmse": None}]
+    report = write_report(tmp_path / "out", stages={"render": 1.0}, references=refs)
+    figures = report["figures"]["references"]
+    assert figures["ref.dir"] == "figures/ref_ref.dir.png"
+    assert figures["ref.cam2"] == "figures/ref_ref.cam2.png"
+    assert all((tmp_path / "out" / f).is_file() for f in figures.values())
+    assert report["summary"]["pca"]["references"] == 2
