@@ -113,21 +113,32 @@ def read_merl(path):
 
 
 def read_theta_d_row(path, theta_d_bin=0):
-    """ρ (90, 180, 3) in 1/sr of one θd row of a MERL file (NaN where no data), reading only
-    that row through a memory map (a 90th of the file); the size and header are checked."""
+    """ρ (90, 180, 3) in 1/sr of one θd row of a MERL file (NaN where no data), read as its 270
+    runs of 180 values (a 90th of the file; the kernel told not to read ahead); the size and
+    header are checked."""
     path = os.fspath(path)
+    run = N_PHI_D * 8
     try:
         if os.path.getsize(path) != MERL_FILE_SIZE:
             raise InputError(path, f"not a MERL table: {os.path.getsize(path)} bytes, expected "
                                    f"{MERL_FILE_SIZE}")
-        header = np.fromfile(path, dtype="<i4", count=3)
-        if tuple(header) != MERL_SHAPE:
-            raise InputError(path, f"wrong MERL header {tuple(int(h) for h in header)}, "
-                                   f"expected {MERL_SHAPE}")
-        body = np.memmap(path, "<f8", "r", offset=12, shape=(3,) + MERL_SHAPE)
-        row = np.array(body[:, :, theta_d_bin, :])
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            if hasattr(os, "posix_fadvise"):
+                os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_RANDOM)
+            header = np.frombuffer(os.pread(fd, 12, 0), dtype="<i4")
+            if tuple(header) != MERL_SHAPE:
+                raise InputError(path, f"wrong MERL header {tuple(int(h) for h in header)}, "
+                                       f"expected {MERL_SHAPE}")
+            stride = N_THETA_D * run
+            channel = N_THETA_H * stride
+            data = b"".join(os.pread(fd, run, 12 + c * channel + h * stride + theta_d_bin * run)
+                            for c in range(3) for h in range(N_THETA_H))
+        finally:
+            os.close(fd)
     except OSError as err:
         raise InputError(path, f"cannot read: {err.strerror or err}") from None
+    row = np.frombuffer(data, dtype="<f8").reshape(3, N_THETA_H, N_PHI_D)
     row = np.moveaxis(row, 0, -1) * MERL_SCALE
     row[~(row >= 0)] = np.nan
     return row

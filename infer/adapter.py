@@ -255,7 +255,7 @@ class DSGPLVMMethod(InferenceMethod):
             # the 3D table's (θh, θd) level is the 2D prediction's (anchored, consensus): so is
             # its per-bin variance, the same across φd (the GP's own 3D variance is one number)
             variance_2d = self.predict(flash_slice, "2d")[1]
-            variance = np.broadcast_to(variance_2d[:, :, None, :], table.shape)
+            variance = np.where(np.isnan(table), np.nan, variance_2d[:, :, None, :])
         return table, variance
 
     def member_tables(self, flash_slice, own_table=None):

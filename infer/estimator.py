@@ -74,6 +74,9 @@ class InferenceMethod:
         if view == "2d":
             return self._predict_2d(rho)
         if view == "3d":
+            training = getattr(self, "training_", None)
+            if training is not None:    # --merl-dir's tables must be the model's
+                training.check_3d_files()
             return self._predict_3d(rho)
         raise InputError("view", f"unknown view {view!r} (expected '2d' or '3d')")
 

@@ -20,7 +20,7 @@ from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.infer.adapter import table_features
 from flashbrdf.infer.dsgplvm import DSGPLVM
 from flashbrdf.infer.methods import make_method, method_from_model
-from flashbrdf.infer.training_set import TrainingSet, check_3d_tables
+from flashbrdf.infer.training_set import TrainingSet
 from flashbrdf.infer.viewdata import restore_rows
 
 FORMAT = "flashbrdf-infer-model-1"
@@ -140,7 +140,6 @@ def read_model(path, merl_dir=None):
         # some of them: the absent tables stand in by their stored 2D tables copied across phi_d
         # (TrainingSet.table_3d_valid), and the caller warns (TrainingSet.missing_3d).
         training.paths = [found.get(n) for n in names]
-        check_3d_tables(training)
     return training, params, blob
 
 
@@ -191,7 +190,7 @@ def _count(value):
 HYPERPARAMETER_RULES = {
     "calibration": ("a positive number", lambda v: _finite(v) and v > 0),
     "ridge": ("a number >= 0", lambda v: _finite(v) and v >= 0),
-    "r0": ("a number in [0, 1] or null", lambda v: v is None or (_finite(v) and 0 <= v <= 1)),
+    "r0": ("a number in (0, 1] or null", lambda v: v is None or (_finite(v) and 0 < v <= 1)),
     "n_components": ("a count >= 1 or null", lambda v: v is None or _count(v)),
     "q": ("a count >= 1 or null", lambda v: v is None or _count(v)),
     "beta": ("a number >= 0", lambda v: _finite(v) and v >= 0),

@@ -156,6 +156,7 @@ class TrainingSet:
     # [(name, median |Δ ln ρ| of its θd = 0 slice)]: `paths` tables that are not quite the ones
     # the model was trained on (check_3d_tables)
     differing_3d: list = field(default_factory=list)
+    checked_3d: bool = field(default=False, repr=False)
 
     def __len__(self):
         return len(self.names)
@@ -203,6 +204,13 @@ class TrainingSet:
                    holes_2d=None if all(p.holes_2d is None for p in parts) else np.concatenate(
                        [np.zeros((len(p), 90, 90), bool) if p.holes_2d is None else p.holes_2d
                         for p in parts]))
+
+    def check_3d_files(self):
+        """check_3d_tables once, before the first 3D prediction reads the tables at `paths`
+        (a 2D prediction never reads them, so it is never refused over them)."""
+        if not self.checked_3d and self.paths is not None and self.valid_3d is None:
+            check_3d_tables(self)
+            self.checked_3d = True
 
     def as_stored(self):
         """This set with its 2D tables rounded to float32, as MODEL.npz stores them: what a

@@ -89,14 +89,14 @@ def infer(model, slice_path, out, method_name="dsgplvm", merl_dirs=None, anchor=
         print(f"warning: {len(missing)} of the model's training tables are not in --merl-dir "
               f"(e.g. {', '.join(missing[:3])}); their share of the 3D prediction is their 2D "
               f"table copied across phi_d", file=sys.stderr)
+    t1 = time.perf_counter()
+    prediction = predict_slice(method, rho, n, view, source=slice_path)
     differing = training.differing_3d if view == "3d" and training is not None else []
-    if differing:
+    if differing:   # known once the 3D prediction has checked the tables (check_3d_files)
         worst = max(differing, key=lambda d: d[1])
         print(f"warning: {len(differing)} of the --merl-dir tables differ from the ones the model "
               f"was trained on (θd = 0 slice off by a median {100 * math.expm1(worst[1]):.0f}% "
               f"at most, {worst[0]}); the 3D prediction mixes the tables given", file=sys.stderr)
-    t1 = time.perf_counter()
-    prediction = predict_slice(method, rho, n, view, source=slice_path)
     if prediction.tail_note:
         print(prediction.tail_note, file=sys.stderr)
     if prediction.warning:

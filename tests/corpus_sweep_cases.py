@@ -207,7 +207,8 @@ SWEEP_CASES = [
           ("dsgplvm", "feature_space", "xyz", "a ValueError traceback"),
           ("dsgplvm", "calibration", "abc", "a traceback"),
           ("dsgplvm", "calibration", -1, "negative variances, exit 0"),
-          ("ashikhmin", "r0", -3, "28,062 bins written as no data, exit 0"))],
+          ("ashikhmin", "r0", -3, "28,062 bins written as no data, exit 0"),
+          ("ashikhmin", "r0", 0, "a table up to 2.2e24 1/sr, exit 0"))],
     ("infer", "model slices of inf (noll: a traceback)", lambda w, t: [
         "infer", "--method", "noll", "--model", str(model_edited(
             w, t, "slices", lambda a: np.full_like(a, np.inf))), "--slice", str(w.slice),

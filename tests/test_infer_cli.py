@@ -436,6 +436,11 @@ def test_infer_3d_checks_that_merl_dir_holds_the_models_tables(trained, tmp_path
                  "--merl-dir", str(swapped)]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and f"{TRAIN[0]}.binary: is not the table" in err[0] and not out.exists()
+    # a 2D prediction reads none of them: not refused over them
+    assert main(["infer", "--model", str(model), "--slice", str(slice_csv), "--out", str(out),
+                 "--merl-dir", str(swapped), "--view", "2d"]) == 0
+    out.unlink()
+    out.with_suffix(".json").unlink()
     assert main(["infer", "--model", str(model), "--slice", str(slice_csv), "--out", str(out),
                  "--merl-dir", str(scaled)]) == 0
     err = capsys.readouterr().err
@@ -456,6 +461,8 @@ def test_a_3d_prediction_carries_the_2d_views_per_bin_variance(trained, tmp_path
     table_3d, variance_3d = method.predict(rho, "3d")
     variance_2d = method.predict(rho, "2d")[1]
     assert variance_3d.shape == table_3d.shape == (90, 90, 180, 3)
-    np.testing.assert_array_equal(variance_3d[:, :, 37], variance_2d)
+    assert np.array_equal(np.isnan(variance_3d), np.isnan(table_3d))   # no value, no variance
+    seen = np.isfinite(table_3d[:, :, 37])
+    np.testing.assert_array_equal(variance_3d[:, :, 37][seen], variance_2d[seen])
     finite = variance_2d[np.isfinite(variance_2d)]
     assert finite.size > 10_000 and finite.max() > 2 * np.median(finite)
