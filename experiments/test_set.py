@@ -75,14 +75,15 @@ def _score(method, test):
     """Per-material scores of one fitted method on every table of `test`: {name: {...}}."""
     out = {}
     for i, name in enumerate(test.names):
+        truth = test.scored_table(i)   # no-data bins NaN, whether or not the set was filled
         start = time.perf_counter()
         if method.evaluation_only:
-            pred = method.predict_truth(test.tables_2d[i])
+            pred = method.predict_truth(truth)
         else:
             pred = method.predict(test.slices[i], "2d")[0]
         seconds = time.perf_counter() - start
-        out[name] = metrics.brdf_errors(pred, test.tables_2d[i]) | {
-            "bands": band_errors(pred, test.tables_2d[i]), "predict_ms": 1e3 * seconds}
+        out[name] = metrics.brdf_errors(pred, truth) | {
+            "bands": band_errors(pred, truth), "predict_ms": 1e3 * seconds}
     return out
 
 
