@@ -72,21 +72,31 @@ def merl_valid_mask():
     return _valid_mask()
 
 
+def _check_size(path):
+    """InputError naming path unless it is a MERL file's size (OSError passes through)."""
+    size = os.path.getsize(path)
+    if size != MERL_FILE_SIZE:
+        raise InputError(path, f"not a MERL table: {size} bytes, expected {MERL_FILE_SIZE}")
+
+
+def _check_header(path, header):
+    """InputError naming path unless header (3,) int is MERL's (90, 90, 180)."""
+    if tuple(header) != MERL_SHAPE:
+        raise InputError(path, f"wrong MERL header {tuple(int(h) for h in header)}, "
+                               f"expected {MERL_SHAPE}")
+
+
 def _read_raw(path):
     """The validated body of a MERL file as stored: (3, 90*90*180) float64, file units."""
     path = os.fspath(path)
     try:
-        size = os.path.getsize(path)
-        if size != MERL_FILE_SIZE:
-            raise InputError(path, f"not a MERL table: {size} bytes, expected {MERL_FILE_SIZE}")
+        _check_size(path)
         with open(path, "rb") as f:
             header = np.fromfile(f, dtype="<i4", count=3)
             body = np.fromfile(f, dtype="<f8")
     except OSError as err:
         raise InputError(path, f"cannot read: {err.strerror or err}") from None
-    if tuple(header) != MERL_SHAPE:
-        raise InputError(path, f"wrong MERL header {tuple(int(h) for h in header)}, "
-                               f"expected {MERL_SHAPE}")
+    _check_header(path, header)
     if not np.all(np.isfinite(body)):
         bad = int(np.count_nonzero(~np.isfinite(body)))
         raise InputError(path, f"{bad} NaN/Inf values in the table")
@@ -119,17 +129,12 @@ def read_theta_d_row(path, theta_d_bin=0):
     path = os.fspath(path)
     run = N_PHI_D * 8
     try:
-        if os.path.getsize(path) != MERL_FILE_SIZE:
-            raise InputError(path, f"not a MERL table: {os.path.getsize(path)} bytes, expected "
-                                   f"{MERL_FILE_SIZE}")
+        _check_size(path)
         fd = os.open(path, os.O_RDONLY)
         try:
             if hasattr(os, "posix_fadvise"):
                 os.posix_fadvise(fd, 0, 0, os.POSIX_FADV_RANDOM)
-            header = np.frombuffer(os.pread(fd, 12, 0), dtype="<i4")
-            if tuple(header) != MERL_SHAPE:
-                raise InputError(path, f"wrong MERL header {tuple(int(h) for h in header)}, "
-                                       f"expected {MERL_SHAPE}")
+            _check_header(path, np.frombuffer(os.pread(fd, 12, 0), dtype="<i4"))
             stride = N_THETA_D * run
             channel = N_THETA_H * stride
             data = b"".join(os.pread(fd, run, 12 + c * channel + h * stride + theta_d_bin * run)

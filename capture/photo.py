@@ -33,6 +33,7 @@ CV_EXTENSIONS = (".png", ".tif", ".tiff", ".jpg", ".jpeg")
 RAW_EXTENSIONS = (".dng", ".cr2", ".cr3", ".crw", ".nef", ".nrw", ".arw", ".srf", ".sr2", ".orf",
                   ".rw2", ".raf", ".pef", ".srw", ".raw", ".rwl", ".3fr", ".erf", ".kdc", ".dcr",
                   ".mrw", ".mos", ".iiq", ".x3f")
+PHOTO_EXTENSIONS = FLOAT_EXTENSIONS + CV_EXTENSIONS + RAW_EXTENSIONS
 
 
 def srgb_to_linear(values):

@@ -27,8 +27,8 @@ PCA_GRID = {"n_components": [3, 6, 12, 24, None], "ridge": [1e-3, 1e-2, 1e-1, 1.
 def errors_2d(method, data, index):
     """[brdf_errors dict] of a fitted method's 2D predictions for materials `index` of `data`,
     over the bins that hold data (TrainingSet.scored_table)."""
-    return [metrics.brdf_errors(_predict_2d(method, data.slices[i], data.scored_table(i)),
-                                data.scored_table(i)) for i in index]
+    return [metrics.brdf_errors(_predict_2d(method, data.slices[i], truth), truth)
+            for i, truth in ((i, data.scored_table(i)) for i in index)]
 
 
 def _predict_2d(method, rho, table):
@@ -42,9 +42,9 @@ def lab_log(errs):
 
 def valid_lab_log(method, data, index):
     """lab_log(errors_2d(method, data, index)), computing that one error only (the grid's score)."""
-    return float(np.mean([metrics.brdf_error(_predict_2d(method, data.slices[i],
-                                                         data.scored_table(i)),
-                                             data.scored_table(i), "log", "lab") for i in index]))
+    return float(np.mean([metrics.brdf_error(_predict_2d(method, data.slices[i], truth), truth,
+                                             "log", "lab")
+                          for i, truth in ((i, data.scored_table(i)) for i in index)]))
 
 
 def _trial(name, params, train, valid, data):

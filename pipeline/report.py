@@ -28,7 +28,7 @@ from flashbrdf.files.atomic import write_text
 from flashbrdf.brdf.merl import theta_h_centres
 from flashbrdf.brdf.metrics import summarise
 from flashbrdf.brdf.views import slice_coverage, table_2d_view, variance_2d_view
-from flashbrdf.capture.photo import CV_EXTENSIONS, FLOAT_EXTENSIONS, RAW_EXTENSIONS
+from flashbrdf.capture.photo import PHOTO_EXTENSIONS
 from flashbrdf.brdf.metrics import delta_e_log
 from flashbrdf.render.compare import compare_images, comparison_mask
 from flashbrdf.pipeline import report_figures as figs
@@ -111,9 +111,6 @@ def coverage(theta_h_deg, observed):
     if thin:
         warnings.append(f"{thin} observed θh bins rest on fewer than 5 pixels: noisy")
     return info, warnings
-
-
-PHOTO_EXTENSIONS = FLOAT_EXTENSIONS + CV_EXTENSIONS + RAW_EXTENSIONS
 
 
 def _number(value):

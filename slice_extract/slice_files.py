@@ -10,6 +10,7 @@ import numpy as np
 
 from flashbrdf.brdf.merl import N_THETA_H
 from flashbrdf.brdf.views import LEVEL_COMMENT, slice_coverage, write_slice_csv
+from flashbrdf.capture import same_view
 from flashbrdf.files.atomic import write_text
 from flashbrdf.files.outputs import sidecar_json
 from flashbrdf.slice_extract.samples import REASONS
@@ -163,7 +164,6 @@ def exposure_series_warnings(flashes, per_photo):
     brighter than every measured sample of its bin, which holds within one photo, not across
     exposures: the long photo's clipped highlight outranks, and can void, the bins the short one
     measured. `brackets` merge such a series per pixel first."""
-    from flashbrdf.capture import same_view
     out = []
     for photo, record in zip(flashes, per_photo):
         if not record["clipped"]:

@@ -25,7 +25,7 @@ from flashbrdf.capture.importers.colmap_model import camera_model_name, read_col
 from flashbrdf.capture.importers.mesh_frame import (check_mesh_frame, require_mesh_in_frame,
                                                     require_target_facing_a_camera)
 from flashbrdf.capture.importers.scene_json import dumps_scene
-from flashbrdf.capture.photo import CV_EXTENSIONS, FLOAT_EXTENSIONS, RAW_EXTENSIONS
+from flashbrdf.capture.photo import FLOAT_EXTENSIONS, PHOTO_EXTENSIONS, RAW_EXTENSIONS
 from flashbrdf.capture.scene import TARGET_MIN_COS
 from flashbrdf.capture.scene_fields import (
     MAX_COORDINATE,
@@ -36,7 +36,6 @@ from flashbrdf.capture.scene_fields import (
 from flashbrdf.files.errors import InputError, library_error
 from flashbrdf.files.outputs import check_outputs, path_inside, staged_output_dir
 
-PHOTO_EXTENSIONS = FLOAT_EXTENSIONS + CV_EXTENSIONS + RAW_EXTENSIONS
 LISTED_NAMES = 8          # skipped images named on stdout; the rest are counted
 
 
