@@ -7,10 +7,15 @@ hot pixels, specks of dust and mis-registered edges sit far out). sigma is floor
 rel_floor x |m| so that noise-free data (MAD = 0) does not reject tiny rounding differences.
 The estimate is the per-channel mean of the inliers ("trimmed mean"), or the median when asked.
 
-Clipped (too bright) pixels are right-censored samples, entered as +inf: the median of a bin is
-still exact while fewer than half of its samples are censored, so such bins use the median, and
-bins that are half or more censored are left empty (a trimmed mean of the unclipped rest would
-be biased low).
+Clipped (too bright) pixels are right-censored samples: their rho is a lower bound (+inf when
+unknown). A censored sample whose bound lies at or below its bin's Kaplan-Meier median (the
+median of right-censored data) in every channel says only "above a value the median already
+clears", so it is set aside: within one exposure that is a clipped pixel lit from nearer or
+more squarely than the bin's measured ones, across an exposure series given as separate photos
+it is the long photo's clipped highlight, which the short photo measured. The others count as
++inf: the median of a bin is still exact while fewer than half of its samples are censored, so
+such bins use the median, and bins that are half or more censored are left empty (a trimmed
+mean of the unclipped rest would be biased low).
 
 Bin-centre correction: the slice is defined at bin centres, but a bin's samples can sit off
 centre (a bin half outside the observed range at grazing angles, or uneven pixel density across
@@ -86,17 +91,61 @@ def _centre_correction(estimate, theta_mean, centres, n, usable, reach=2):
     return out
 
 
+def _km_median(values, censored):
+    """The Kaplan-Meier median of right-censored samples values (n,) (a censored one: the true
+    value is at or above it), +inf when over half the mass lies past the last measured value.
+    At a tie a measured value comes first (a bound equal to it says nothing more)."""
+    order = np.lexsort((censored, values))
+    at_risk = len(values) - np.arange(len(values))
+    survival = np.cumprod(np.where(censored[order], 1.0, 1.0 - 1.0 / at_risk))
+    past = np.flatnonzero(survival <= 0.5)
+    return values[order[past[0]]] if len(past) else np.inf
+
+
+def dominated_censored(bin_index, rho, censored, n_bins=N_THETA_H):
+    """(N,) bool: the censored samples whose lower bound rho (N, C) is at or below their bin's
+    Kaplan-Meier median in every channel; they add nothing the median does not already honour.
+    A loop over the bins that hold a finite bound, each vectorised."""
+    out = np.zeros(len(censored), dtype=bool)
+    with np.errstate(invalid="ignore"):
+        bounded = censored & np.all(np.isfinite(rho), axis=1)
+    bins = np.unique(bin_index[bounded])
+    if len(bins) == 0:
+        return out
+    idx = np.flatnonzero(np.isin(bin_index, bins))
+    idx = idx[np.argsort(bin_index[idx], kind="stable")]
+    for run in np.split(idx, np.cumsum(np.bincount(bin_index[idx], minlength=n_bins))[bins[:-1]]):
+        values, cens = np.asarray(rho[run], dtype=np.float64), censored[run]
+        median = np.array([_km_median(values[:, c], cens) for c in range(values.shape[1])])
+        if np.all(np.isfinite(median)):  # else over half the bin lies past its measurements
+            out[run] = cens & np.all(values <= median, axis=1)
+    return out
+
+
 def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e-3,
                 estimator="trimmed_mean", n_bins=N_THETA_H):
     """Robust per-bin estimate of samples rho (N, 3) in bins bin_index (N,) int.
 
-    censored (N,) bool: right-censored samples (clipped pixels), whatever their rho;
+    censored (N,) bool: right-censored samples (clipped pixels), their rho a lower bound (+inf:
+    none known); those at or below their bin's Kaplan-Meier median are set aside (not inliers);
     theta_h (N,) radians: the samples' angles, for the bin-centre correction (None = no
     correction; the MERL theta_h bin centres are used).
     Returns (estimate (n_bins, 3) NaN where empty, n (n_bins,) inlier counts, spread (n_bins, 3)
     robust sigma of the bin's samples (NaN where empty), inlier (N,) bool).
     """
     bin_index = np.asarray(bin_index, dtype=np.intp)
+    if censored is not None and np.any(censored):
+        rho = np.asarray(rho)
+        aside = dominated_censored(bin_index, rho, np.asarray(censored, dtype=bool), n_bins)
+        if aside.any():
+            kept = ~aside
+            estimate, n, spread, inlier = robust_bins(
+                bin_index[kept], rho[kept], np.asarray(censored)[kept],
+                None if theta_h is None else np.asarray(theta_h)[kept], k, rel_floor, estimator,
+                n_bins)
+            inlier_by_input = np.zeros(len(kept), dtype=bool)
+            inlier_by_input[kept] = inlier
+            return estimate, n, spread, inlier_by_input
     order = np.argsort(bin_index.astype(np.int16), kind="stable")  # radix sort: O(n)
     # channel-major float32 copy in bin order (np.take: several times faster than fancy
     # indexing); float32 keeps 7 digits, and means accumulate in float64

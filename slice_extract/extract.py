@@ -67,6 +67,24 @@ class ExtractOptions:
     # refinement's passes: they then read every photo once
     log_gradients: bool = False
 
+    def __post_init__(self):
+        """ValueError naming the first option out of its range (the command line checks its
+        flags before, naming them)."""
+        rules = (("max_theta_d_deg", 0 < self.max_theta_d_deg <= 90, "degrees in (0, 90]"),
+                 ("min_cos", 0 <= self.min_cos < 1, "a value in [0, 1)"),
+                 ("outlier_k", self.outlier_k > 0, "a positive number of sigmas"),
+                 ("estimator", self.estimator in ("trimmed_mean", "median"),
+                  "'trimmed_mean' or 'median'"),
+                 ("silhouette_px", self.silhouette_px >= 0, "pixels >= 0"),
+                 ("chunk_pixels", self.chunk_pixels >= 1, "at least 1"),
+                 ("sample_budget", self.sample_budget >= 1, "at least 1"),
+                 ("max_samples_per_bin", self.max_samples_per_bin >= 1, "at least 1"),
+                 ("depth_edge_slope", self.depth_edge_slope >= 0, "a slope >= 0 (0: off)"))
+        for name, ok, expected in rules:
+            if not ok:
+                raise ValueError(f"ExtractOptions.{name}: expected {expected}, got "
+                                 f"{getattr(self, name)!r}")
+
 
 @dataclass(eq=False)
 class SliceResult:
@@ -122,8 +140,9 @@ def _no_sample_error(scene, per_photo):
 
 def _check_above_ambient(scene, rho):
     """InputError naming the ambient photo when flash - ambient is <= 0 at 99% or more of the
-    object's usable pixels (rho (N, 3) 1/sr, +inf where censored): the ambient photo is as bright
-    as the flash photo (the same file, or the two swapped), and the slice would be 0 everywhere.
+    object's usable pixels (rho (N, 3) 1/sr, a lower bound where censored): the ambient photo is
+    as bright as the flash photo (the same file, or the two swapped), and the slice would be 0
+    everywhere.
     Not at "most": off its highlights a chrome object holds only noise, half of it below 0.
     One pass over the samples (up to 12 million): a censored sample is clipped, so lit (> 0)."""
     ambient = scene.photos_with_role("ambient")
@@ -142,8 +161,8 @@ def _check_above_ambient(scene, rho):
 class FlashSamples:
     """Every flash photo's samples, pooled, before binning (what extraction and segmentation share).
 
-    theta_h, theta_d (N,) radians; rho (N, 3) 1/sr (+inf where censored); censored (N,) bool;
-    pixels (N,) int flat index row * width + col in its photo; photo (N,) int index into
+    theta_h, theta_d (N,) radians; rho (N, 3) 1/sr (a lower bound where censored); censored
+    (N,) bool; pixels (N,) int flat index row * width + col in its photo; photo (N,) int index into
     scene.photos_with_role("flash"); shape (H, W) of the first flash photo's camera;
     object_mask (H, W) bool: pixels of that camera whose ray meets the object; face_image (H, W)
     int64 face hit per pixel (-1 none), or None for normal-map geometry; radiance (H, W, 3) of the
@@ -282,7 +301,7 @@ def collect_samples(scene, options=None):
                 got = photo_samples(image.radiance, image.usable, surface, lights[k],
                                     target_options, None if lights[k].at_viewpoint else intersector,
                                     image.clipped, target_edge)
-                target_rho.append(got.rho)
+                target_rho.append(got.rho[~got.censored])
         per_photo.append(stats)
         part = {name: np.concatenate([getattr(p, name) for p in parts])
                 for name in SAMPLE_FIELDS[:-2]} if parts else None

@@ -61,8 +61,9 @@ def trace_target(intersector, camera, object_depth, chunk):
 
 
 def target_level(rho, level, where):
-    """(factor (3,), slice.json's "level") from the target's samples rho (M, 3) 1/sr (+inf where
-    clipped) and the scene's capture.Level. InputError naming `where` with too few samples."""
+    """(factor (3,), slice.json's "level") from the target's measured samples rho (M, 3) 1/sr
+    (clipped ones left out) and the scene's capture.Level. InputError naming `where` with too
+    few samples."""
     usable = rho[np.all(np.isfinite(rho), axis=1)]
     if len(usable) < MIN_TARGET_SAMPLES:
         raise InputError(where, f"the target is seen in {len(usable)} usable flash pixels (at "

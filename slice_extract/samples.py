@@ -72,8 +72,8 @@ def light_setup(photo):
 class PhotoSamples:
     """Samples of one photo over one surface patch.
 
-    theta_h, theta_d (M,) radians; rho (M, 3) 1/sr, +inf where censored; censored (M,) bool:
-    clipped pixels that passed the geometric tests (their true rho is above the stored one);
+    theta_h, theta_d (M,) radians; rho (M, 3) 1/sr; censored (M,) bool: clipped pixels that
+    passed the geometric tests, their rho a lower bound (the clipped value; +inf if unknown);
     pixels (M,) int flat index row * width + col of each sample in the photo;
     rejected: counts per REASONS among usable pixels; n_usable: usable pixels on the patch.
     """
@@ -176,6 +176,5 @@ def photo_samples(radiance, usable, surface, light, options, intersector=None, c
     cos_i = np.take(cos_i, idx)
     factor = 1.0 / cos_i if r2 is None else np.take(r2, idx) / cos_i
     rho = pixel * (factor[:, None] / light.power)
-    rho[cens_now] = np.inf
     return PhotoSamples(theta_h, theta_d, rho, cens_now, rejected, n_usable, pixels, face, key,
                         not_needed)

@@ -155,6 +155,25 @@ def test_saturated_highlight_leaves_bins_empty_not_biased(tmp_path):
     assert np.all(rel < 0.02)
 
 
+@pytest.mark.parametrize("bound, estimate", [(0.5, 1.5), (3.0, 2.0), (np.inf, 2.0)])
+def test_a_clipped_sample_below_its_bins_median_is_set_aside(bound, estimate):
+    """11 measured samples 1.0 ... 2.0 and 10 clipped at `bound`. Below the measured ones a
+    clipped sample says only "above 0.5", which every measured one is: set aside, the bin is
+    their mean 1.5. Above them (or unknown, +inf) it is brighter than all, and the bin is the
+    median of 21 with 10 at the top: the 11th, 2.0."""
+    from flashbrdf.slice_extract import robust_bins
+    values = np.concatenate([np.linspace(1.0, 2.0, 11), np.full(10, bound)])
+    rho = np.repeat(values[:, None], 3, axis=1)
+    censored = np.arange(21) >= 11
+    got, n, _, inlier = robust_bins(np.zeros(21, int), rho, censored, n_bins=1)
+    assert np.allclose(got[0], estimate, rtol=1e-6) and n[0] == 11
+    assert not inlier[censored].any() and inlier[~censored].all()
+    # over half clipped above the measured ones: no median can be read, the bin is empty
+    rho12 = np.vstack([rho, rho[-1:]])
+    got, n, _, _ = robust_bins(np.zeros(22, int), rho12, np.arange(22) >= 10, n_bins=1)
+    assert (np.isnan(got[0]).all() and n[0] == 0) == (bound > 2)
+
+
 def test_a_noise_negative_bin_estimate_becomes_zero_and_is_counted(clean_sphere, monkeypatch):
     # Near-black bins can come out of the robust estimator slightly below 0 (noise around 0, e.g.
     # after ambient subtraction); extract_slice itself returns them as 0 and counts them.
@@ -173,3 +192,14 @@ def test_a_noise_negative_bin_estimate_becomes_zero_and_is_counted(clean_sphere,
     observed = np.isfinite(result.rho)
     assert np.all(result.rho[observed] >= 0)
     assert result.report["clamped_negative_bins"] == 2
+
+
+@pytest.mark.parametrize("field, value", [("estimator", "bogus"), ("outlier_k", -1.0),
+                                          ("chunk_pixels", 0), ("max_theta_d_deg", float("nan")),
+                                          ("min_cos", 1.0), ("silhouette_px", -1)])
+def test_extract_options_out_of_range_name_the_option(field, value):
+    """"bogus" ran as the trimmed mean, outlier_k = -1 blamed the photos for being clipped,
+    chunk_pixels = 0 raised range()'s ValueError: each now names the option."""
+    with pytest.raises(ValueError, match=f"ExtractOptions.{field}: expected"):
+        ExtractOptions(**{field: value})
+    assert ExtractOptions(estimator="median", outlier_k=0.5, silhouette_px=0).outlier_k == 0.5
