@@ -173,6 +173,7 @@ class DSGPLVMMethod(InferenceMethod):
     def novelty(self, flash_slice):
         """How far a slice lies from the training slices (infer.dsgplvm.DSGPLVM.novelty): > 1 means
         outside what the model was trained on."""
+        self.check_fitted()
         return self.model_.novelty(slice_features(check_slice(flash_slice), self.feature_space))
 
     def bin_variance(self, gp_variance, combination_variance=None):

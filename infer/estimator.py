@@ -19,6 +19,11 @@ from flashbrdf.infer.slices import check_slice
 from flashbrdf.infer.training_set import default_threads
 
 
+class NotFittedError(ValueError, AttributeError):
+    """predict or novelty asked of a method before fit (scikit-learn's exception of that name
+    derives from the same two)."""
+
+
 class InferenceMethod:
     """Base of every method: fit(training) then predict(flash_slice, view) -> (table, variance).
 
@@ -34,12 +39,22 @@ class InferenceMethod:
     them instead of testing names:
     - evaluation_only: the method predicts from the true table (predict_truth), not from a slice;
     - closed_form_3d: predict_valid_3d(rho, sel) gives 3D bins directly, without training tables;
-    - has_uncertainty: predict returns a per-bin variance (bin_variance).
+    - has_uncertainty: predict returns a per-bin variance (bin_variance);
+    - needs_fit: predict needs fit first (NotFittedError before it).
     """
     name = "base"
     evaluation_only = False
     closed_form_3d = False
     has_uncertainty = False
+    needs_fit = True
+
+    def check_fitted(self):
+        """NotFittedError unless fit has run (an attribute ending in "_" is set)."""
+        if self.needs_fit and not any(k.endswith("_") and not k.startswith("__")
+                                      for k in vars(self)):
+            raise NotFittedError(f"this {type(self).__name__} is not fitted yet: call "
+                                 "fit(TrainingSet) first, or load a fitted one with "
+                                 "flashbrdf.infer.load_method(model_file, name)")
 
     @classmethod
     def _param_names(cls):
@@ -70,6 +85,10 @@ class InferenceMethod:
         raise NotImplementedError
 
     def predict(self, flash_slice, view="2d"):
+        """(table, variance) from a complete flash slice (90, 3) 1/sr, NaN-empty; a slice from
+        photos with thin bins at its ends: infer.predict_slice(method, rho, n, view), which
+        empties its sparse tail first, as `flashbrdf infer` does."""
+        self.check_fitted()
         rho = check_slice(flash_slice)
         if view == "2d":
             return self._predict_2d(rho)

@@ -19,7 +19,7 @@ from flashbrdf.files.atomic import atomic_path
 from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.infer.adapter import table_features
 from flashbrdf.infer.dsgplvm import DSGPLVM
-from flashbrdf.infer.methods import make_method, method_from_model
+from flashbrdf.infer.methods import METHODS, make_method, method_from_model
 from flashbrdf.infer.training_set import TrainingSet
 from flashbrdf.infer.viewdata import restore_rows
 
@@ -230,6 +230,10 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
     """{name: fitted method} for several methods from one read of MODEL.npz (a model with a 3D
     view holds GBs of rows: read once, shared). overrides: {name: {hyperparameter: value}}.
     fit_seconds: a dict that receives each method's load-and-fit wall time, if given."""
+    unknown = [name for name in names if name not in METHODS]
+    if unknown:  # the caller's word, not the file's: before reading it
+        raise InputError("method", f"unknown method {unknown[0]!r} (expected one of "
+                                   f"{', '.join(METHODS)})")
     training, params, blob = read_model(path, merl_dir)
     methods = {}
     for name in names:

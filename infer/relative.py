@@ -196,6 +196,7 @@ class RelativeDSGPLVMMethod(InferenceMethod):
     def novelty(self, flash_slice):
         """How far a slice lies from the training slices (infer.dsgplvm.DSGPLVM.novelty), worst
         channel: > 1 means outside what the model was trained on."""
+        self.check_fitted()
         rho = check_slice(flash_slice)
         return float(np.max(self.model_.novelty(slice_features(rho, channel_levels(rho)))))
 

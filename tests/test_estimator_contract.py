@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from sklearn.base import clone
 
-from flashbrdf.infer import METHODS, make_method, method_from_model
+from flashbrdf.infer import METHODS, InferenceMethod, make_method, method_from_model
 from tests.test_infer_uncertainty import materials  # noqa: F401  (the fixture: 9 AP materials)
 
 # every method by name, the DS-GPLVM in both representations, each with a short ADM (the contract
@@ -73,3 +73,38 @@ def test_ashikhmin_fitted_params_reproduce_the_fit(materials):
     assert method.get_params() == {"r0": None}
     again = make_method("ashikhmin", **method.fitted_params()).fit(None)
     assert again.r0_ == method.r0_
+
+
+@pytest.mark.parametrize("name,params", [c for c in CASES if c[0] != "oracle"],
+                         ids=[i for i, c in zip(IDS, CASES) if c[0] != "oracle"])
+def test_predict_before_fit_is_a_not_fitted_error_except_where_nothing_is_learnt(name, params,
+                                                                                 materials):
+    from flashbrdf.infer import NotFittedError
+    method = make_method(name, **params)
+    if not method.needs_fit:    # chandraker: closed form, the same prediction fitted or not
+        fitted = make_method(name, **params).fit(materials)
+        assert np.array_equal(_predict(method, materials, 0), _predict(fitted, materials, 0),
+                              equal_nan=True)
+        return
+    with pytest.raises(NotFittedError, match="not fitted yet: call fit"):
+        method.predict(materials.slices[0], "2d")
+    if type(method).novelty is not InferenceMethod.novelty:  # the methods that measure it
+        with pytest.raises(NotFittedError):
+            method.novelty(materials.slices[0])
+
+
+def test_predict_slice_is_what_infer_writes_and_predict_takes_the_slice_as_given(materials):
+    """A slice with a thin end bin: predict_slice empties it as `flashbrdf infer` does (its
+    prediction ignores the bin's value), predict uses it (a bin 10x off moves the table)."""
+    from flashbrdf.infer import predict_slice
+    method = make_method("pca").fit(materials.subset([1, 2, 3, 4, 5, 6, 7, 8]))
+    rho = np.array(materials.slices[0], dtype=float)
+    n = np.full(90, 500)
+    n[87:] = 1                     # a sparse tail of three bins
+    off = rho.copy()
+    off[87:] *= 10.0
+    tail_dropped = predict_slice(method, off, n, "2d")
+    assert tail_dropped.ignored == [87, 88, 89]
+    assert np.array_equal(tail_dropped.table, predict_slice(method, rho, n, "2d").table,
+                          equal_nan=True)
+    assert not np.allclose(method.predict(off, "2d")[0], tail_dropped.table, equal_nan=True)

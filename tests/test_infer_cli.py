@@ -466,3 +466,14 @@ def test_a_3d_prediction_carries_the_2d_views_per_bin_variance(trained, tmp_path
     np.testing.assert_array_equal(variance_3d[:, :, 37][seen], variance_2d[seen])
     finite = variance_2d[np.isfinite(variance_2d)]
     assert finite.size > 10_000 and finite.max() > 2 * np.median(finite)
+
+
+def test_an_unknown_method_name_is_the_callers_not_the_model_files(tmp_path):
+    """load_method(model, "PCA") said the (sound) model was damaged; the name is checked first,
+    before the file is read: a path that does not exist gives the same error."""
+    from flashbrdf.files.errors import InputError
+    from flashbrdf.infer import load_method
+    with pytest.raises(InputError) as err:
+        load_method(tmp_path / "no_such_model.npz", "PCA")
+    assert err.value.where == "method" and "unknown method 'PCA'" in str(err.value)
+    assert "damaged" not in str(err.value)

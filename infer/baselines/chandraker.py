@@ -17,6 +17,7 @@ from flashbrdf.infer.slices import fill_slice
 class Chandraker(InferenceMethod):
     name = "chandraker"
     closed_form_3d = True
+    needs_fit = False
 
     def fit(self, training=None):
         """Nothing to learn; `training` is accepted for the common interface."""
