@@ -14,12 +14,20 @@ from flashbrdf.brdf.rusinkiewicz import (cos_in_out, half_diff_from_local, half_
                                half_diff_thetas, local_from_half_diff, phi_h_from_local)
 
 
+def check_finite(*arrays, what="directions"):
+    """ValueError when any array holds NaN or inf: a bin index cast from NaN points anywhere."""
+    for a in arrays:
+        if not np.all(np.isfinite(a)):
+            raise ValueError(f"{what} hold NaN or inf: no MERL bin is defined there")
+
+
 def merl_bin_index(theta_h, theta_d, phi_d):
     """MERL's own bin indices (i, j, k) as int arrays, clamped as in its BRDFRead.cpp.
 
     theta_h uses square-root spacing, theta_d and phi_d 1-degree bins; phi_d is folded into [0, pi).
     """
     theta_h = np.asarray(theta_h, dtype=np.float64)
+    check_finite(theta_h, theta_d, phi_d, what="angles")
     i = theta_h_bin_coordinate(np.clip(theta_h, 0, None))
     j = np.asarray(theta_d, dtype=np.float64) / (np.pi / 2) * N_THETA_D
     k = np.mod(np.asarray(phi_d, dtype=np.float64), np.pi) / np.pi * N_PHI_D
@@ -33,6 +41,7 @@ def merl_bin_coordinates(theta_h, theta_d, phi_d):
 
     u_h and u_d are clamped to [0, 89]; u_p is in [-0.5, 179.5) and periodic with period 180.
     """
+    check_finite(theta_h, theta_d, phi_d, what="angles")
     u_h = theta_h_bin_coordinate(np.clip(np.asarray(theta_h, dtype=np.float64), 0, None)) - 0.5
     u_d = np.degrees(np.asarray(theta_d, dtype=np.float64)) - 0.5
     u_p = np.mod(np.degrees(np.asarray(phi_d, dtype=np.float64)), 180.0) - 0.5

@@ -158,6 +158,11 @@ class EnvMap:
         pixels = np.asarray(pixels, dtype=np.float64)
         if pixels.ndim != 3 or pixels.shape[2] != 3 or pixels.shape[1] != 2 * pixels.shape[0]:
             raise ValueError(f"envmap pixels must be (H, 2H, 3), got {pixels.shape}")
+        if not np.all(np.isfinite(pixels)):
+            raise ValueError("envmap pixels hold non-finite values")
+        if not (np.isfinite(scale) and scale >= 0):  # a negative scale renders negative light
+            raise ValueError(f"envmap scale must be a finite number >= 0, got {scale}")
+        # small negatives are a resampling filter's ringing (read_envmap_pixels refuses more)
         self.pixels = np.maximum(pixels, 0.0) * float(scale)
         self.height, self.width = pixels.shape[:2]
         rot = np.eye(3) if world_from_envmap is None else np.asarray(world_from_envmap, float)

@@ -31,8 +31,15 @@ def _dot(a, b):
     return np.einsum("...k,...k->...", a, b)
 
 
+def _as_rows(*arrays):
+    """(P, 3) float arrays (lists, or one (3,) point, accepted)."""
+    return [np.atleast_2d(np.asarray(a, dtype=float)) for a in arrays]
+
+
 def render_point_light(points, normals, view, brdf, light_position, intensity_rgb, occluded=None):
-    """Point light at `light_position` (3,) world: V rho I cos(theta_i) / r^2 -> (P, 3)."""
+    """Point light at `light_position` (3,) world: V rho I cos(theta_i) / r^2 -> (P, 3), for
+    points, normals, view (P, 3) world (view: unit vectors toward the eye)."""
+    points, normals, view = _as_rows(points, normals, view)
     to_light = np.asarray(light_position, float)[None] - points
     r2 = np.maximum(_dot(to_light, to_light), 1e-300)
     r = np.sqrt(r2)
@@ -43,7 +50,9 @@ def render_point_light(points, normals, view, brdf, light_position, intensity_rg
 
 def render_directional_light(points, normals, view, brdf, direction, irradiance_rgb,
                              occluded=None):
-    """Directional light toward `direction` (3,) world with irradiance E: V rho E cos -> (P, 3)."""
+    """Directional light toward `direction` (3,) world with irradiance E: V rho E cos -> (P, 3),
+    for points, normals, view (P, 3) world."""
+    points, normals, view = _as_rows(points, normals, view)
     d = np.asarray(direction, float)
     wi = np.broadcast_to(d / np.linalg.norm(d), points.shape)
     irradiance = np.broadcast_to(np.asarray(irradiance_rgb, float), points.shape)

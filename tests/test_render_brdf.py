@@ -145,3 +145,17 @@ def test_flat_index_hot_path_agrees_with_brdf_angles():
     fast = merl_flat_index_local(wi, wo)
     np.testing.assert_array_equal(fast[1000:], ((i * 90 + j) * 180 + k)[1000:])
     np.testing.assert_array_equal(fast[:1000] // 180, (i * 90 + j)[:1000])
+
+
+def test_a_nan_direction_or_angle_is_a_value_error_not_a_wild_index():
+    """NaN cast to a bin index was -2**63: an IndexError deep in a lookup, or any bin."""
+    table = np.ones((90, 90, 180, 3))
+    with pytest.raises(ValueError, match="directions hold NaN or inf"):
+        TabulatedBRDF(table).evaluate_local(np.array([np.nan, 0, 1.0]), np.array([0, 0, 1.0]))
+    with pytest.raises(ValueError, match="angles hold NaN or inf"):
+        evaluate_table(table, np.nan, 0.1, 0.2)
+    with pytest.raises(ValueError, match="angles hold NaN or inf"):
+        evaluate_table(table, 0.1, 0.1, np.inf, interpolate=True)
+    # finite directions still look up the table (one bin, value 1)
+    assert TabulatedBRDF(table).evaluate_local(np.array([0.1, 0, 1.0]) / np.sqrt(1.01),
+                                               np.array([0, 0, 1.0])).tolist() == [1.0, 1.0, 1.0]

@@ -188,3 +188,16 @@ def test_default_envmaps_are_made_in_code_with_a_sun_the_sampler_finds():
     dirs = env.sample(np.random.default_rng(0).random((4000, 2)))[0]
     lit = env.radiance(dirs) @ np.array([0.2126, 0.7152, 0.0722]) > 100
     assert lit.mean() > 0.5
+
+
+@pytest.mark.parametrize("pixels, scale, message", [
+    (np.ones((8, 16, 3)), -1.0, "scale must be a finite number >= 0"),
+    (np.ones((8, 16, 3)), float("nan"), "scale must be a finite number >= 0"),
+    (np.where(np.arange(16)[None, :, None] == 3, np.nan, np.ones((8, 16, 3))), 1.0,
+     "non-finite"),
+])
+def test_an_envmap_of_negative_or_nan_light_is_refused(pixels, scale, message):
+    """A scale of -1 rendered a Lambert sphere at -0.51, NaN rendered NaN: both are refused."""
+    with pytest.raises(ValueError, match=message):
+        EnvMap(pixels, scale=scale)
+    assert EnvMap(np.ones((8, 16, 3)), scale=0.0).radiance(np.array([0, 0, 1.0])).max() == 0

@@ -111,6 +111,12 @@ def test_directional_light_lambert_and_shadow():
                                         occluded=blocker)
     left = points[:, 0] < 0
     assert np.all(shadowed[left] == 0) and np.allclose(shadowed[~left], value[~left])
+    # lists, and one (3,) point, as render_point_light takes them (an AttributeError before)
+    listed = render_directional_light(points[:5].tolist(), normals[:5].tolist(),
+                                      view[:5].tolist(), Lambert([0.5] * 3), list(light), list(e))
+    assert np.array_equal(listed, value[:5])
+    one = render_directional_light(points[0], normals[0], view[0], Lambert([0.5] * 3), light, e)
+    assert one.shape == (1, 3) and np.array_equal(one[0], value[0])
 
 
 def test_envmap_shadow_rays_and_determinism():

@@ -4,7 +4,7 @@ importance sampling of its theta_h marginal. The interface is brdf.models.base's
 
 import numpy as np
 
-from flashbrdf.brdf.angles import half_diff_from_local, merl_flat_index_local
+from flashbrdf.brdf.angles import check_finite, half_diff_from_local, merl_flat_index_local
 from flashbrdf.brdf.lookup import evaluate_table
 from flashbrdf.brdf.merl import N_THETA_H, theta_h_bin_coordinate, theta_h_from_bin_coordinate
 from flashbrdf.brdf.models.base import INV_PI, LUMINANCE_RGB, HalfVectorMixture, half_vector
@@ -100,6 +100,7 @@ class TabulatedBRDF(HalfVectorMixture):
             value = evaluate_table(self.table, theta_h, theta_d, phi_d, interpolate=True)
             value = np.where(np.isfinite(value) & (value > 0), value, 0.0)
         else:
+            check_finite(wi, wo)
             value = self._flat[merl_flat_index_local(wi, wo, self.three_d)]
         return np.where(above[..., None], value, 0.0)
 
