@@ -1,6 +1,7 @@
 """The job of `flashbrdf evaluate`: the paper's Table 1 protocol (and Table 2 with render), or an
 external test set (test_dir), written all or nothing into one folder."""
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -62,6 +63,14 @@ def evaluate(merl_dirs, out, *, test_dir=None, render=False, envmaps=None, quick
         if render:
             raise InputError("--render", "renders the cross-validation protocol's materials; "
                                          "not with --test-dir")
+        ignored = [flag for flag, given in (("--quick", quick), ("--experiments", experiments),
+                                            ("--time-budget", time_budget),
+                                            ("--workers", workers), ("--scheduler", scheduler))
+                   if given]
+        if ignored:  # the cross-validation protocol's options: one training here, in process
+            print(f"warning: {', '.join(ignored)} shape the cross-validation protocol; with "
+                  "--test-dir the model is trained once and every test table scored in this "
+                  "process, so they change nothing", file=sys.stderr)
         from flashbrdf.experiments.test_set import run_test_set
         check_outputs(inputs=merl_inputs(folders + [test_dir]), outputs=[out], folders=[out])
         with staged_output_dir(out, force=force, command="evaluate") as staged:

@@ -32,13 +32,17 @@ def write_batch_index(out_dir, rows, methods=(), header_lines=()):
     for r in rows:
         name = str(r["capture"])
         page = out_dir / name / PAGE_NAME
-        link = (f'<a href="{quote(name)}/{PAGE_NAME}">{html.escape(name)}</a>' if page.is_file()
-                else html.escape(name))
+        ok = r.get("status") == "ok"
+        link = html.escape(name)
+        if page.is_file() and ok:
+            link = f'<a href="{quote(name)}/{PAGE_NAME}">{link}</a>'
+        elif page.is_file():  # a rerun failed: its folder still holds an earlier run's report
+            link += (f' (<a href="{quote(name)}/{PAGE_NAME}">an earlier run\'s report</a>, '
+                     "not of these inputs or options)")
         values = [(r.get("delta_e_log") or {}).get(m) for m in methods]
         best = min((v for v in values if v is not None), default=None)
         cells = "".join(f'<td{" class=best" if v is not None and v == best else ""}>'
                         f"{_number(v)}</td>" for v in values)
-        ok = r.get("status") == "ok"
         body.append(f"<tr><td>{link}</td><td class={'ok' if ok else 'failed'}>"
                     f"{html.escape(str(r.get('status', '')))}</td>{cells}"
                     f"<td>{_number(r.get('seconds'), 1)}</td>"

@@ -232,12 +232,19 @@ def test_batch_index_links_each_report_and_is_known_to_the_next_batch(tmp_path):
     rows = [{"capture": "cap a", "status": "ok", "reason": "", "seconds": 12.5,
              "delta_e_log": {"dsgplvm": 1.5, "pca": 1.25, "pca/ref_1": 1.0}},
             {"capture": "b<c>", "status": "failed", "reason": "InputError: x", "seconds": None,
+             "delta_e_log": {}},
+            {"capture": "rerun", "status": "failed", "reason": "InputError: y", "seconds": 1.0,
              "delta_e_log": {}}]
+    (tmp_path / "rerun").mkdir()  # a capture whose rerun failed keeps its earlier run's folder
+    (tmp_path / "rerun" / "report.html").write_text("<!doctype html>")
     write_batch_index(tmp_path, rows, ["dsgplvm", "pca"], ["- 2 capture(s)"])
     page = (tmp_path / "index.html").read_text()
     assert page.startswith(INDEX_HEAD)
     assert '<a href="cap%20a/report.html">cap a</a>' in page
     assert "b&lt;c&gt;" in page and "b<c>" not in page        # no report: no link, escaped
+    # failed with an earlier report on disk: linked as that, not as this run's
+    assert ("<td>rerun (<a href=\"rerun/report.html\">an earlier run's report</a>, not of these "
+            "inputs or options)</td>") in page
     assert "<td class=best>1.250</td>" in page and "pca/ref_1" not in page
     # (test_batch.py's summary test checks that a second batch accepts the index: write_summary
     # writes it, and the folder check knows it by INDEX_HEAD)

@@ -126,11 +126,15 @@ def test_band_errors_partition_theta_d():
     assert whole == pytest.approx(metrics.brdf_error(pred, truth, "log", "lab"), rel=1e-12)
 
 
-def test_evaluate_test_dir_scores_every_method_on_every_table_as_infer_does(folders, tmp_path):
+def test_evaluate_test_dir_scores_every_method_on_every_table_as_infer_does(folders, tmp_path,
+                                                                             capsys):
     root, a, b, test, model = folders
     out = tmp_path / "eval"
+    # the cross-validation protocol's options change nothing here, and it says so
     assert main(["evaluate", "--merl-dir", str(a), "--merl-dir", str(b), "--test-dir", str(test),
-                 "--out", str(out)]) == 0
+                 "--out", str(out), "--quick", "--workers", "2"]) == 0
+    warned = [line for line in capsys.readouterr().err.splitlines() if "change nothing" in line]
+    assert len(warned) == 1 and warned[0].startswith("warning: --quick, --workers shape")
     result = json.loads((out / "test_set.json").read_text())
     assert result["label"] == "rgl_like" and result["train"]["materials"] == sorted(FOLDER_A) + sorted(FOLDER_B)
     assert list(result["methods"]) == METHODS
