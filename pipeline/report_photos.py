@@ -100,8 +100,9 @@ def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
     """(photo list for the page's metadata, {block id: base64 text}, info dict).
 
     Every photo is cropped to the object's box; one downsampling factor for the page, the
-    smallest that keeps the deflated images within `budget` (its deflate ratio measured on the
-    first photo)."""
+    smallest that keeps the deflated images within `budget` (its deflate ratio estimated on the
+    first photo, then checked on the whole page, which is encoded again smaller when it does
+    not fit)."""
     usable = {}
     for name, entry in photos.items():
         shape = _shape(entry)
@@ -123,11 +124,27 @@ def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
     raw_first = 2 * sum(a.size for _, _, a in first_arrays)
     ratio = first_encoded[1] / raw_first if raw_first else 1.0
     factor = data.downsample_factor(sizes, sides, per_pixel, budget, ratio)
+    while True:
+        listed, blocks, total, raw, maps = _encode_all(
+            usable, methods, factor, (first_arrays, first_encoded) if factor == 1 else None)
+        if total <= budget or not raw or factor >= max(sides):
+            break
+        # the first photo deflated better than the rest (a dim one among textured ones): again,
+        # at the factor the whole page's own deflate ratio asks for
+        factor = max(factor + 1, data.downsample_factor(sizes, sides, per_pixel, budget,
+                                                        total / raw))
+    info = {"factor": factor, "bytes": total, "raw_bytes": raw, "photos": len(listed),
+            "vmax": data.delta_e_vmax(maps)}
+    return listed, blocks, info
 
+
+def _encode_all(usable, methods, factor, first=None):
+    """(photo list, {block id: base64 text}, deflated bytes, raw bytes, ΔE maps) of every usable
+    photo at one downsampling factor; first: the first photo's (arrays, encoding) at factor 1."""
     listed, blocks, total, raw, maps = [], {}, 0, 0, []
     for index, (name, entry) in enumerate(usable.items()):
-        if index == 0 and factor == 1:  # already encoded to measure the deflate ratio
-            arrays, (text, nbytes, scale) = first_arrays, first_encoded
+        if index == 0 and first is not None:  # already encoded to measure the deflate ratio
+            arrays, (text, nbytes, scale) = first
         else:
             arrays = _arrays(entry, methods, entry["box"], factor)
             text, nbytes, scale = _encode(arrays)
@@ -147,9 +164,7 @@ def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
             "full": [int(v) for v in entry["shape"]], "scale": scale,
             "arrays": [[key, ch] for key, ch, _ in arrays],
             "delta_e": entry["means"], "auto_stops": data.auto_stops(lit)})
-    info = {"factor": factor, "bytes": total, "raw_bytes": raw, "photos": len(listed),
-            "vmax": data.delta_e_vmax(maps)}
-    return listed, blocks, info
+    return listed, blocks, total, raw, maps
 
 
 def _encode(arrays):

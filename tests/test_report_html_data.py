@@ -248,3 +248,28 @@ def test_batch_index_links_each_report_and_is_known_to_the_next_batch(tmp_path):
     assert "<td class=best>1.250</td>" in page and "pca/ref_1" not in page
     # (test_batch.py's summary test checks that a second batch accepts the index: write_summary
     # writes it, and the folder check knows it by INDEX_HEAD)
+
+
+def test_the_page_keeps_its_image_budget_when_the_first_photo_deflates_better(tmp_path):
+    """The deflate ratio was measured on the first photo alone: a flat first photo among 11
+    noisy ones predicted 1/20 of the real size, and a page of 40 such photos held 11 times its
+    budget (367 MB). The whole page is checked now and encoded again smaller."""
+    rng = np.random.default_rng(0)
+    size = 160
+    yy, xx = np.mgrid[0:size, 0:size]
+    mask = (yy - size / 2) ** 2 + (xx - size / 2) ** 2 < (0.45 * size) ** 2
+    rows = []
+    for k in range(12):
+        if k == 0:
+            ref = np.where(mask[..., None], 0.25, 0.0) * np.ones(3)
+            ren, de = ref.copy(), np.where(mask, 1.0, np.nan)
+        else:
+            ref, ren = ((rng.random((size, size, 3)) + 0.1) * mask[..., None] for _ in range(2))
+            de = np.where(mask, rng.random((size, size)) * 3, np.nan)
+        rows.append({"photo": f"p{k:02d}", "method": "m", "render": ren.astype(np.float32),
+                     "reference": ref.astype(np.float32), "mask": mask,
+                     "delta_e_map": de.astype(np.float32), "delta_e_log_mean": 1.0})
+    # 12 photos x 160² x 7 halfs = 4.3 MB raw; noise deflates to ~0.9 of it, the flat photo to
+    # ~0.01: a 1 MB budget needs a factor of at least 2
+    info = write_report_html(tmp_path, {"title": "budget"}, rows, budget=1 << 20)
+    assert info["image_bytes"] <= 1 << 20 and info["image_factor"] >= 2
