@@ -15,11 +15,12 @@ from flashbrdf.files.outputs import (check_outputs, check_sidecar_replaceable, s
 from flashbrdf.pipeline.albedo_files import albedo_sidecars, check_albedo_out
 from flashbrdf.pipeline.label_files import (faces_path, read_face_labels, read_labels,
                                             write_labels)
-from flashbrdf.pipeline.options import materials_option
+from flashbrdf.pipeline.options import fewer_materials_warning, materials_option
 from flashbrdf.slice_extract import ExtractOptions, extract_slice
 from flashbrdf.slice_extract.extract import collect_samples, extract_material_slices
 from flashbrdf.slice_extract.segment import segment_scene
-from flashbrdf.slice_extract.slice_files import write_extraction, write_material_slices
+from flashbrdf.slice_extract.slice_files import (material_coverage, write_extraction,
+                                                 write_material_slices)
 
 
 def extract_options(max_theta_d=None, min_cos=None, silhouette_px=None, refine_poses=False):
@@ -64,11 +65,12 @@ def extract_materials(scene_dir, labels_png, out, options=None, force=False):
     with staged_output_dir(out, force=force, command="extract") as staged:
         samples = collect_samples(scene, options)
         labels = read_labels(labels_png, samples.shape)
-        faces = read_face_labels(labels_png, int(labels.max()), scene)
+        faces = read_face_labels(labels_png, int(labels.max()), scene, labels)
         slices = extract_material_slices(samples, labels, labels_png, faces)
         write_material_slices(staged, scene_dir, slices, options, labels)
     warned = {w for r in slices.values() if r is not None for w in r.report.get("warnings", [])}
-    for warning in sorted(warned):  # the flash's distance is the capture's, not a material's
+    # each material's coverage (no usable pixel, sparse, narrow) first: coverage.json's lines
+    for warning in material_coverage(slices, labels)["warnings"] + sorted(warned):
         print(f"warning: {warning}", file=sys.stderr)
 
 
@@ -90,6 +92,9 @@ def segment(scene_dir, out, materials="auto", albedo_out=None):
     traced = time.perf_counter()
     segmentation, faces = segment_scene(samples, materials)
     done = time.perf_counter()
+    fewer = fewer_materials_warning(segmentation, materials)
+    if fewer:
+        print(f"warning: {fewer}", file=sys.stderr)
     albedo_written = False
     try:
         if albedo_out:  # computed before anything is written: a failure leaves no file

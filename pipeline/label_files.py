@@ -12,11 +12,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from flashbrdf.capture import load_mesh
+from flashbrdf.capture import load_mesh, scene_intersector
 from flashbrdf.capture.photo import imread_unchanged
 from flashbrdf.files.atomic import atomic_path
 from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.slice_extract.segment import check_labels
+from flashbrdf.slice_extract.visibility import pixel_surfaces
+
+FACES_AGREE = 0.5  # share of labelled pixels whose face carries their label, at least
 
 
 def flash_photo_camera(scene, where):
@@ -156,9 +159,11 @@ def read_npy(path):
     return array
 
 
-def read_face_labels(labels_png, count, scene):
+def read_face_labels(labels_png, count, scene, labels):
     """LABELS.faces.npy beside LABELS.png: (F,) int labels 1..count, one per mesh face, or None
-    when there is no such file. InputError when it is not that (or not the mesh's face count)."""
+    when there is no such file. InputError when it is not that (or not the mesh's face count),
+    or when it disagrees with the label image `labels` (H, W) on most of the object's labelled
+    pixels (faces_agree)."""
     npy = faces_path(labels_png)
     if not npy.is_file():
         return None
@@ -170,7 +175,27 @@ def read_face_labels(labels_png, count, scene):
         n_faces = len(load_mesh(scene.geometry.mesh)[0].faces)
         if len(faces) != n_faces:
             raise InputError(npy, f"has {len(faces)} labels but the mesh has {n_faces} faces")
+        faces_agree(npy, faces, labels, scene, Path(labels_png).name)
     return faces
+
+
+def faces_agree(npy, faces, labels, scene, png_name):
+    """InputError naming the faces file when the faces the flash camera sees carry another label
+    than their pixels in LABELS.png on over half of the object's labelled pixels: a faces file
+    left from another label image (relabelled, or renumbered) would put each material on the
+    other's faces in every other view. Faces straddling a border disagree on a few percent."""
+    camera = flash_photo_camera(scene, "--labels")
+    seen = agree = 0
+    for surface in pixel_surfaces(camera, scene_intersector(scene), 1 << 20):
+        mine = labels[surface.rows, surface.cols]
+        on = mine > 0
+        seen += int(np.count_nonzero(on))
+        agree += int(np.count_nonzero(faces[surface.face[on]] == mine[on]))
+    if seen and agree < FACES_AGREE * seen:
+        raise InputError(npy, f"disagrees with {png_name} on "
+                              f"{1 - agree / seen:.0%} of the object's labelled pixels in the "
+                              "flash view: it belongs to another label image (write both with "
+                              "`segment`, or delete it to label only the flash view)")
 
 
 def material_map_inputs(scene, labels_png, count):
@@ -180,4 +205,4 @@ def material_map_inputs(scene, labels_png, count):
     camera = flash_photo_camera(scene, "--labels")
     labels = read_labels(labels_png, camera.shape)
     check_labels(labels, camera.shape, labels_png, count)
-    return labels, read_face_labels(labels_png, count, scene), camera
+    return labels, read_face_labels(labels_png, count, scene, labels), camera

@@ -83,6 +83,16 @@ def samples_per_pixel(spp):
     return spp
 
 
+def fewer_materials_warning(segmentation, asked):
+    """A warning line when --materials K kept fewer than K materials (a material explaining
+    under 2% of the pixels goes, slice_extract.segment), else None."""
+    if asked == "auto" or segmentation.k >= int(asked):
+        return None
+    why = str((segmentation.criterion or {}).get("reason", "")).partition("; ")[2]
+    return (f"--materials {asked}: {segmentation.k} material(s) kept"
+            + (f" ({why})" if why else "") + "; labels.json says why")
+
+
 def materials_option(text):
     """--materials: "auto" or an int K in 1..64; InputError otherwise."""
     text = "auto" if text is None else str(text).strip()

@@ -23,8 +23,8 @@ from flashbrdf.brdf.models import TabulatedBRDF
 from flashbrdf.files.outputs import check_outputs, staged_output_dir
 from flashbrdf.infer.model_file import check_model_file
 from flashbrdf.pipeline.label_files import write_labels
-from flashbrdf.pipeline.options import (materials_option, method_names, model_path,
-                                        samples_per_pixel)
+from flashbrdf.pipeline.options import (fewer_materials_warning, materials_option, method_names,
+                                        model_path, samples_per_pixel)
 from flashbrdf.pipeline.previews import previews_under_envmap
 from flashbrdf.pipeline.report import write_report
 from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
@@ -104,6 +104,10 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     options = ExtractOptions(refine_poses=settings.refine_poses)
     samples = stages.run("extract", collect_samples, scene, options)
     segmentation, faces = stages.run("segment", segment_scene, samples, settings.materials)
+    fewer = fewer_materials_warning(segmentation, settings.materials)
+    if fewer:
+        print(f"warning: {fewer}", file=sys.stderr)
+        notes.append(fewer)
     with_albedo = (run_albedo_map(stages, out, samples, segmentation, faces, scene, notes)
                    if settings.albedo_map else None)
     if segmentation.k > 1:
