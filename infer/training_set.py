@@ -219,6 +219,11 @@ class TrainingSet:
         return replace(self, tables_2d=np.asarray(self.tables_2d, np.float32).astype(np.float64),
                        fitted_pca=None)
 
+    def without_stored_3d(self):
+        """This set without its stored 3D rows (valid_3d: GBs): what a 2D fit needs, and what
+        a process pool can be handed cheaply."""
+        return self if self.valid_3d is None else replace(self, valid_3d=None)
+
     def subset(self, index):
         index = list(index)
         return TrainingSet([self.names[i] for i in index], self.slices[index], self.tables_2d[index],

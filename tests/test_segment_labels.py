@@ -203,3 +203,24 @@ def test_a_label_of_2_31_is_refused_without_counting_up_to_it(tmp_path):
     assert len(done.stderr.strip().splitlines()) == 1, done.stderr
     assert "l.tif" in done.stderr and "(2147483645 in all)" in done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_face_labels_vote_per_face_and_unseen_faces_take_the_nearest_seen_ones():
+    """The majority label of each face's pixels (a bincount of face x label), the nearest seen
+    face's label for the others; with one material every face is 1 without a search."""
+    from flashbrdf.slice_extract.segment.labels import face_labels
+    rng = np.random.default_rng(2)
+    faces = rng.integers(-1, 40, (50, 60))        # faces 0..39 seen, 40..59 never
+    labels = rng.integers(0, 4, (50, 60)).astype(np.uint16)
+    centroids = rng.normal(size=(60, 3))
+    got = face_labels(labels, faces, centroids)
+    for f in range(40):
+        counts = np.bincount(labels[(faces == f) & (labels > 0)], minlength=4)
+        assert got[f] == (np.argmax(counts) if counts[1:].any() else got[f])
+    seen = np.array([np.bincount(labels[(faces == f) & (labels > 0)], minlength=4)[1:].any()
+                     for f in range(60)])
+    for f in np.flatnonzero(~seen):
+        nearest = np.flatnonzero(seen)[np.argmin(np.linalg.norm(centroids[seen] - centroids[f],
+                                                                axis=1))]
+        assert got[f] == got[nearest]
+    assert np.array_equal(face_labels(np.minimum(labels, 1), faces, centroids), np.ones(60))

@@ -9,6 +9,7 @@ from scipy.spatial import cKDTree
 
 from flashbrdf.brdf.merl import N_THETA_H
 from flashbrdf.files.errors import InputError
+from flashbrdf.files.threads import thread_budget
 
 # a theta_h bin's materials are renamed (align_bin_labels) only when the new names agree with at
 # least this many times as many pixels adjacent across the bin's edge as the old: a region of one
@@ -242,16 +243,19 @@ def face_labels(labels, face_image, faces_centroids):
     (H, W) int (-1 none); faces_centroids (F, 3). A seen face takes its pixels' majority label;
     an unseen face the label of the nearest seen face (by centroid)."""
     n_faces = len(faces_centroids)
-    seen = (face_image >= 0) & (labels > 0)
     k = int(labels.max())
-    votes = np.zeros((n_faces, k + 1), np.int64)
-    np.add.at(votes, (face_image[seen], labels[seen].astype(np.int64)), 1)
+    if k <= 1:  # one material: every face is it (the nearest-face search cost 20 s at 600k)
+        return np.ones(n_faces, np.int32)
+    seen = (face_image >= 0) & (labels > 0)
+    # votes per (face, label) by one bincount (np.add.at is many times slower)
+    votes = np.bincount(face_image[seen].astype(np.int64) * (k + 1) + labels[seen],
+                        minlength=n_faces * (k + 1)).reshape(n_faces, k + 1)
     out = votes.argmax(axis=1).astype(np.int32)
     has = votes[:, 1:].sum(axis=1) > 0
     if not has.any():
         return np.ones(n_faces, np.int32)
     if not has.all():
         tree = cKDTree(faces_centroids[has])
-        _, nearest = tree.query(faces_centroids[~has])
+        _, nearest = tree.query(faces_centroids[~has], workers=thread_budget(2))
         out[~has] = out[has][nearest]
     return out
