@@ -102,32 +102,54 @@ def _km_median(values, censored):
     return values[order[past[0]]] if len(past) else np.inf
 
 
-def dominated_censored(bin_index, rho, censored, n_bins=N_THETA_H):
+def dominated_censored(bin_index, rho, censored, photo=None, n_bins=N_THETA_H):
     """(N,) bool: the censored samples whose lower bound rho (N, C) is at or below their bin's
-    Kaplan-Meier median in every channel; they add nothing the median does not already honour.
-    A loop over the bins that hold a finite bound, each vectorised."""
+    Kaplan-Meier median in every channel, in bins where another photo measured (photo (N,) int;
+    None: any bin). They add nothing the median does not already honour. Only across photos: a
+    pixel counts as clipped when any channel clips, so its other channels are values, not
+    bounds, and within one photo setting such pixels aside by noise in those channels biases
+    the bin (+3-6% where one channel of a coloured highlight clips).
+    A loop over the bins that hold a candidate, each vectorised: the measured samples' median is
+    a lower bound of the Kaplan-Meier median (censoring only moves mass up), so a bound under it
+    needs no sort."""
     out = np.zeros(len(censored), dtype=bool)
     with np.errstate(invalid="ignore"):
-        bounded = censored & np.all(np.isfinite(rho), axis=1)
-    bins = np.unique(bin_index[bounded])
+        candidate = censored & np.all(np.isfinite(rho), axis=1)
+    if photo is not None and candidate.any():
+        photo = np.asarray(photo, dtype=np.int64)
+        width = int(photo.max()) + 1
+        measured = ~censored
+        in_bin = np.bincount(bin_index[measured], minlength=n_bins)
+        in_bin_photo = np.bincount(bin_index[measured] * width + photo[measured],
+                                   minlength=n_bins * width)
+        others = in_bin[bin_index] - in_bin_photo[bin_index * width + photo]
+        candidate &= others > 0
+    bins = np.unique(bin_index[candidate])
     if len(bins) == 0:
         return out
     idx = np.flatnonzero(np.isin(bin_index, bins))
     idx = idx[np.argsort(bin_index[idx], kind="stable")]
     for run in np.split(idx, np.cumsum(np.bincount(bin_index[idx], minlength=n_bins))[bins[:-1]]):
-        values, cens = np.asarray(rho[run], dtype=np.float64), censored[run]
-        median = np.array([_km_median(values[:, c], cens) for c in range(values.shape[1])])
-        if np.all(np.isfinite(median)):  # else over half the bin lies past its measurements
-            out[run] = cens & np.all(values <= median, axis=1)
+        values, cens, mine = np.asarray(rho[run], dtype=np.float64), censored[run], candidate[run]
+        if cens.all():
+            continue
+        below = np.all(values <= np.median(values[~cens], axis=0), axis=1) & mine
+        rest = mine & ~below
+        if rest.any():
+            median = np.array([_km_median(values[:, c], cens) for c in range(values.shape[1])])
+            if np.all(np.isfinite(median)):  # else over half the bin lies past its measurements
+                below |= rest & np.all(values <= median, axis=1)
+        out[run] = below
     return out
 
 
 def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e-3,
-                estimator="trimmed_mean", n_bins=N_THETA_H):
+                estimator="trimmed_mean", n_bins=N_THETA_H, photo=None):
     """Robust per-bin estimate of samples rho (N, 3) in bins bin_index (N,) int.
 
     censored (N,) bool: right-censored samples (clipped pixels), their rho a lower bound (+inf:
-    none known); those at or below their bin's Kaplan-Meier median are set aside (not inliers);
+    none known); those at or below their bin's Kaplan-Meier median, where another photo
+    measured (photo (N,) int; None: any photo), are set aside (not inliers, dominated_censored);
     theta_h (N,) radians: the samples' angles, for the bin-centre correction (None = no
     correction; the MERL theta_h bin centres are used).
     Returns (estimate (n_bins, 3) NaN where empty, n (n_bins,) inlier counts, spread (n_bins, 3)
@@ -136,16 +158,21 @@ def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e
     bin_index = np.asarray(bin_index, dtype=np.intp)
     if censored is not None and np.any(censored):
         rho = np.asarray(rho)
-        aside = dominated_censored(bin_index, rho, np.asarray(censored, dtype=bool), n_bins)
+        aside = dominated_censored(bin_index, rho, np.asarray(censored, dtype=bool), photo, n_bins)
         if aside.any():
             kept = ~aside
-            estimate, n, spread, inlier = robust_bins(
+            estimate, n, spread, inlier = _robust_bins(
                 bin_index[kept], rho[kept], np.asarray(censored)[kept],
                 None if theta_h is None else np.asarray(theta_h)[kept], k, rel_floor, estimator,
                 n_bins)
             inlier_by_input = np.zeros(len(kept), dtype=bool)
             inlier_by_input[kept] = inlier
             return estimate, n, spread, inlier_by_input
+    return _robust_bins(bin_index, rho, censored, theta_h, k, rel_floor, estimator, n_bins)
+
+
+def _robust_bins(bin_index, rho, censored, theta_h, k, rel_floor, estimator, n_bins):
+    """robust_bins once the dominated censored samples are set aside: the rest count as +inf."""
     order = np.argsort(bin_index.astype(np.int16), kind="stable")  # radix sort: O(n)
     # channel-major float32 copy in bin order (np.take: several times faster than fancy
     # indexing); float32 keeps 7 digits, and means accumulate in float64

@@ -285,6 +285,9 @@ def collect_samples(scene, options=None):
         stats = dict(photo=name, usable=int(image.usable.sum()),
                      clipped=int(image.clipped.sum()), on_surface=0, **dict.fromkeys(REASONS, 0),
                      not_needed=0, **({} if poses is None else {"pose": poses[name]}))
+        if stats["clipped"]:  # clipped pixels whose value is no bound (slice_files' warning)
+            stats["clipped_unbounded"] = int(np.count_nonzero(
+                image.clipped & ~np.isfinite(image.radiance).all(axis=-1)))
         t = clock.add("trace", t)
         skip = not needs_shadows or convex or lights[k].at_viewpoint
         parts = []
@@ -386,7 +389,7 @@ def bin_samples(samples):
         raise samples.no_sample_error()
     bins = merl_bin_index(theta_h, 0.0, 0.0)[0]
     estimate, n, spread, inlier = robust_bins(bins, rho, censored, theta_h, k=options.outlier_k,
-                                              estimator=options.estimator)
+                                              estimator=options.estimator, photo=samples.photo)
     if not np.any(n):
         raise InputError(f"{scene.json_path}: photos", "every observed theta_h bin is more than "
                          "half clipped (over-exposed): no bin can be estimated")

@@ -10,6 +10,7 @@ import numpy as np
 
 from flashbrdf.brdf.merl import N_THETA_H
 from flashbrdf.brdf.views import LEVEL_COMMENT, slice_coverage, write_slice_csv
+from flashbrdf.capture import same_view
 from flashbrdf.files.atomic import write_text
 from flashbrdf.files.outputs import sidecar_json
 from flashbrdf.slice_extract.samples import REASONS
@@ -151,9 +152,41 @@ def extraction_report(scene, options, per_photo, theta_h, theta_d, inlier, n, ti
                                                          "silhouette_px", "outlier_k",
                                                          "estimator", "refine_poses")},
             "coverage": coverage, "rejected": {k: int(v) for k, v in rejected.items()},
-            "warnings": theta_d_warnings(rejected, int(inlier.sum()), options.max_theta_d_deg),
+            "warnings": theta_d_warnings(rejected, int(inlier.sum()), options.max_theta_d_deg)
+            + exposure_series_warnings(scene.photos_with_role("flash"), per_photo),
             "theta_d_deg": _stats_deg(theta_d[inlier]), "photos": per_photo,
             "n": [int(v) for v in n], "timings_s": {k: round(v, 4) for k, v in timings.items()}}
+
+
+def exposure_series_warnings(flashes, per_photo):
+    """A warning line per flash photo whose clipped pixels hold no value (+inf, a float image's
+    way to mark them) and that shares its view and light with a flash photo of another `scale`
+    (an exposure series given as separate photos). A clipped pixel's value is a lower bound, set
+    aside where another photo measured its bin above it; without a value it counts as brighter
+    than every measured sample of its bin and can void the bins the short photo measured.
+    `brackets` merge such a series per pixel first."""
+    out = []
+    for photo, record in zip(flashes, per_photo):
+        if not record.get("clipped_unbounded"):
+            continue
+        other = next((q for q in flashes if q is not photo and q.scale != photo.scale
+                      and same_view(q.camera, photo.camera) and _same_flash(q.light, photo.light)),
+                     None)
+        if other is not None:
+            out.append(f"photos[{photo.index}] clips {record['clipped_unbounded']} pixels stored "
+                       f"without a value (+inf) and photos[{other.index}] is the same view and "
+                       "flash at another scale: give an exposure series as one photo's "
+                       "`brackets` (merged per pixel), or store the clip level, not +inf; as "
+                       "it is, those pixels outrank the measured ones in their θh bins")
+    return out
+
+
+def _same_flash(a, b):
+    """Whether two photos' lights sit at one place (point: position; directional: direction)."""
+    if a.type != b.type:
+        return False
+    where = "position" if a.type == "point" else "direction"
+    return bool(np.array_equal(getattr(a, where), getattr(b, where)))
 
 
 THETA_D_WARN_SHARE = 0.5  # the flash's own sample lost more pixels than it kept

@@ -168,6 +168,11 @@ def test_a_clipped_sample_below_its_bins_median_is_set_aside(bound, estimate):
     got, n, _, inlier = robust_bins(np.zeros(21, int), rho, censored, n_bins=1)
     assert np.allclose(got[0], estimate, rtol=1e-6) and n[0] == 11
     assert not inlier[censored].any() and inlier[~censored].all()
+    # within one photo (photo given, all 0) nothing is set aside: a pixel clipped in one
+    # channel holds values in the others, which noise would select on; the old median stands
+    got, n, _, _ = robust_bins(np.zeros(21, int), rho, censored, n_bins=1,
+                               photo=np.zeros(21, int))
+    assert np.allclose(got[0], 2.0, rtol=1e-6) and n[0] == 11
     # over half clipped above the measured ones: no median can be read, the bin is empty
     rho12 = np.vstack([rho, rho[-1:]])
     got, n, _, _ = robust_bins(np.zeros(22, int), rho12, np.arange(22) >= 10, n_bins=1)

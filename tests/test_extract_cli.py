@@ -199,6 +199,36 @@ def test_half_diff_thetas_match_brdf_angles():
     assert np.abs(h32 - th).max() < 1e-5 and np.abs(d32 - td).max() < 1e-5  # float32 path
 
 
+@pytest.mark.parametrize("long_scale, warned", [(16.0, True), (1.0, False)])
+def test_an_exposure_series_whose_clipped_pixels_hold_no_value_is_warned_of(tmp_path, capsys,
+                                                                             long_scale, warned):
+    """One view and flash twice, the second 16 times as long with its clipped pixels at +inf (a
+    float image's mark, no value): they count as brighter than every measured sample of their
+    θh bin and void the bins the short photo measured. extract names both photos and points to
+    `brackets`; two photos at one scale (repeats to average noise) are not warned of."""
+    from flashbrdf.capture import load_photo
+    scene = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=3), ggx_lambert(),
+                                  pinhole_camera(64, 64, 200.0), [point_light([0.01, 0, 0])])
+    image = load_photo(scene / "flash0.exr")[0]
+    ceiling = 1.5 * float(image.max())
+    long = image * long_scale
+    write_exr(scene / "long.exr", np.where(long >= ceiling, np.inf, long))
+
+    def add(doc):
+        doc["photos"].append({**doc["photos"][0], "file": "long.exr", "scale": long_scale,
+                              "saturation": ceiling})
+    _edit(scene, add)
+    capsys.readouterr()
+    assert main(["extract", str(scene), "--out", str(tmp_path / "s.csv")]) == 0
+    lines = [w for w in json.loads((tmp_path / "s.json").read_text())["warnings"]
+             if "brackets" in w]
+    assert len(lines) == int(warned)
+    if warned:
+        assert lines[0].startswith("photos[1] clips ") and "(+inf)" in lines[0]
+        assert "photos[0] is the same view" in lines[0]
+        assert lines[0] in capsys.readouterr().err
+
+
 def test_an_exposure_series_given_as_separate_photos_gives_the_short_photos_slice(tmp_path):
     """One view and flash twice, the second 16 times as long and clipped at 1.5 times the short
     photo's brightest pixel (its clipped pixels hold the clip value, as a sensor's do). A clipped
