@@ -50,6 +50,27 @@ class SceneGeometry:
             self._surfaces[key] = surface
         return self._surfaces[key]
 
+    def sees_object(self, camera):
+        """Whether some pixel of `camera` sees the object, without filling the cache: a cached
+        camera answers at once, else up to 4096 of the pixels whose ray can reach a face are
+        traced (a full trace only when none of those hits). Checking every camera by a full,
+        cached trace re-traced each one once the cameras outgrew the cache."""
+        from flashbrdf import capture
+        key = camera_key(camera)
+        if key in self._surfaces:
+            return len(self._surfaces[key].rows) > 0
+        if self.intersector is None:
+            return len(self.surface(camera).rows) > 0
+        mesh = self.intersector.mesh
+        rows, cols = capture.mesh_pixels(camera, mesh.vertices, mesh.faces)
+        if len(rows) == 0:
+            return False
+        step = max(1, len(rows) // 4096)
+        if len(capture.surface_at_pixels(self.intersector, camera, rows[::step],
+                                         cols[::step]).rows):
+            return True
+        return len(self.surface(camera).rows) > 0
+
     def occluder(self):
         """The integrator's shadow-ray callback, or None (convex mesh or normal map)."""
         if self.convex or self.intersector is None:
@@ -134,7 +155,7 @@ def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geomet
     # A SceneGeometry passed in keeps its primary hits across calls (e.g. one render per method).
     geometry = SceneGeometry(scene) if geometry is None else geometry
     for photo in photos:                       # and every camera: a view of nothing is no render
-        if len(geometry.surface(photo.camera).rows) == 0:
+        if not geometry.sees_object(photo.camera):
             field = (f"{scene.json_path}: camera" if photo.camera is scene.camera
                      else f"{photo.where}.camera")
             raise InputError(field, f"no pixel of {photo.stem}'s view sees the object (check "

@@ -241,3 +241,36 @@ def test_compare_counts_a_float_photos_shadow_and_not_an_integer_code_0(tmp_path
     measured = inside & (codes > 0).all(axis=-1) & (codes < 0.98 * 65535).all(axis=-1)
     int_cmp = json.loads((out / "int16_compare.json").read_text())
     assert int_cmp["pixels"] == measured.sum() < inside.sum() - dark.sum()
+
+
+def test_cameras_beyond_the_hit_cache_are_each_traced_once_per_render(tmp_path, monkeypatch):
+    """Three views of a sphere and a cache that holds one camera's hits: the up-front check
+    traced and cached every camera, so the render loop found the first two evicted and traced
+    them again (every camera twice). The check now traces a sample of a camera's rays, uncached:
+    each camera is traced whole once, and renders as before."""
+    from flashbrdf import capture
+    from flashbrdf.brdf.models import GGX
+    from flashbrdf.render import render_scene
+    from flashbrdf.render.scene_render import SceneGeometry
+    from synthetic import ggx_lambert
+    folder = write_synthetic_scene(tmp_path / "scene", sphere_mesh(subdivisions=3),
+                                   ggx_lambert(), pinhole_camera(40, 40, 400.0),
+                                   [point_light([0, 0, 0]), point_light([0.03, 0, 0]),
+                                    point_light([0, 0.03, 0])])
+    doc = json.loads((folder / "scene.json").read_text())
+    for k, photo in enumerate(doc["photos"]):  # three cameras, each 1 cm apart
+        pose = np.eye(4)
+        pose[0, 3] = 0.01 * k
+        photo["camera"] = pinhole_camera(40, 40, 400.0, world_from_camera=pose)
+    (folder / "scene.json").write_text(json.dumps(doc))
+    scene = capture.load_scene(folder)
+    geometry = SceneGeometry(scene)
+    geometry.CACHED_HITS = len(geometry.surface(scene.photos_with_role("flash")[0].camera).rows)
+    geometry._surfaces.clear()
+    traced, real = [], capture.surface_from_mesh
+    monkeypatch.setattr(capture, "surface_from_mesh",
+                        lambda *a, **k: traced.append(1) or real(*a, **k))
+    renders = list(render_scene(scene, GGX(0.2), photos=scene.photos_with_role("flash"),
+                                geometry=geometry, progress=False))
+    assert len(renders) == 3 and len(traced) == 3
+    assert all(mask.sum() > 100 for _, _, mask in renders)
