@@ -122,7 +122,8 @@ def _number(value):
 
 
 def _reference_rows(references, fig_dir, max_figures):
-    """Numbers per (photo, method), and one figure per photo (up to max_figures)."""
+    """Numbers per (photo, method), and one figure per photo (up to max_figures). A row's images
+    (arrays or paths) are read for its photo's figure only, one photo at a time."""
     rows, by_photo = [], {}
     for ref in references:
         row = {k: v for k, v in ref.items()
@@ -131,33 +132,34 @@ def _reference_rows(references, fig_dir, max_figures):
         row.update({k: ref["compare"][k] for k in ("delta_e_log_mean", "delta_e_log_median",
                                                    "rel_rmse", "pixels")
                     if k in ref.get("compare", {}) and k not in ref})
-        render, reference = read_image(ref.get("render")), read_image(ref.get("reference"))
-        de_map = ref.get("delta_e_map")
-        de_map = read_image(de_map) if isinstance(de_map, (str, os.PathLike)) else de_map
-        if render is not None and reference is not None and (
-                "delta_e_log_mean" not in row or de_map is None):
-            mask = read_image(ref.get("mask"))
-            de, mean, median, rel, pixels = image_errors(render, reference, mask)
-            de_map = de if de_map is None else de_map
-            for key, value in (("delta_e_log_mean", mean), ("delta_e_log_median", median),
-                               ("rel_rmse", rel), ("pixels", pixels)):
-                row.setdefault(key, value)
+        if "delta_e_log_mean" not in row:
+            render, reference = read_image(ref.get("render")), read_image(ref.get("reference"))
+            if render is not None and reference is not None:
+                _, mean, median, rel, pixels = image_errors(render, reference,
+                                                            read_image(ref.get("mask")))
+                for key, value in (("delta_e_log_mean", mean), ("delta_e_log_median", median),
+                                   ("rel_rmse", rel), ("pixels", pixels)):
+                    row.setdefault(key, value)
         row["delta_e_log_mean"] = _number(row.get("delta_e_log_mean"))
         row["rel_rmse"] = _number(row.get("rel_rmse"))
         rows.append(row)
-        entry = by_photo.setdefault(row["photo"], {"reference": None, "renders": {}, "maps": {},
-                                                   "means": {}})
-        entry["reference"] = reference if reference is not None else entry["reference"]
-        entry["renders"][row["method"]] = render
-        entry["maps"][row["method"]] = de_map
-        entry["means"][row["method"]] = row["delta_e_log_mean"]
+        by_photo.setdefault(row["photo"], []).append((row, ref))
     figures = {}
-    for photo, entry in list(by_photo.items())[:max_figures]:
-        if entry["reference"] is None and all(r is None for r in entry["renders"].values()):
+    for photo, members in list(by_photo.items())[:max_figures]:
+        reference, renders, maps, means = None, {}, {}, {}
+        for row, ref in members:
+            render, photo_image = read_image(ref.get("render")), read_image(ref.get("reference"))
+            reference = photo_image if photo_image is not None else reference
+            de_map = ref.get("delta_e_map")
+            de_map = read_image(de_map) if isinstance(de_map, (str, os.PathLike)) else de_map
+            if de_map is None and render is not None and photo_image is not None:
+                de_map = image_errors(render, photo_image, read_image(ref.get("mask")))[0]
+            renders[row["method"]], maps[row["method"]] = render, de_map
+            means[row["method"]] = row["delta_e_log_mean"]
+        if reference is None and all(r is None for r in renders.values()):
             continue
         name = f"ref_{_figure_stem(photo)}.png"
-        figs.reference_figure(fig_dir / name, photo, entry["reference"], entry["renders"],
-                              entry["maps"], entry["means"])
+        figs.reference_figure(fig_dir / name, photo, reference, renders, maps, means)
         figures[photo] = f"figures/{name}"
     return rows, figures, len(by_photo)
 

@@ -252,11 +252,16 @@ def jsonable(value):
 
 def read_image(source):
     """An array passes through; a path is read: EXR/HDR/PFM with render.images.read_image (the
-    one linear-image reader), else OpenCV as stored (RGB: masks, ΔE PNGs). None where it is
+    one linear-image reader), .npy memory-mapped, else OpenCV as stored (RGB: masks, ΔE PNGs). None where it is
     missing or unreadable, where render.images.read_image raises: the report is written without it."""
     if source is None or isinstance(source, np.ndarray):
         return source
     path = Path(source)
+    if path.suffix.lower() == ".npy":  # run's arrays kept for the report: read as needed
+        try:
+            return np.load(path, mmap_mode="r", allow_pickle=False)
+        except (OSError, ValueError):
+            return None
     if path.suffix.lower() in (".exr", ".hdr", ".pfm"):
         try:
             return images.read_image(path)

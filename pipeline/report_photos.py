@@ -29,71 +29,79 @@ def _plane(array):
 
 
 def gather(references):
-    """{photo: {"reference", "renders": {method: (H,W,3)}, "maps": {method: (H,W) ΔE},
-    "masks": [(H,W) bool], "means": {method: ΔE-log mean}}} from write_report's reference rows.
-
-    Arrays pass through; paths are read (pipeline.report.read_image). A ΔE map given as a
-    false-colour PNG holds no ΔE values: it is recomputed from the render and the photo."""
+    """{photo: {"rows": [report rows], "mask": (H, W) bool union of the rows' hit masks or None,
+    "means": {method: ΔE-log mean}}} from write_report's reference rows. Images stay as given
+    (arrays or paths) until load() reads one photo's."""
     photos = {}
     for row in references:
-        render, reference = data.read_image(row.get("render")), data.read_image(row.get("reference"))
+        entry = photos.setdefault(str(row["photo"]), {"rows": [], "mask": None, "means": {}})
+        entry["rows"].append(row)
         mask = data.read_image(row.get("mask"))
-        de = row.get("delta_e_map")
-        de = data.read_image(de) if isinstance(de, (str, os.PathLike)) else de
-        if (de is None or np.ndim(de) != 2 or np.asarray(de).dtype.kind != "f") and (
-                render is not None and reference is not None):
-            de = delta_e_map(render, reference, mask)
-        elif de is not None and (np.ndim(de) != 2 or np.asarray(de).dtype.kind != "f"):
-            de = None
-        entry = photos.setdefault(str(row["photo"]), {"reference": None, "renders": {},
-                                                      "maps": {}, "masks": [], "means": {}})
-        # kept as given: only the object's crop is made float32 (report_data.downsample)
-        if reference is not None and entry["reference"] is None:  # one photo for all methods
-            entry["reference"] = np.asarray(reference)
-        if render is not None:
-            entry["renders"][row["method"]] = np.asarray(render)
-        if de is not None:
-            entry["maps"][row["method"]] = np.asarray(de)
         if mask is not None:
-            entry["masks"].append(_plane(mask) > 0)
+            mask = _plane(mask) > 0
+            entry["mask"] = mask if entry["mask"] is None or entry["mask"].shape != mask.shape \
+                else entry["mask"] | mask
         mean = row.get("delta_e_log_mean", (row.get("compare") or {}).get("delta_e_log_mean"))
         entry["means"][row["method"]] = None if mean is None or not np.isfinite(mean) else \
             float(mean)
     return photos
 
 
-def _shape(entry):
-    for image in [entry["reference"], *entry["renders"].values()]:
+def load(entry):
+    """One photo's images: {"reference", "renders": {method: (H,W,3)}, "maps": {method: (H,W)
+    ΔE}}. Paths are read (pipeline.report.read_image); a ΔE map given as a false-colour PNG
+    holds no ΔE values: it is recomputed from the render and the photo."""
+    out = {"reference": None, "renders": {}, "maps": {}}
+    for row in entry["rows"]:
+        render, reference = data.read_image(row.get("render")), data.read_image(row.get("reference"))
+        de = row.get("delta_e_map")
+        de = data.read_image(de) if isinstance(de, (str, os.PathLike)) else de
+        if (de is None or np.ndim(de) != 2 or np.asarray(de).dtype.kind != "f") and (
+                render is not None and reference is not None):
+            de = delta_e_map(render, reference, data.read_image(row.get("mask")))
+        elif de is not None and (np.ndim(de) != 2 or np.asarray(de).dtype.kind != "f"):
+            de = None
+        # kept as given: only the object's crop is made float32 (report_data.downsample)
+        if reference is not None and out["reference"] is None:  # one photo for all methods
+            out["reference"] = np.asarray(reference)
+        if render is not None:
+            out["renders"][row["method"]] = np.asarray(render)
+        if de is not None:
+            out["maps"][row["method"]] = np.asarray(de)
+    return out
+
+
+def _shape(images):
+    for image in [images["reference"], *images["renders"].values()]:
         if image is not None:
             return image.shape[:2]
     return None
 
 
-def _measured(entry, shape):
+def _measured(entry, images, shape):
     """Where the object is: the renders' hit masks, else finite ΔE, else nonzero render/photo."""
-    masks = [m for m in entry["masks"] if m.shape == shape]
-    if masks:
-        return np.any(masks, axis=0)
-    maps = [m for m in entry["maps"].values() if m.shape == shape]
+    if entry["mask"] is not None and entry["mask"].shape == shape:
+        return entry["mask"]
+    maps = [m for m in images["maps"].values() if m.shape == shape]
     if maps:
         return np.any([np.isfinite(m) for m in maps], axis=0)
-    images = [i for i in [entry["reference"], *entry["renders"].values()] if i is not None]
-    return np.any([np.nan_to_num(i).max(-1) > 0 for i in images], axis=0)
+    found = [i for i in [images["reference"], *images["renders"].values()] if i is not None]
+    return np.any([np.nan_to_num(i).max(-1) > 0 for i in found], axis=0)
 
 
-def _arrays(entry, methods, box, factor):
+def _arrays(images, methods, box, factor):
     """[(key, channels, array)] of one photo, cropped and downsampled, in the page's order."""
     r0, r1, c0, c1 = box
     out = []
-    if entry["reference"] is not None:
-        out.append(("reference", 3, entry["reference"]))
+    if images["reference"] is not None:
+        out.append(("reference", 3, images["reference"]))
     for method in methods:
-        if method in entry["renders"]:
-            out.append((f"render:{method}", 3, entry["renders"][method]))
-        if method in entry["maps"]:
-            out.append((f"de:{method}", 1, entry["maps"][method]))
+        if method in images["renders"]:
+            out.append((f"render:{method}", 3, images["renders"][method]))
+        if method in images["maps"]:
+            out.append((f"de:{method}", 1, images["maps"][method]))
     return [(key, ch, data.downsample(np.asarray(a)[r0:r1, c0:c1], factor))
-            for key, ch, a in out if np.asarray(a).shape[:2] == entry["shape"]]
+            for key, ch, a in out if np.asarray(a).shape[:2] == images["shape"]]
 
 
 def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
@@ -104,22 +112,26 @@ def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
     first photo, then checked on the whole page, which is encoded again smaller when it does
     not fit)."""
     usable = {}
-    for name, entry in photos.items():
-        shape = _shape(entry)
+    for name, entry in photos.items():  # one photo's images at a time
+        images = load(entry)
+        shape = _shape(images)
         if shape is None:
             continue
         entry["shape"] = shape
-        entry["measured"] = _measured(entry, shape)
+        entry["measured"] = _measured(entry, images, shape)
         entry["box"] = data.object_box(entry["measured"])
+        entry["has"] = (images["reference"] is not None, set(images["renders"]),
+                        set(images["maps"]))
         usable[name] = entry
+        del images
     if not usable:
         return [], {}, {"factor": 1, "bytes": 0, "raw_bytes": 0}
     sizes = [(e["box"][1] - e["box"][0]) * (e["box"][3] - e["box"][2]) for e in usable.values()]
     sides = [max(e["box"][1] - e["box"][0], e["box"][3] - e["box"][2]) for e in usable.values()]
-    per_pixel = [2 * (3 * (e["reference"] is not None) + sum(
-        3 * (m in e["renders"]) + (m in e["maps"]) for m in methods)) for e in usable.values()]
+    per_pixel = [2 * (3 * e["has"][0] + sum(3 * (m in e["has"][1]) + (m in e["has"][2])
+                                            for m in methods)) for e in usable.values()]
     first = next(iter(usable.values()))
-    first_arrays = _arrays(first, methods, first["box"], 1)
+    first_arrays = _arrays(_loaded(first), methods, first["box"], 1)
     first_encoded = _encode(first_arrays)
     raw_first = 2 * sum(a.size for _, _, a in first_arrays)
     ratio = first_encoded[1] / raw_first if raw_first else 1.0
@@ -143,10 +155,11 @@ def _encode_all(usable, methods, factor, first=None):
     photo at one downsampling factor; first: the first photo's (arrays, encoding) at factor 1."""
     listed, blocks, total, raw, maps = [], {}, 0, 0, []
     for index, (name, entry) in enumerate(usable.items()):
+        images = _loaded(entry)
         if index == 0 and first is not None:  # already encoded to measure the deflate ratio
             arrays, (text, nbytes, scale) = first
         else:
-            arrays = _arrays(entry, methods, entry["box"], factor)
+            arrays = _arrays(images, methods, entry["box"], factor)
             text, nbytes, scale = _encode(arrays)
         maps += [a for _, ch, a in arrays if ch == 1]   # the ΔE scale: of what is shown
         block = f"photo-{index}"
@@ -155,9 +168,10 @@ def _encode_all(usable, methods, factor, first=None):
         raw += 2 * sum(a.size for _, _, a in arrays)
         h, w = arrays[0][2].shape[:2] if arrays else (0, 0)
         r0, r1, c0, c1 = entry["box"]
-        exposed = next((i for i in [entry["reference"], *entry["renders"].values()]
+        exposed = next((i for i in [images["reference"], *images["renders"].values()]
                         if i is not None))          # the photo, else a render
-        lit = exposed[r0:r1, c0:c1][entry["measured"][r0:r1, c0:c1]]
+        lit = np.asarray(exposed[r0:r1, c0:c1])[entry["measured"][r0:r1, c0:c1]]
+        del images, exposed
         listed.append({
             "name": name, "block": block, "width": int(w), "height": int(h),
             "factor": factor, "box": [int(v) for v in entry["box"]],
@@ -165,6 +179,11 @@ def _encode_all(usable, methods, factor, first=None):
             "arrays": [[key, ch] for key, ch, _ in arrays],
             "delta_e": entry["means"], "auto_stops": data.auto_stops(lit)})
     return listed, blocks, total, raw, maps
+
+
+def _loaded(entry):
+    """load(entry) with the photo's full shape, as _arrays wants it."""
+    return load(entry) | {"shape": entry["shape"]}
 
 
 def _encode(arrays):

@@ -31,7 +31,8 @@ from flashbrdf.pipeline.run_export import export_for_report, export_method, scen
 from flashbrdf.pipeline.run_materials import (label_section, material_entries, run_albedo_map,
                                               run_materials)
 from flashbrdf.pipeline.run_steps import (StageTimer, check_references, infer_method,
-                                          load_methods, reference_outputs, render_and_compare)
+                                          load_methods, reference_outputs, render_and_compare,
+                                          drop_scratch)
 from flashbrdf.render.envmap import read_envmap_pixels
 from flashbrdf.render.scene_render import SceneGeometry
 from flashbrdf.slice_extract import ExtractOptions
@@ -186,6 +187,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
                         observed=observed, predictions=predictions, notes=notes,
                         title=settings.title, warnings=ood_warnings, extra=extra,
                         sections=sections)
+    drop_scratch(out)
     return stages, report
 
 

@@ -2,9 +2,13 @@
 the stage timer, the methods read from the model, one method's prediction written, the reference
 photos read before any slow work, and one method's renders compared with them."""
 
+import shutil
 import sys
 import time
+import uuid
+from pathlib import Path
 
+import numpy as np
 from tqdm import tqdm
 
 from flashbrdf import capture
@@ -96,18 +100,42 @@ def render_and_compare(scene, geometry, method_name, table, spp, out_dir, refere
                                            geometry=geometry):
         write_exr(out_dir / f"{photo.stem}.exr", image)
         write_preview(out_dir / f"{photo.stem}.png", image)
-        row = {"photo": photo.stem, "method": method_name, "render": image, "mask": mask}
+        # the row names files, not arrays: every (photo, method) row held its render, ΔE map
+        # and masks (0.5 GB at 24 MP) until the report, which reads them photo by photo
+        row = {"photo": photo.stem, "method": method_name, "render": out_dir / f"{photo.stem}.exr",
+               "mask": scratch_array(out_dir, mask)}
         if photo.index in loaded:
             reference, measured = loaded[photo.index]
             metrics, delta_e = write_comparison(out_dir, image, reference, mask & measured,
                                                 json_name=f"{photo.stem}_compare.json",
                                                 png_name=f"{photo.stem}_delta_e.png",
                                                 return_map=True)
-            row.update(metrics, reference=reference, delta_e_map=delta_e,
-                       compare_mask=mask & measured)
+            row.update(metrics, reference=reference,
+                       delta_e_map=scratch_array(out_dir, delta_e.astype(np.float32)),
+                       compare_mask=scratch_array(out_dir, mask & measured))
             if level:
                 row["level_ratio_rgb"] = level_ratio(image, reference, mask & measured).tolist()
+            del delta_e
         else:
             row.update(delta_e_log_mean=None, rel_rmse=None)
         rows.append(row)
+        del image, mask
     return rows
+
+
+SCRATCH = ".report_scratch"  # beside the methods' folders in run's output; gone before it is
+
+
+def scratch_array(out_dir, array):
+    """Save an array for the report into OUT/.report_scratch/ (out_dir: a method's folder in
+    OUT) and return its path (pipeline.report_data.read_image reads it back, memory-mapped)."""
+    folder = Path(out_dir).parent / SCRATCH
+    folder.mkdir(exist_ok=True)
+    path = folder / f"{uuid.uuid4().hex}.npy"
+    np.save(path, array)
+    return path
+
+
+def drop_scratch(out):
+    """Remove OUT/.report_scratch/ once the report is written."""
+    shutil.rmtree(Path(out) / SCRATCH, ignore_errors=True)

@@ -51,6 +51,32 @@ def test_run_writes_the_contract_outputs(run_report):
     assert 2300 < compare["pixels"] < 2600
 
 
+def test_the_report_rows_hold_files_not_images_and_leave_no_scratch(sphere_scene, tmp_path,
+                                                                     monkeypatch):
+    """Each (photo, method) row held its render, float64 ΔE map and two masks until the report
+    (0.5 GB per row at 24 MP: a 4-reference, 2-method run passed 8 GB): they are files now, the
+    render its EXR and the rest in OUT/.report_scratch/, read photo by photo and removed once the
+    report is written. Only the photo itself, one array per photo for every method, is held."""
+    import numpy as np
+    import flashbrdf.pipeline.run as run_module
+    seen, real = [], run_module.write_report
+
+    def recording(out, **kw):
+        seen.extend(kw["references"])
+        return real(out, **kw)
+    monkeypatch.setattr(run_module, "write_report", recording)
+    out = tmp_path / "out"
+    assert main(["run", str(sphere_scene), "--out", str(out), "--methods", "chandraker,noll",
+                 "--spp", "4"]) == 0
+    assert len(seen) == 2
+    for row in seen:
+        held = {k for k, v in row.items() if isinstance(v, np.ndarray) and v.size > 1000}
+        assert held == {"reference"}, held
+    assert seen[0]["reference"] is seen[1]["reference"]
+    assert not (out / ".report_scratch").exists()
+    assert (out / "report.html").is_file() and (out / "figures" / "ref_ref_pisa.png").is_file()
+
+
 def test_predicted_render_matches_the_reference(run_report, sphere_scene):
     """The prediction's render is within a stated Delta E (log-CIELAB, Table 2's metric).
 
