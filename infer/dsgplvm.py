@@ -232,12 +232,21 @@ class DSGPLVM:
         return float(ratio[0]) if np.ndim(slice_features) == 1 else ratio
 
     def _novelty_bound(self):
-        """The training rows' NOVELTY_QUANTILE nearest-neighbour distance; fixed once fitted, so
-        computed once (predict asks for novelty on every slice)."""
+        """The training rows' NOVELTY_QUANTILE distance to their nearest distinct row; fixed once
+        fitted, so computed once (predict asks for novelty on every slice). A row within 1e-6 of
+        the rows' median distance of another is its copy (float32 round-off apart), not a
+        neighbour: a set of near-duplicates put the bound at round-off, and novelty (and the
+        variance it widens) at 1e7 for a slice beside them."""
         if getattr(self, "_novelty_bound_cache", None) is None:
-            own = distances_from_gram(self.view_data_[self.source_view].gram)
+            own = np.sqrt(np.maximum(distances_from_gram(self.view_data_[self.source_view].gram),
+                                     0.0))
             np.fill_diagonal(own, np.inf)
-            bound = np.quantile(np.sqrt(np.maximum(own.min(axis=1), 0.0)), self.NOVELTY_QUANTILE)
+            off = own[np.isfinite(own)]
+            typical = float(np.median(off)) if off.size else 0.0
+            own[own <= 1e-6 * typical] = np.inf
+            nearest = own.min(axis=1)
+            nearest = nearest[np.isfinite(nearest)]
+            bound = np.quantile(nearest, self.NOVELTY_QUANTILE) if nearest.size else 0.0
             self._novelty_bound_cache = max(float(bound), 1e-12)
         return self._novelty_bound_cache
 

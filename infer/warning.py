@@ -27,6 +27,11 @@ MAX_FIRST_THETA_H_DEG = 60.0    # no observed bin below this: the lobe and the d
 ADVICE = ("compare the methods' renders with a reference photo lit 30 deg or more off the camera "
           "axis (flashbrdf run --methods dsgplvm,noll,pca) and keep the closest; without one, "
           "prefer noll, the best baseline where this warning fired in our kind hold-out")
+# a baseline's own prediction warns only on a slice that says too little (noll is no advice to
+# someone who ran noll)
+SPARSE_ADVICE = ("photograph more of the highlight (views where the flash meets the surface "
+                 "head-on, theta_h near 0) and compare the methods' renders with a reference "
+                 "photo lit 30 deg or more off the camera axis")
 
 
 def disagreement(table_a, table_b, min_theta_d_deg=DISAGREEMENT_MIN_THETA_D_DEG):
@@ -71,14 +76,17 @@ def prediction_warning(method, flash_slice, source="slice"):
     if seen.sum() < MIN_OBSERVED_BINS or not (seen & (theta_h < MAX_FIRST_THETA_H_DEG)).any():
         first = theta_h[seen].min() if seen.any() else float("nan")
         reasons.append(f"only {int(seen.sum())} theta_h bins observed, the first at {first:.0f} deg")
+    default = getattr(method, "name", None) == "dsgplvm"
+    advice = ADVICE if default else SPARSE_ADVICE
     record = {"score": score, "beyond_training": bool(beyond), "disagreement": spread,
               "disagreement_threshold": DISAGREEMENT_WARN_DE,
               "observed_theta_h_bins": int(seen.sum()), "out_of_distribution": bool(reasons),
-              "reasons": reasons, "advice": ADVICE if reasons else None}
+              "reasons": reasons, "advice": advice if reasons else None}
     if not reasons:
         return record, None
-    return record, (f"warning: {source}: the prediction may be worse than a baseline's ("
-                    + "; ".join(reasons) + "); " + ADVICE)
+    head = ("the prediction may be worse than a baseline's" if default else
+            f"{method.name}'s prediction rests on little of the slice")
+    return record, f"warning: {source}: {head} (" + "; ".join(reasons) + "); " + advice
 
 
 def novelty_warning(method, flash_slice, source="slice"):

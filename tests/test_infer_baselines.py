@@ -232,3 +232,23 @@ def test_streamed_combination_clips_to_the_training_range_when_asked(mixed_set):
     # log-RGB features are monotonic per channel, so a clip in feature space keeps each ρ channel
     # within the training tables (up to the float32 path, 1e-4 relative).
     assert not np.any(outside(clipped))
+
+
+def test_near_duplicate_training_brdfs_leave_novelty_and_its_variance_as_without_them(mixed_set):
+    """Every training material beside its copy ×(1 + 1e-9): novelty's scale, the nearest-
+    neighbour distance of the training slices, fell to round-off, and a slice just beside one
+    scored 2.75e4 (its variance 1e5, against 1e-4 on the slice itself). Copies are not
+    neighbours: the novelty of a held-out slice is what the set without copies gives, within
+    the change one more row makes to the fitted latent space (a factor 2)."""
+    from dataclasses import replace
+    from flashbrdf.infer import DSGPLVMMethod
+    base = mixed_set.subset([0, 1, 2, 3, 4])
+    doubled = mixed_set.subset([0, 1, 2, 3, 4, 0, 1, 2, 3, 4])
+    doubled = replace(doubled, names=[f"{n}-{i}" for i, n in enumerate(doubled.names)],
+                      slices=doubled.slices * np.where(np.arange(10) >= 5, 1 + 1e-9, 1.0)[
+                          :, None, None],
+                      tables_2d=doubled.tables_2d * np.where(np.arange(10) >= 5, 1 + 1e-9, 1.0)[
+                          :, None, None, None])
+    alone = DSGPLVMMethod(max_cycles=3).fit(base).novelty(mixed_set.slices[5])
+    with_copies = DSGPLVMMethod(max_cycles=3).fit(doubled).novelty(mixed_set.slices[5])
+    assert 0.5 < with_copies / alone < 2.0, (alone, with_copies)

@@ -119,6 +119,8 @@ class _FakeMethod:
     def __init__(self, own, noll, novelty=0.2):
         self.own, self.noll, self.score = own, noll, novelty
 
+    name = "dsgplvm"
+
     def novelty(self, rho):
         return self.score
 
@@ -146,6 +148,12 @@ def test_the_warning_fires_exactly_past_the_disagreement_threshold():
     sparse[:3] = 0.1
     record, line = prediction_warning(below, sparse)
     assert record["out_of_distribution"] and "only 3 theta_h bins" in line
+    # a baseline run on its own is not told to prefer itself: what to capture instead
+    noll = type("Noll", (), {"name": "noll", "novelty": lambda self, rho: None})()
+    record, line = prediction_warning(noll, sparse, "s.csv")
+    assert line.startswith("warning: s.csv: noll's prediction rests on little of the slice (")
+    assert "prefer noll" not in line and "photograph more of the highlight" in line
+    assert record["advice"] in line
 
 
 @pytest.fixture(scope="module")
