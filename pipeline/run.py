@@ -32,7 +32,7 @@ from flashbrdf.pipeline.run_materials import (label_section, material_entries, r
                                               run_materials)
 from flashbrdf.pipeline.run_steps import (StageTimer, check_references, infer_method,
                                           load_methods, reference_outputs, render_and_compare,
-                                          drop_scratch)
+                                          drop_scratch, release_references)
 from flashbrdf.render.envmap import read_envmap_pixels
 from flashbrdf.render.scene_render import SceneGeometry
 from flashbrdf.slice_extract import ExtractOptions
@@ -115,6 +115,8 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
         return stages, run_materials(settings, scene, out, stages, fitted, samples, segmentation,
                                      faces, references, loaded, notes, with_albedo)
     result = stages.run("extract", bin_samples, samples)
+    level = samples.level
+    del samples  # the pooled samples and the first photo: 1 GB at 24 MP, not needed past here
     rho = write_extraction(out / "slice.csv", settings.scene_dir, result, options,
                            final_path=settings.final_out / "slice.csv")
     write_labels(out / "labels.png", segmentation, faces)
@@ -125,7 +127,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
         print(f"warning: {w}", file=sys.stderr)
     for name in settings.methods:
         prediction = stages.run(f"infer {name}", infer_method, fitted[name], name,
-                                settings.model_path, rho, result.n, out / name, samples.level)
+                                settings.model_path, rho, result.n, out / name, level)
         note = prediction.tail_note
         if note and note.removeprefix("note: ") not in notes:  # the same for every method
             print(note, file=sys.stderr)
@@ -148,7 +150,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     if two_d:
         notes.append(f"{', '.join(two_d)}: 2D predictions rho(theta_h, theta_d) (the model has no "
                      "3D data); no 3D table was loaded, and renders look the 2D tables up directly.")
-    notes.append("Level: " + samples.level["note"] + ".")
+    notes.append("Level: " + level["note"] + ".")
     rows, geometry = [], None
     if not references:
         notes.append("The scene has no reference photo: nothing was compared.")
@@ -174,7 +176,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     sections = label_section(segmentation.labels, out / "figures", segmentation.criterion)
     extra = {"materials": material_entries(segmentation.labels, {1: "slice.csv"},
                                            {m: {1: p["file"]} for m, p in predictions.items()}),
-             "segmentation": segmentation.criterion, "level": samples.level}
+             "segmentation": segmentation.criterion, "level": level}
     if not references or settings.envmap is not None:
         brdfs = {name: TabulatedBRDF(p["table"]) for name, p in predictions.items()}
         if with_albedo is not None:
@@ -183,6 +185,8 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
             "previews", previews_under_envmap, settings, scene, geometry, brdfs,
             {name: {1: p["table"]} for name, p in predictions.items()}, out)
         sections += lines
+    geometry = None  # its cached primary hits (96 bytes a pixel): the report needs none
+    release_references(rows, loaded, out)
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                         observed=observed, predictions=predictions, notes=notes,
                         title=settings.title, warnings=ood_warnings, extra=extra,
