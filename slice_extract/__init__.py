@@ -10,7 +10,8 @@ Public API:
   ExtractOptions(max_theta_d_deg=5.0, min_cos=0.1, outlier_k=3.0, estimator="trimmed_mean",
                  shadow_rays=True, silhouette_px=1, chunk_pixels=2**20)
   robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e-3,
-              estimator="trimmed_mean") -> estimate (90, 3), n (90,), spread (90, 3), inlier (N,)
+              estimator="trimmed_mean", n_bins=90, photo=None)
+      -> estimate (90, 3), n (90,), spread (90, 3), inlier (N,)
   collect_samples(scene, options=None) -> FlashSamples (every flash pixel's sample, pooled)
   bin_samples(samples) -> SliceResult   # extract_slice = bin_samples(collect_samples(...))
   extract_material_slices(samples, labels (H, W), where, face_labels (F,) or None)

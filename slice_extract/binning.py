@@ -102,10 +102,10 @@ def _km_median(values, censored):
     return values[order[past[0]]] if len(past) else np.inf
 
 
-def dominated_censored(bin_index, rho, censored, photo=None, n_bins=N_THETA_H):
+def dominated_censored(bin_index, rho, censored, photo, n_bins=N_THETA_H):
     """(N,) bool: the censored samples whose lower bound rho (N, C) is at or below their bin's
-    Kaplan-Meier median in every channel, in bins where another photo measured (photo (N,) int;
-    None: any bin). They add nothing the median does not already honour. Only across photos: a
+    Kaplan-Meier median in every channel, in bins where another photo (photo (N,) int) measured.
+    They add nothing the median does not already honour. Only across photos: a
     pixel counts as clipped when any channel clips, so its other channels are values, not
     bounds, and within one photo setting such pixels aside by noise in those channels biases
     the bin (+3-6% where one channel of a coloured highlight clips).
@@ -115,7 +115,7 @@ def dominated_censored(bin_index, rho, censored, photo=None, n_bins=N_THETA_H):
     out = np.zeros(len(censored), dtype=bool)
     with np.errstate(invalid="ignore"):
         candidate = censored & np.all(np.isfinite(rho), axis=1)
-    if photo is not None and candidate.any():
+    if candidate.any():
         photo = np.asarray(photo, dtype=np.int64)
         width = int(photo.max()) + 1
         measured = ~censored
@@ -147,16 +147,17 @@ def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e
                 estimator="trimmed_mean", n_bins=N_THETA_H, photo=None):
     """Robust per-bin estimate of samples rho (N, 3) in bins bin_index (N,) int.
 
-    censored (N,) bool: right-censored samples (clipped pixels), their rho a lower bound (+inf:
-    none known); those at or below their bin's Kaplan-Meier median, where another photo
-    measured (photo (N,) int; None: any photo), are set aside (not inliers, dominated_censored);
+    censored (N,) bool: right-censored samples (clipped pixels), counted as above every measured
+    sample of their bin whatever their rho, except that with photo (N,) int (the photo of each
+    sample) a finite rho is a lower bound, and one at or below its bin's Kaplan-Meier median
+    where another photo measured is set aside (not an inlier; dominated_censored);
     theta_h (N,) radians: the samples' angles, for the bin-centre correction (None = no
     correction; the MERL theta_h bin centres are used).
     Returns (estimate (n_bins, 3) NaN where empty, n (n_bins,) inlier counts, spread (n_bins, 3)
     robust sigma of the bin's samples (NaN where empty), inlier (N,) bool).
     """
     bin_index = np.asarray(bin_index, dtype=np.intp)
-    if censored is not None and np.any(censored):
+    if photo is not None and censored is not None and np.any(censored):
         rho = np.asarray(rho)
         aside = dominated_censored(bin_index, rho, np.asarray(censored, dtype=bool), photo, n_bins)
         if aside.any():

@@ -366,12 +366,13 @@ class _FirstPhoto:
 
 
 def _measured(scene, options):
-    """One pass for refine_flash_cameras: (the pooled samples' photo, theta_h, rho and
+    """One pass for refine_flash_cameras: (the pooled samples' photo, theta_h, rho, censored and
     log_gradient; binned rho (90, 3)). The rest (the first photo: ~0.7 GB at 24 MP) is let go."""
     samples = collect_samples(scene, options)
     gradient = samples.log_gradient if samples.log_gradient is not None else np.zeros((0, 2))
     return (SimpleNamespace(photo=samples.photo, theta_h=samples.theta_h, rho=samples.rho,
-                            log_gradient=gradient), bin_samples(samples).rho)
+                            censored=samples.censored, log_gradient=gradient),
+            bin_samples(samples).rho)
 
 
 def bin_samples(samples):

@@ -127,7 +127,8 @@ def view_shifts(scene, samples, slice_rho, views):
     """{camera key: (d (2,) px, None) or (None, note)}: each view's least-squares shift between
     its photo and the pooled slice's prediction at its samples (module docstring).
 
-    samples carry, beside pixels, photo, theta_h and rho, each sample's log_gradient (N, 2)
+    samples carry, beside pixels, photo, theta_h, rho and censored (a clipped sample's rho is
+    a lower bound, no measurement: left out), each sample's log_gradient (N, 2)
     (`log_gradient`, NaN where not usable), taken by the extraction pass that read the photo:
     a refinement round decodes every photo once."""
     centres = theta_h_centres()
@@ -145,7 +146,8 @@ def view_shifts(scene, samples, slice_rho, views):
         gradient = np.asarray(samples.log_gradient[mine], dtype=np.float64)
         usable = np.all(np.isfinite(gradient), axis=1)
         residual = np.log(np.where(rho > 0, rho, np.nan)) - np.log(predicted)
-        keep = usable & np.isfinite(residual) & (np.abs(residual) < MAX_RESIDUAL)
+        keep = (usable & ~samples.censored[mine] & np.isfinite(residual)
+                & (np.abs(residual) < MAX_RESIDUAL))
         normal[view_of[photo.index]].append((gradient[keep], residual[keep]))
     shifts = {}
     for key in views:

@@ -165,17 +165,20 @@ def test_a_clipped_sample_below_its_bins_median_is_set_aside(bound, estimate):
     values = np.concatenate([np.linspace(1.0, 2.0, 11), np.full(10, bound)])
     rho = np.repeat(values[:, None], 3, axis=1)
     censored = np.arange(21) >= 11
-    got, n, _, inlier = robust_bins(np.zeros(21, int), rho, censored, n_bins=1)
+    photo = censored.astype(int)  # measured by photo 0, clipped in photo 1 (a longer one)
+    got, n, _, inlier = robust_bins(np.zeros(21, int), rho, censored, n_bins=1, photo=photo)
     assert np.allclose(got[0], estimate, rtol=1e-6) and n[0] == 11
     assert not inlier[censored].any() and inlier[~censored].all()
-    # within one photo (photo given, all 0) nothing is set aside: a pixel clipped in one
-    # channel holds values in the others, which noise would select on; the old median stands
-    got, n, _, _ = robust_bins(np.zeros(21, int), rho, censored, n_bins=1,
-                               photo=np.zeros(21, int))
-    assert np.allclose(got[0], 2.0, rtol=1e-6) and n[0] == 11
+    # within one photo, or with no photo given, nothing is set aside: a pixel clipped in one
+    # channel holds values in the others, which noise would select on; the median stands
+    for same in (np.zeros(21, int), None):
+        got, n, _, _ = robust_bins(np.zeros(21, int), rho, censored, n_bins=1, photo=same)
+        assert np.allclose(got[0], 2.0, rtol=1e-6) and n[0] == 11
     # over half clipped above the measured ones: no median can be read, the bin is empty
     rho12 = np.vstack([rho, rho[-1:]])
-    got, n, _, _ = robust_bins(np.zeros(22, int), rho12, np.arange(22) >= 10, n_bins=1)
+    censored12 = np.arange(22) >= 10
+    got, n, _, _ = robust_bins(np.zeros(22, int), rho12, censored12, n_bins=1,
+                               photo=censored12.astype(int))
     assert (np.isnan(got[0]).all() and n[0] == 0) == (bound > 2)
 
 

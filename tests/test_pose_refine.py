@@ -115,3 +115,35 @@ def test_each_refinement_pass_decodes_every_photo_once(capture, tmp_path, monkey
     # the refinement's rounds (at least 2: a pixel-sized shift is not fixed in one) and the last
     assert len(passes) >= 3
     assert len(decodes) == 8 * len(passes)
+
+
+def test_clipped_samples_do_not_pull_a_views_shift(capture, tmp_path):
+    """A clipped sample's rho is its clip level, a lower bound (it was +inf, which the shift's
+    fit dropped as non-finite): added as censored copies of a fifth of the samples at 0.8 of
+    their value, they leave every view's shift as it is, to the bit."""
+    from types import SimpleNamespace
+    from flashbrdf import capture as capture_stage
+    from flashbrdf.slice_extract.extract import bin_samples, collect_samples
+    from flashbrdf.slice_extract.pose_refine import refine_flash_cameras
+    model = perturbed_model(capture["sparse"], tmp_path / "sparse_1px", 1.0, 0)
+    import_colmap(model, capture["images"], capture["mesh"], tmp_path / "scene",
+                  flash_offset=FLASH_OFFSET)
+    scene = capture_stage.load_scene(tmp_path / "scene")
+    options = replace(ExtractOptions(), log_gradients=True)
+
+    def measure(current, clipped):
+        samples = collect_samples(current, options)
+        fields = {k: getattr(samples, k) for k in ("photo", "theta_h", "rho", "log_gradient")}
+        fields["censored"] = np.asarray(samples.censored)
+        if clipped:
+            pick = np.arange(0, len(fields["rho"]), 5)
+            fields = {k: np.concatenate([v, v[pick]]) for k, v in fields.items()}
+            fields["rho"][-len(pick):] *= 0.8
+            fields["censored"][-len(pick):] = True
+        return SimpleNamespace(**fields), bin_samples(samples).rho
+
+    _, plain = refine_flash_cameras(scene, lambda s: measure(s, False), iterations=1)
+    _, padded = refine_flash_cameras(scene, lambda s: measure(s, True), iterations=1)
+    assert all(r["refined"] for r in plain.values())
+    assert {k: r["shift_px"] for k, r in padded.items()} == \
+        {k: r["shift_px"] for k, r in plain.items()}
