@@ -130,15 +130,18 @@ def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
     sides = [max(e["box"][1] - e["box"][0], e["box"][3] - e["box"][2]) for e in usable.values()]
     per_pixel = [2 * (3 * e["has"][0] + sum(3 * (m in e["has"][1]) + (m in e["has"][2])
                                             for m in methods)) for e in usable.values()]
+    # the deflate ratio, measured on the first photo at the factor that fits uncompressed (at
+    # full size its copies made the report's peak: 1.5 GB at 24 MP), then checked on the page
     first = next(iter(usable.values()))
-    first_arrays = _arrays(_loaded(first), methods, first["box"], 1)
+    widest = data.downsample_factor(sizes, sides, per_pixel, budget, 1.0)
+    first_arrays = _arrays(_loaded(first), methods, first["box"], widest)
     first_encoded = _encode(first_arrays)
     raw_first = 2 * sum(a.size for _, _, a in first_arrays)
     ratio = first_encoded[1] / raw_first if raw_first else 1.0
     factor = data.downsample_factor(sizes, sides, per_pixel, budget, ratio)
     while True:
         listed, blocks, total, raw, maps = _encode_all(
-            usable, methods, factor, (first_arrays, first_encoded) if factor == 1 else None)
+            usable, methods, factor, (first_arrays, first_encoded) if factor == widest else None)
         if total <= budget or not raw or factor >= max(sides):
             break
         # the first photo deflated better than the rest (a dim one among textured ones): again,
@@ -152,7 +155,7 @@ def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
 
 def _encode_all(usable, methods, factor, first=None):
     """(photo list, {block id: base64 text}, deflated bytes, raw bytes, ΔE maps) of every usable
-    photo at one downsampling factor; first: the first photo's (arrays, encoding) at factor 1."""
+    photo at one downsampling factor; first: the first photo's (arrays, encoding) at it."""
     listed, blocks, total, raw, maps = [], {}, 0, 0, []
     for index, (name, entry) in enumerate(usable.items()):
         images = _loaded(entry)
