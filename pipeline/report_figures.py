@@ -8,7 +8,7 @@ import numpy as np
 
 from flashbrdf.files.atomic import atomic_path
 from flashbrdf.brdf.colour import srgb_encode
-from flashbrdf.pipeline.report_data import uniform_value
+from flashbrdf.pipeline.report_data import downsample, uniform_value
 
 CHANNELS = ("R", "G", "B")
 CHANNEL_COLOURS = ("tab:red", "tab:green", "tab:blue")
@@ -110,7 +110,8 @@ def tone_map(image, scale):
     """Linear RGB -> displayable sRGB-encoded [0,1]: times `scale`, clipped, sRGB curve; NaN -> 0.
     render.images.tonemap (the PNG previews) rolls highlights off softly instead; the report keeps
     its hard clip, so its figures stay as they were. Both share brdf.colour.srgb_encode."""
-    return srgb_encode(np.clip(np.nan_to_num(np.asarray(image, float) * scale), 0.0, 1.0))
+    return srgb_encode(np.clip(np.nan_to_num(np.asarray(image, np.float32) * np.float32(scale)),
+                               0.0, 1.0))
 
 
 def exposure_for(reference):
@@ -118,6 +119,9 @@ def exposure_for(reference):
     lit = np.asarray(reference, float)
     lit = lit[np.isfinite(lit) & (lit > 0)]
     return 1.0 / np.percentile(lit, 99) if lit.size else 1.0
+
+
+FIGURE_MAX_SIDE = 1024  # pixels of an image shown in a figure panel, at most
 
 
 def reference_figure(path, photo, reference, renders, delta_e_maps, delta_e_means, vmax=None):
@@ -133,6 +137,19 @@ def reference_figure(path, photo, reference, renders, delta_e_maps, delta_e_mean
         reference = None if reference is None else reference[crop]
         renders = {k: (None if r is None else r[crop]) for k, r in renders.items()}
         delta_e_maps = {k: (None if m is None else m[crop]) for k, m in delta_e_maps.items()}
+    # a panel is a few hundred pixels wide: block-averaged first (24 MP images tone-mapped in
+    # float64 made the report's memory peak, 2 GB a panel)
+    side = max((max(np.shape(i)[:2]) for i in [reference, *renders.values(),
+                                              *delta_e_maps.values()] if i is not None),
+               default=1)
+    factor = -(-side // FIGURE_MAX_SIDE)
+    if factor > 1:
+        reference, renders, delta_e_maps = (
+            None if reference is None else downsample(reference, factor),
+            {k: None if r is None else downsample(r, factor) for k, r in renders.items()},
+            {k: None if m is None else (downsample(m, factor) if np.ndim(m) == 2
+                                        else np.asarray(m)[::factor, ::factor])
+             for k, m in delta_e_maps.items()})
     methods = list(renders)
     # Top row: the reference, then each method's render; bottom row: each method's Delta E map.
     fig, axes = plt.subplots(2, 1 + len(methods), figsize=(2.6 * (1 + len(methods)), 5.4),

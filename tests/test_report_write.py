@@ -225,3 +225,26 @@ def test_photos_with_dots_get_a_figure_each_and_missing_photos_are_not_counted(t
     assert figures["ref.cam2"] == "figures/ref_ref.cam2.png"
     assert all((tmp_path / "out" / f).is_file() for f in figures.values())
     assert report["summary"]["pca"]["references"] == 2
+
+
+def test_a_reference_figure_of_a_large_photo_is_drawn_from_block_averages(tmp_path):
+    """A 24 MP photo's panels were tone-mapped in float64 at full size (2 GB a panel, the peak
+    of `run`'s report): images past 1024 px are block-averaged first. For a 2400 x 3000 photo
+    and one render, the figure's memory peak stays under four of its float32 images (the
+    average's copy of an image, its finite mask as float32, their sums), where the float64 tone
+    map took eleven."""
+    import tracemalloc
+    from flashbrdf.pipeline.report_figures import reference_figure
+    rng = np.random.default_rng(0)
+    photo = rng.random((2400, 3000, 3)).astype(np.float32)
+    render = photo * np.float32(0.9)
+    delta_e = rng.random((2400, 3000)).astype(np.float32)
+    tracemalloc.start()
+    try:
+        reference_figure(tmp_path / "ref.png", "ref", photo, {"m": render}, {"m": delta_e},
+                         {"m": 1.0})
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert (tmp_path / "ref.png").stat().st_size > 10_000
+    assert peak < 4 * photo.nbytes, peak / photo.nbytes
