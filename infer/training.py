@@ -7,6 +7,9 @@ exactly the one `train` would have written.
 
 import time
 
+import numpy as np
+
+from flashbrdf.files.errors import InputError
 from flashbrdf.infer.adapter import DSGPLVMMethod
 from flashbrdf.infer.baselines.pca import PCA
 from flashbrdf.infer.model_file import save_model
@@ -37,6 +40,11 @@ def train_model(training, path, views=("1d", "2d"), seed=0, feature_space="auto"
     params["fit_seconds"] = {"tuning": tuned - start, "dsgplvm": done - tuned}
     # the consensus' PCA (infer.consensus), fitted here once and stored: not refitted at each load
     pca = PCA(**(params["dsgplvm"]["pca_params"] or {})).fit(training)
+    if not 0 < len(pca.var_) < len(training) or np.any(pca.var_ <= 0):
+        # what a load would refuse as a damaged model: say so now, naming the tables
+        raise InputError("--merl-dir", f"the {len(training)} training tables are one table once "
+                                       "mapped as pca maps them (ln of rho over a reference): "
+                                       "nothing varies to learn from; train on distinct materials")
     save_model(path, training, params, dsgplvm=model.model_, merl_dir=list(merl_dirs),
                pca_state=pca.state())
     return params

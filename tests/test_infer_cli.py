@@ -477,3 +477,21 @@ def test_an_unknown_method_name_is_the_callers_not_the_model_files(tmp_path):
         load_method(tmp_path / "no_such_model.npz", "PCA")
     assert err.value.where == "method" and "unknown method 'PCA'" in str(err.value)
     assert "damaged" not in str(err.value)
+
+
+def test_train_refuses_tables_that_are_one_once_mapped(tmp_path, capsys):
+    """Five constant tables of 0 to 4e-25 1/sr differ in float32, so training took them, and
+    wrote a model every `infer` then refused as damaged (their pca-mapped rows are one row:
+    no component). train says so itself: exit 2, one line naming --merl-dir, no model."""
+    from flashbrdf.brdf import merl
+    folder = tmp_path / "dark"
+    folder.mkdir()
+    valid = merl.merl_valid_mask()[..., None]
+    for k, value in enumerate([0.0, 1e-25, 2e-25, 3e-25, 4e-25]):
+        merl.write_merl(folder / f"t{k}.binary",
+                        np.where(valid, value, np.nan) * np.ones(merl.MERL_SHAPE + (3,)))
+    capsys.readouterr()
+    assert main(["train", "--merl-dir", str(folder), "--out", str(tmp_path / "m.npz")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--merl-dir: the 5 training tables are one table" in err[0]
+    assert not (tmp_path / "m.npz").exists()
