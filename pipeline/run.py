@@ -115,7 +115,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
         return stages, run_materials(settings, scene, out, stages, fitted, samples, segmentation,
                                      faces, references, loaded, notes, with_albedo)
     result = stages.run("extract", bin_samples, samples)
-    level = samples.level
+    level, intersector = samples.level, samples.intersector
     del samples  # the pooled samples and the first photo: 1 GB at 24 MP, not needed past here
     rho = write_extraction(out / "slice.csv", settings.scene_dir, result, options,
                            final_path=settings.final_out / "slice.csv")
@@ -155,7 +155,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     if not references:
         notes.append("The scene has no reference photo: nothing was compared.")
     else:
-        geometry = stages.run("ray cast", SceneGeometry, scene)
+        geometry = stages.run("ray cast", SceneGeometry, scene, intersector)
         if scene.geometry.mesh is None:
             notes.append("Normal-map geometry: no rays were cast.")
         elif geometry.convex:

@@ -112,7 +112,7 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
     notes.append("Level: " + samples.level["note"] + ".")
     rows = []
     if references:
-        geometry = stages.run("ray cast", SceneGeometry, scene)
+        geometry = stages.run("ray cast", SceneGeometry, scene, samples.intersector)
         camera = scene.photos_with_role("flash")[0].camera
         for name in settings.methods:
             materials = MaterialMap([TabulatedBRDF(tables[name][k].table) for k in sorted(rhos)],

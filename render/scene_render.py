@@ -25,12 +25,14 @@ class SceneGeometry:
 
     CACHED_HITS = 40_000_000
 
-    def __init__(self, scene):
+    def __init__(self, scene, intersector=None):
+        """intersector: the scene mesh's capture.MeshIntersector when the caller has built one
+        (extraction has: loading a 2.9 M-face mesh and its BVH again cost 14 s), else built."""
         from flashbrdf import capture  # lazy: capture costs 0.2-0.8 s on every import of render
         self.scene = scene
         self._surfaces = {}
         if scene.geometry.mesh is not None:
-            self.intersector = capture.scene_intersector(scene)
+            self.intersector = intersector or capture.scene_intersector(scene)
             self.convex = capture.is_convex(self.intersector)
         else:
             self.intersector, self.convex = None, True

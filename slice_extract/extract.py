@@ -28,6 +28,7 @@ from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.merl import N_THETA_H
 from flashbrdf.brdf.views import MAX_SLICE_VALUE
 from flashbrdf.slice_extract.binning import robust_bins
+from flashbrdf.slice_extract.options import ExtractOptions
 from flashbrdf.slice_extract.sample_store import SAMPLE_FIELDS, SampleStore
 from flashbrdf.slice_extract.visibility import (camera_normals, depth_edge_mask, silhouette_mask,
                                                trace_camera)
@@ -39,51 +40,6 @@ from flashbrdf.slice_extract.slice_files import extraction_report
 from flashbrdf.slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
                                    material_interior)
 from flashbrdf.files.progress import photo_progress
-
-
-@dataclass(frozen=True)
-class ExtractOptions:
-    max_theta_d_deg: float = 5.0
-    min_cos: float = 0.1
-    outlier_k: float = 3.0
-    estimator: str = "trimmed_mean"  # or "median"
-    shadow_rays: bool = True  # False only to diagnose (or to show what shadows would cost)
-    silhouette_px: int = 1  # reject pixels this close to the object's outline (0: keep them)
-    chunk_pixels: int = 1 << 20  # pixels traced per batch: bounds memory, keeps arrays in cache
-    # Many photos at full resolution (30 x 24 MP) give far more samples than a bin needs: past
-    # sample_budget pooled samples, each theta_h bin keeps a uniform random subset of at most
-    # max_samples_per_bin (its robust estimate moves by ~1/sqrt(80,000) of its spread), so
-    # memory stays bounded whatever the number of photos. Below the budget nothing is dropped.
-    sample_budget: int = 8_000_000
-    max_samples_per_bin: int = 80_000
-    # an inner occluding contour (a depth jump between neighbouring pixels steeper than
-    # atan(depth_edge_slope) ~ 87 deg) is rejected like the outline: a pose a pixel off puts
-    # the surface behind, or the background, there (0: off)
-    depth_edge_slope: float = 20.0
-    # refine each flash view's pose against the pooled slice first (pose_refine.py):
-    # a pose a pixel off blurs the specular lobe; costs up to 3 more passes over the photos
-    refine_poses: bool = False
-    # each sample also carries grad ln I at its pixel (pose_refine.log_gradient), for the
-    # refinement's passes: they then read every photo once
-    log_gradients: bool = False
-
-    def __post_init__(self):
-        """ValueError naming the first option out of its range (the command line checks its
-        flags before, naming them)."""
-        rules = (("max_theta_d_deg", 0 < self.max_theta_d_deg <= 90, "degrees in (0, 90]"),
-                 ("min_cos", 0 <= self.min_cos < 1, "a value in [0, 1)"),
-                 ("outlier_k", self.outlier_k > 0, "a positive number of sigmas"),
-                 ("estimator", self.estimator in ("trimmed_mean", "median"),
-                  "'trimmed_mean' or 'median'"),
-                 ("silhouette_px", self.silhouette_px >= 0, "pixels >= 0"),
-                 ("chunk_pixels", self.chunk_pixels >= 1, "at least 1"),
-                 ("sample_budget", self.sample_budget >= 1, "at least 1"),
-                 ("max_samples_per_bin", self.max_samples_per_bin >= 1, "at least 1"),
-                 ("depth_edge_slope", self.depth_edge_slope >= 0, "a slope >= 0 (0: off)"))
-        for name, ok, expected in rules:
-            if not ok:
-                raise ValueError(f"ExtractOptions.{name}: expected {expected}, got "
-                                 f"{getattr(self, name)!r}")
 
 
 @dataclass(eq=False)
@@ -195,6 +151,7 @@ class FlashSamples:
     mesh: object = None      # the scene's trimesh as traced (None for normal-map geometry):
     #                          segmentation and material borders read it, not the file again
     log_gradient: np.ndarray = None  # (N, 2) grad ln I per sample, with options.log_gradients
+    intersector: object = None  # capture.MeshIntersector of that mesh: render reuses its BVH
 
     def first_photo(self):
         """(rho (M, 3), theta_h (M,), pixels (M,), censored (M,)) of every sample of the first
@@ -345,7 +302,7 @@ def collect_samples(scene, options=None):
                            first.radiance, per_photo, clock.t, start, first.normals_at,
                            first.samples if store.subsampled else None, pooled["face"],
                            level_report, None if intersector is None else intersector.mesh,
-                           pooled.get("log_gradient"))
+                           pooled.get("log_gradient"), intersector)
     return samples
 
 
