@@ -20,6 +20,7 @@ Public API (plain numpy arrays in and out; WORLD frame unless said otherwise):
   is_convex(mesh_or_intersector) -> bool
   surface_from_mesh(mesh_or_intersector, camera, pixel_mask=None) -> Surface
   surface_at_pixels(mesh_or_intersector, camera, rows, cols) -> Surface (hits only)
+  surface_sample(mesh_or_intersector, camera, count) -> Surface of up to count pixels' hits
   pixel_box(camera, bounds) -> (row0, row1, col0, col1): pixels that can see a world box
   mesh_pixels(camera, vertices, faces) -> rows, cols: the pixels whose ray can hit a face
   box_pixels(box) -> rows, cols: every pixel of a (row0, row1, col0, col1) box
@@ -47,7 +48,7 @@ from flashbrdf.capture.camera import (box_pixels, camera_rays, embree_rays, mask
                                       pixel_box, pixel_rays, project_points, view_directions)
 from flashbrdf.capture.geometry import (Hits, MeshIntersector, Surface, intersect, is_convex,
                                         load_mesh, occluded, scene_intersector,
-                                        surface_at_pixels, surface_from_mesh)
+                                        surface_at_pixels, surface_from_mesh, surface_sample)
 from flashbrdf.capture.normal_map import load_normal_map, surface_from_normal_map
 from flashbrdf.capture.load import (FlashImage, camera_key, iter_flash_images, load_flash_images,
                                     load_photo_entry, load_reference_entry, photo_exists,
@@ -65,5 +66,6 @@ __all__ = [
     "mask_box", "mesh_pixels", "photo_exists", "photo_labels", "same_view", "occluded",
     "pixel_box",
     "pixel_rays", "project_points", "read_float_image", "scene_intersector", "srgb_to_linear",
-    "surface_at_pixels", "surface_from_mesh", "surface_from_normal_map", "view_directions",
+    "surface_at_pixels", "surface_from_mesh", "surface_from_normal_map", "surface_sample",
+    "view_directions",
 ]

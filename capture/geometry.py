@@ -362,6 +362,16 @@ def surface_from_mesh(target, camera, pixel_mask=None):
     return surface_at_pixels(mi, camera, rows, cols)
 
 
+def surface_sample(target, camera, count):
+    """A Surface of up to `count` of the camera's pixels whose ray can reach a face, evenly
+    spaced through them (mesh_pixels' order): enough to tell whether the camera sees the object,
+    or what share of its pixels carry a label, without tracing the whole view."""
+    mi = _as_intersector(target)
+    rows, cols = mesh_pixels(camera, mi.mesh.vertices, mi.mesh.faces)
+    step = max(1, len(rows) // count)
+    return surface_at_pixels(mi, camera, rows[::step], cols[::step])
+
+
 def surface_at_pixels(target, camera, rows, cols, dtype=np.float64):
     """Trace the rays of pixels (rows, cols) (N,) int against the mesh; a Surface of the hits.
 

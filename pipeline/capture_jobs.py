@@ -65,7 +65,8 @@ def extract_materials(scene_dir, labels_png, out, options=None, force=False):
     with staged_output_dir(out, force=force, command="extract") as staged:
         samples = collect_samples(scene, options)
         labels = read_labels(labels_png, samples.shape)
-        faces = read_face_labels(labels_png, int(labels.max()), scene, labels)
+        faces = read_face_labels(labels_png, int(labels.max()), scene, labels,
+                                 samples.intersector)
         slices = extract_material_slices(samples, labels, labels_png, faces)
         write_material_slices(staged, scene_dir, slices, options, labels)
     warned = {w for r in slices.values() if r is not None for w in r.report.get("warnings", [])}

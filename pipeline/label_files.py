@@ -12,7 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from flashbrdf.capture import load_mesh, mesh_pixels, scene_intersector, surface_at_pixels
+from flashbrdf.capture import load_mesh, scene_intersector, surface_sample
 from flashbrdf.capture.photo import imread_unchanged
 from flashbrdf.files.atomic import atomic_path
 from flashbrdf.files.errors import DECODE_ERRORS, InputError
@@ -159,11 +159,11 @@ def read_npy(path):
     return array
 
 
-def read_face_labels(labels_png, count, scene, labels):
+def read_face_labels(labels_png, count, scene, labels, intersector=None):
     """LABELS.faces.npy beside LABELS.png: (F,) int labels 1..count, one per mesh face, or None
     when there is no such file. InputError when it is not that (or not the mesh's face count),
     or when it disagrees with the label image `labels` (H, W) on most of the object's labelled
-    pixels (faces_agree)."""
+    pixels (faces_agree; intersector: the scene mesh's, when the caller has one)."""
     npy = faces_path(labels_png)
     if not npy.is_file():
         return None
@@ -175,20 +175,19 @@ def read_face_labels(labels_png, count, scene, labels):
         n_faces = len(load_mesh(scene.geometry.mesh)[0].faces)
         if len(faces) != n_faces:
             raise InputError(npy, f"has {len(faces)} labels but the mesh has {n_faces} faces")
-        faces_agree(npy, faces, labels, scene, Path(labels_png).name)
+        faces_agree(npy, faces, labels, scene, Path(labels_png).name, intersector)
     return faces
 
 
-def faces_agree(npy, faces, labels, scene, png_name):
+def faces_agree(npy, faces, labels, scene, png_name, intersector=None):
     """InputError naming the faces file when the faces the flash camera sees carry another label
     than their pixels in LABELS.png on over half of the object's labelled pixels: a faces file
     left from another label image (relabelled, or renumbered) would put each material on the
-    other's faces in every other view. Faces straddling a border disagree on a few percent."""
+    other's faces in every other view. Faces straddling a border disagree on a few percent.
+    intersector: the scene mesh's, when the caller has built one (else built here)."""
     camera = flash_photo_camera(scene, "--labels")
-    intersector = scene_intersector(scene)
-    rows, cols = mesh_pixels(camera, intersector.mesh.vertices, intersector.mesh.faces)
-    step = max(1, len(rows) // FACES_SAMPLE)  # a share that close to 0 or 1 needs no more
-    surface = surface_at_pixels(intersector, camera, rows[::step], cols[::step])
+    # a share that close to 0 or 1 needs no more than a sample of the view
+    surface = surface_sample(intersector or scene_intersector(scene), camera, FACES_SAMPLE)
     mine = labels[surface.rows, surface.cols]
     on = mine > 0
     seen = int(np.count_nonzero(on))

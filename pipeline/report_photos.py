@@ -71,6 +71,22 @@ def load(entry):
     return out
 
 
+def _all_named(entry):
+    """Whether every row names its render and ΔE map as files (what `run` writes), so what a
+    photo holds is known without reading its images."""
+    return all(isinstance(row.get(key), (str, os.PathLike)) for row in entry["rows"]
+               for key in ("render", "delta_e_map") if row.get(key) is not None) and all(
+        row.get("render") is not None for row in entry["rows"])
+
+
+def _named(entry):
+    """(photo present, {methods with a render}, {methods with a ΔE map}) of rows that name files."""
+    rows = entry["rows"]
+    return (any(row.get("reference") is not None for row in rows),
+            {row["method"] for row in rows},
+            {row["method"] for row in rows if row.get("delta_e_map") is not None})
+
+
 def _shape(images):
     for image in [images["reference"], *images["renders"].values()]:
         if image is not None:
@@ -113,17 +129,19 @@ def encode_photos(photos, methods, budget=data.IMAGE_BUDGET_BYTES):
     not fit)."""
     usable = {}
     for name, entry in photos.items():  # one photo's images at a time
-        images = load(entry)
-        shape = _shape(images)
-        if shape is None:
-            continue
-        entry["shape"] = shape
-        entry["measured"] = _measured(entry, images, shape)
-        entry["box"] = data.object_box(entry["measured"])
-        entry["has"] = (images["reference"] is not None, set(images["renders"]),
-                        set(images["maps"]))
+        if entry["mask"] is not None and _all_named(entry):  # run's rows: nothing to read yet
+            shape, has = entry["mask"].shape, _named(entry)
+            measured = entry["mask"]
+        else:
+            images = load(entry)
+            shape = _shape(images)
+            if shape is None:
+                continue
+            has = (images["reference"] is not None, set(images["renders"]), set(images["maps"]))
+            measured = _measured(entry, images, shape)
+            del images
+        entry.update(shape=shape, measured=measured, box=data.object_box(measured), has=has)
         usable[name] = entry
-        del images
     if not usable:
         return [], {}, {"factor": 1, "bytes": 0, "raw_bytes": 0}
     sizes = [(e["box"][1] - e["box"][0]) * (e["box"][3] - e["box"][2]) for e in usable.values()]

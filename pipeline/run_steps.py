@@ -103,7 +103,7 @@ def render_and_compare(scene, geometry, method_name, table, spp, out_dir, refere
         # the row names files, not arrays: every (photo, method) row held its render, ΔE map
         # and masks (0.5 GB at 24 MP) until the report, which reads them photo by photo
         row = {"photo": photo.stem, "method": method_name, "render": out_dir / f"{photo.stem}.exr",
-               "mask": scratch_array(out_dir, mask)}
+               "mask": scratch_array(out_dir.parent, mask)}
         if photo.index in loaded:
             reference, measured = loaded[photo.index]
             metrics, delta_e = write_comparison(out_dir, image, reference, mask & measured,
@@ -111,8 +111,8 @@ def render_and_compare(scene, geometry, method_name, table, spp, out_dir, refere
                                                 png_name=f"{photo.stem}_delta_e.png",
                                                 return_map=True)
             row.update(metrics, reference=reference,
-                       delta_e_map=scratch_array(out_dir, delta_e.astype(np.float32)),
-                       compare_mask=scratch_array(out_dir, mask & measured))
+                       delta_e_map=scratch_array(out_dir.parent, delta_e.astype(np.float32)),
+                       compare_mask=scratch_array(out_dir.parent, mask & measured))
             if level:
                 row["level_ratio_rgb"] = level_ratio(image, reference, mask & measured).tolist()
             del delta_e
@@ -126,10 +126,10 @@ def render_and_compare(scene, geometry, method_name, table, spp, out_dir, refere
 SCRATCH = ".report_scratch"  # beside the methods' folders in run's output; gone before it is
 
 
-def scratch_array(out_dir, array):
-    """Save an array for the report into OUT/.report_scratch/ (out_dir: a method's folder in
-    OUT) and return its path (pipeline.report_data.read_image reads it back, memory-mapped)."""
-    folder = Path(out_dir).parent / SCRATCH
+def scratch_array(out, array):
+    """Save an array for the report into OUT/.report_scratch/ and return its path
+    (pipeline.report_data.read_image reads it back, memory-mapped)."""
+    folder = Path(out) / SCRATCH
     folder.mkdir(exist_ok=True)
     path = folder / f"{uuid.uuid4().hex}.npy"
     np.save(path, array)
@@ -145,7 +145,7 @@ def release_references(rows, loaded, out):
         photo = row.get("reference")
         if isinstance(photo, np.ndarray):
             if id(photo) not in saved:
-                saved[id(photo)] = scratch_array(Path(out) / SCRATCH, photo)
+                saved[id(photo)] = scratch_array(out, photo)
             row["reference"] = saved[id(photo)]
     loaded.clear()
 

@@ -63,13 +63,7 @@ class SceneGeometry:
             return len(self._surfaces[key].rows) > 0
         if self.intersector is None:
             return len(self.surface(camera).rows) > 0
-        mesh = self.intersector.mesh
-        rows, cols = capture.mesh_pixels(camera, mesh.vertices, mesh.faces)
-        if len(rows) == 0:
-            return False
-        step = max(1, len(rows) // 4096)
-        if len(capture.surface_at_pixels(self.intersector, camera, rows[::step],
-                                         cols[::step]).rows):
+        if len(capture.surface_sample(self.intersector, camera, 4096).rows):
             return True
         return len(self.surface(camera).rows) > 0
 

@@ -8,14 +8,14 @@ rel_floor x |m| so that noise-free data (MAD = 0) does not reject tiny rounding 
 The estimate is the per-channel mean of the inliers ("trimmed mean"), or the median when asked.
 
 Clipped (too bright) pixels are right-censored samples: their rho is a lower bound (+inf when
-unknown). A censored sample whose bound lies at or below its bin's Kaplan-Meier median (the
-median of right-censored data) in every channel says only "above a value the median already
-clears", so it is set aside: within one exposure that is a clipped pixel lit from nearer or
-more squarely than the bin's measured ones, across an exposure series given as separate photos
-it is the long photo's clipped highlight, which the short photo measured. The others count as
-+inf: the median of a bin is still exact while fewer than half of its samples are censored, so
-such bins use the median, and bins that are half or more censored are left empty (a trimmed
-mean of the unclipped rest would be biased low).
+unknown). Where another photo measured the bin, a censored sample whose bound lies at or below
+the bin's Kaplan-Meier median (the median of right-censored data) in every channel says only
+"above a value the median already clears", so it is set aside: across an exposure series given
+as separate photos, the long photo's clipped highlight, which the short photo measured (not
+within one photo: dominated_censored says why). The others count as +inf: the median of a bin
+is still exact while fewer than half of its samples are censored, so such bins use the median,
+and bins that are half or more censored are left empty (a trimmed mean of the unclipped rest
+would be biased low).
 
 Bin-centre correction: the slice is defined at bin centres, but a bin's samples can sit off
 centre (a bin half outside the observed range at grazing angles, or uneven pixel density across
@@ -158,12 +158,12 @@ def robust_bins(bin_index, rho, censored=None, theta_h=None, k=3.0, rel_floor=1e
     """
     bin_index = np.asarray(bin_index, dtype=np.intp)
     if photo is not None and censored is not None and np.any(censored):
-        rho = np.asarray(rho)
-        aside = dominated_censored(bin_index, rho, np.asarray(censored, dtype=bool), photo, n_bins)
+        rho, censored = np.asarray(rho), np.asarray(censored, dtype=bool)
+        aside = dominated_censored(bin_index, rho, censored, photo, n_bins)
         if aside.any():
             kept = ~aside
             estimate, n, spread, inlier = _robust_bins(
-                bin_index[kept], rho[kept], np.asarray(censored)[kept],
+                bin_index[kept], rho[kept], censored[kept],
                 None if theta_h is None else np.asarray(theta_h)[kept], k, rel_floor, estimator,
                 n_bins)
             inlier_by_input = np.zeros(len(kept), dtype=bool)
