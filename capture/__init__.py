@@ -50,12 +50,11 @@ from flashbrdf.capture.geometry import (Hits, MeshIntersector, Surface, intersec
                                         load_mesh, occluded, scene_intersector,
                                         surface_at_pixels, surface_from_mesh, surface_sample)
 from flashbrdf.capture.normal_map import load_normal_map, surface_from_normal_map
-from flashbrdf.capture.load import (FlashImage, camera_key, iter_flash_images, load_flash_images,
-                                    load_photo_entry, load_reference_entry, photo_exists,
-                                    same_view)
+from flashbrdf.capture.load import (FlashImage, iter_flash_images, load_flash_images,
+                                    load_photo_entry, load_reference_entry, photo_exists)
 from flashbrdf.capture.photo import load_brackets, load_photo, read_float_image, srgb_to_linear
-from flashbrdf.capture.scene import (Camera, Geometry, Light, Photo, Scene, load_scene,
-                                     photo_labels)
+from flashbrdf.capture.scene import (Camera, Geometry, Light, Photo, Scene, camera_key,
+                                     load_scene, photo_labels, same_view)
 
 
 __all__ = [

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from flashbrdf.capture.photo import load_brackets, load_photo, load_photo_measured
-from flashbrdf.capture.scene import Scene, camera_key, load_scene
+from flashbrdf.capture.scene import Scene, load_scene, same_view
 from flashbrdf.files.errors import InputError
 from flashbrdf.files.threads import thread_budget
 
@@ -56,11 +56,6 @@ def load_reference_entry(photo):
         return load_photo_measured(photo.file, photo.encoding, photo.saturation,
                                    photo.camera.shape)
     return load_photo_entry(photo)
-
-
-def same_view(a, b):
-    """Whether two cameras are one view (camera_key)."""
-    return a is b or camera_key(a) == camera_key(b)
 
 
 def _ambient(scene, photo):

@@ -154,6 +154,11 @@ def camera_key(camera):
             None if camera.distortion is None else np.asarray(camera.distortion).tobytes())
 
 
+def same_view(a, b):
+    """Whether two cameras are one view (camera_key)."""
+    return a is b or camera_key(a) == camera_key(b)
+
+
 # OpenCV's distortion vector lengths; the contract's is 5, [k1, k2, p1, p2, k3]
 DISTORTION_LENGTHS = (4, 5, 8, 12, 14)
 
@@ -364,7 +369,7 @@ def load_scene(scene_dir):
               for i, p in enumerate(items)]
     if geometry.normal_map is not None:
         for photo in photos:
-            if camera_key(photo.camera) != camera_key(camera):
+            if not same_view(photo.camera, camera):
                 # its normals and mask are the scene camera's pixels: another view would be
                 # rendered through them, rotated by the other pose (a torus: ΔE-log 16 where the
                 # true BRDF gives 1.2)

@@ -201,20 +201,22 @@ HYPERPARAMETER_RULES = {
 }
 
 
-def check_hyperparameters(path, name, params):
+def check_hyperparameters(path, name, params, stored=True):
     """InputError naming the model file and the hyperparameter when a stored value is one train
-    never writes (HYPERPARAMETER_RULES); pca_params is checked as pca's own."""
+    never writes (HYPERPARAMETER_RULES); pca_params is checked as pca's own. stored=False: the
+    values are a caller's overrides, and the error names them, not the file."""
+    where, head = (path, "damaged model: ") if stored else (f"{name} override", "")
     for key, value in params.items():
         if key == "pca_params" and value is not None:
             if not isinstance(value, dict):
-                raise InputError(path, f"damaged model: params[{name!r}]['pca_params'] is not a "
-                                       "JSON object")
-            check_hyperparameters(path, f"{name}.pca_params", value)
+                raise InputError(where, f"{head}params[{name!r}]['pca_params'] is not a JSON "
+                                        "object")
+            check_hyperparameters(path, f"{name}.pca_params", value, stored)
             continue
         what, ok = HYPERPARAMETER_RULES.get(key, (None, None))
         if ok is not None and not ok(value):
-            raise InputError(path, f"damaged model: params[{name!r}][{key!r}] is {value!r}, "
-                                   f"expected {what}")
+            raise InputError(where, f"{head}params[{name!r}][{key!r}] is {value!r}, expected "
+                                    f"{what}")
 
 
 def load_method(path, name, merl_dir=None, **overrides):
@@ -247,7 +249,8 @@ def load_methods(path, names, merl_dir=None, overrides=None, fit_seconds=None):
             make_method(name, **kw)  # hyperparameters the method does not take: a damaged file
         except (TypeError, ValueError) as err:
             raise InputError(path, f"damaged model: params[{name!r}] ({err})") from None
-        check_hyperparameters(path, name, kw)
+        check_hyperparameters(path, name, stored)  # the file's word
+        check_hyperparameters(path, name, (overrides or {}).get(name, {}), stored=False)
         if name == "dsgplvm":
             if blob is None:
                 raise InputError(path, "model holds no DS-GPLVM")

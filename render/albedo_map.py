@@ -11,7 +11,7 @@ import numpy as np
 
 from flashbrdf.files.errors import InputError
 from flashbrdf.brdf.models import Lambert
-from flashbrdf.capture.load import camera_key
+from flashbrdf.capture.scene import camera_key
 from flashbrdf.render.material_map import MaterialMap
 
 

@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from flashbrdf.capture.load import camera_key
+from flashbrdf.capture.scene import camera_key
 from flashbrdf.files.errors import InputError
 
 

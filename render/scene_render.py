@@ -9,7 +9,7 @@ import numpy as np
 
 from flashbrdf.files.errors import InputError
 from flashbrdf.render.albedo_map import DiffuseAlbedoMap
-from flashbrdf.capture.load import camera_key
+from flashbrdf.capture.scene import camera_key
 from flashbrdf.render.material_map import MaterialMap
 from flashbrdf.brdf.models import TabulatedBRDF
 from flashbrdf.render.envmap import EnvMap

@@ -495,3 +495,14 @@ def test_train_refuses_tables_that_are_one_once_mapped(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--merl-dir: the 5 training tables are one table" in err[0]
     assert not (tmp_path / "m.npz").exists()
+
+
+def test_a_callers_bad_override_is_named_as_the_callers_not_the_files():
+    """load_method(model, "dsgplvm", calibration=-1.0) said the shipped model was damaged."""
+    from flashbrdf.files.errors import InputError
+    from flashbrdf.infer import load_method
+    from flashbrdf.pipeline.options import DEFAULT_MODEL
+    with pytest.raises(InputError) as err:
+        load_method(DEFAULT_MODEL, "dsgplvm", calibration=-1.0)
+    assert err.value.where == "dsgplvm override" and "damaged" not in str(err.value)
+    assert "'calibration'] is -1.0, expected a positive number" in str(err.value)
