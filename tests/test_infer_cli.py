@@ -468,17 +468,6 @@ def test_a_3d_prediction_carries_the_2d_views_per_bin_variance(trained, tmp_path
     assert finite.size > 10_000 and finite.max() > 2 * np.median(finite)
 
 
-def test_an_unknown_method_name_is_the_callers_not_the_model_files(tmp_path):
-    """load_method(model, "PCA") said the (sound) model was damaged; the name is checked first,
-    before the file is read: a path that does not exist gives the same error."""
-    from flashbrdf.files.errors import InputError
-    from flashbrdf.infer import load_method
-    with pytest.raises(InputError) as err:
-        load_method(tmp_path / "no_such_model.npz", "PCA")
-    assert err.value.where == "method" and "unknown method 'PCA'" in str(err.value)
-    assert "damaged" not in str(err.value)
-
-
 def test_train_refuses_tables_that_are_one_once_mapped(tmp_path, capsys):
     """Five constant tables of 0 to 4e-25 1/sr differ in float32, so training took them, and
     wrote a model every `infer` then refused as damaged (their pca-mapped rows are one row:
@@ -495,14 +484,3 @@ def test_train_refuses_tables_that_are_one_once_mapped(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "--merl-dir: the 5 training tables are one table" in err[0]
     assert not (tmp_path / "m.npz").exists()
-
-
-def test_a_callers_bad_override_is_named_as_the_callers_not_the_files():
-    """load_method(model, "dsgplvm", calibration=-1.0) said the shipped model was damaged."""
-    from flashbrdf.files.errors import InputError
-    from flashbrdf.infer import load_method
-    from flashbrdf.pipeline.options import DEFAULT_MODEL
-    with pytest.raises(InputError) as err:
-        load_method(DEFAULT_MODEL, "dsgplvm", calibration=-1.0)
-    assert err.value.where == "dsgplvm override" and "damaged" not in str(err.value)
-    assert "'calibration'] is -1.0, expected a positive number" in str(err.value)
