@@ -242,22 +242,29 @@ class DSGPLVMMethod(InferenceMethod):
         with one_blas_thread() if view == "2d" else nullcontext():
             table, variance = super().predict(flash_slice, view)
         if self.anchor and view == "2d":  # 3D: anchored in combination()
-            rho = check_slice(flash_slice)
-            table = self._anchored(table, rho)
-            if self.members_ is not None:
-                members = self.member_tables(rho, table)
-                stack = np.stack(list(members.values()))
-                spread = member_spread(colour.rho_to_features(np.nan_to_num(stack),
-                                                              space=self.feature_space))
-                variance = variance + self.calibration * np.where(np.isnan(variance), np.nan,
-                                                                  spread)
-                table = consensus_table(stack)
+            table, variance, _ = self._finished_2d(table, variance, check_slice(flash_slice))
         if view == "3d":
             # the 3D table's (θh, θd) level is the 2D prediction's (anchored, consensus): so is
-            # its per-bin variance, the same across φd (the GP's own 3D variance is one number)
-            variance_2d = self.predict(flash_slice, "2d")[1]
+            # its per-bin variance, the same across φd (the GP's own 3D variance is one number);
+            # the anchored combination computed it already
+            variance_2d = variance if np.ndim(variance) == 3 else \
+                self.predict(flash_slice, "2d")[1]
             variance = np.where(np.isnan(table), np.nan, variance_2d[:, :, None, :])
         return table, variance
+
+    def _finished_2d(self, table_2d, variance, rho):
+        """The DS-GPLVM's own 2D table and variance → the default's: anchored to the slice,
+        blended toward its row and, with consensus members, their consensus, the variance
+        widened by κ × their spread. Returns (table, variance, members or None)."""
+        table = self._anchored(table_2d, rho)
+        if self.members_ is None:
+            return table, variance, None
+        members = self.member_tables(rho, table)
+        stack = np.stack(list(members.values()))
+        spread = member_spread(colour.rho_to_features(np.nan_to_num(stack),
+                                                      space=self.feature_space))
+        variance = variance + self.calibration * np.where(np.isnan(variance), np.nan, spread)
+        return consensus_table(stack), variance, members
 
     def member_tables(self, flash_slice, own_table=None):
         """{"dsgplvm": the anchored DS-GPLVM's own 2D table, "noll", "pca"}: the consensus'
@@ -311,36 +318,34 @@ class DSGPLVMMethod(InferenceMethod):
         return "3d" if "3d" in self.model_.view_names_ else "2d"
 
     def _predict_3d(self, rho):
-        """Streamed 3D mean; the variance is the GP's per-dimension predictive variance (a scalar:
-        one isotropic GP per view, in feature units²; predict replaces it by the 2D view's
-        per-bin variance across φd)."""
+        """Streamed 3D mean, and its variance: anchored, the 2D prediction's per-bin variance
+        (90, 90, 3); otherwise the GP's per-dimension predictive variance (a scalar: one
+        isotropic GP per view, in feature units², which predict replaces by the 2D view's)."""
         weights, space, var = self._combination(rho)
-        return scatter_valid(stream_combination(self.training_, weights, space)), np.float64(var)
+        return scatter_valid(stream_combination(self.training_, weights, space)), var
 
     def combination(self, rho):
         return self._combination(rho)[:2]
 
     def _combination(self, rho):
-        """(weights (N,), 3D combination space, predictive variance). Anchored: the space's inverse
-        applies the correction computed on the 2D prediction."""
+        """(weights (N,), 3D combination space, variance as _predict_3d returns it). Anchored:
+        the space's inverse applies the correction computed on the 2D prediction."""
         view = self._weights_view()
         with one_blas_thread():   # small products only (infer.blas); the 3D stream is not here
             parts = self._weight_parts(slice_features(rho, self.feature_space), view)
             weights, var = self._mix(parts)
-            table_2d = self._predict_2d(rho, parts if view == "2d" else None)[0] \
-                if self.anchor else None
+            if self.anchor:
+                table_2d, var_2d = self._predict_2d(rho, parts if view == "2d" else None)
+                final_2d, var, members = self._finished_2d(table_2d, var_2d, rho)
         space = FeatureSpace(self.feature_space)
         if self.anchor:
             # a model without a 3D view combines its 3D tables with the 2D weights: reuse them
             log_c = anchor_log_correction(table_2d[:, 0], rho)
             space = space if log_c is None else AnchoredSpace(space, log_c)
             space = RowBlendSpace(space, rho, self.row_blend_deg)
-            if self.members_ is not None:  # its own member is the 2D table just predicted
-                with one_blas_thread():
-                    members = self.member_tables(rho, self._anchored(table_2d, rho))
-                log_c = consensus_log_correction(members["dsgplvm"],
-                                                 consensus_table(np.stack(list(members.values()))))
-                space = AnchoredSpace(space, log_c)
+            if members is not None:  # its own member is the 2D table just predicted
+                space = AnchoredSpace(space, consensus_log_correction(members["dsgplvm"],
+                                                                      final_2d))
         return np.asarray(weights, float), space, var
 
 

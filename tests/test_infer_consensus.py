@@ -179,7 +179,16 @@ def test_the_default_predicts_the_consensus_of_its_members_and_widens_its_varian
     # DS-GPLVM's own 3D table has around its own 2D one (anchored, row-blended)
     method = DSGPLVMMethod.from_model(method.model_, materials,
                                       **(alone.get_params() | {"consensus": True}))
-    t3, _ = method.predict(rho, "3d")
+    calls = []
+    predict_2d = method._predict_2d
+    method._predict_2d = lambda *a: calls.append(1) or predict_2d(*a)
+    t3, var3 = method.predict(rho, "3d")
+    # its variance is the 2D prediction's across φd, and the 2D prediction is made once
+    assert len(calls) == 1
+    seen = np.isfinite(var3)
+    assert seen.any(axis=2).mean() > 0.5
+    np.testing.assert_allclose(np.broadcast_to(var[:, :, None, :], var3.shape)[seen], var3[seen],
+                               rtol=1e-12)
     own3, _ = alone.predict(rho, "3d")
     with warnings.catch_warnings():                      # all-NaN φd rows below the horizon
         warnings.simplefilter("ignore", RuntimeWarning)
