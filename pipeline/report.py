@@ -158,17 +158,21 @@ def _reference_rows(references, fig_dir, max_figures):
             means[row["method"]] = row["delta_e_log_mean"]
         if reference is None and all(r is None for r in renders.values()):
             continue
-        name = f"ref_{_figure_stem(photo)}.png"
+        name = f"ref_{_figure_stem(photo, by_photo)}.png"
         figs.reference_figure(fig_dir / name, photo, reference, renders, maps, means)
         figures[photo] = f"figures/{name}"
     return rows, figures, len(by_photo)
 
 
-def _figure_stem(photo):
-    """A reference photo's name for its figure: its file name without a photo extension; a stem
-    as `run` gives it stays whole (ref.dir and ref.cam2 were both "ref", one figure for two)."""
+def _figure_stem(photo, photos):
+    """A reference photo's name for its figure: its file name without a photo extension, unless
+    another of `photos` would then share it (shot.png.exr, as `run` names its stem shot.png, beside
+    shot.exr); a stem as `run` gives it stays whole (ref.dir and ref.cam2 were both "ref")."""
     path = Path(str(photo))
-    return path.stem if path.suffix.lower() in PHOTO_EXTENSIONS else path.name
+    if path.suffix.lower() not in PHOTO_EXTENSIONS:
+        return path.name
+    return path.stem if sum(str(p) == path.stem or Path(str(p)).stem == path.stem
+                            for p in photos) == 1 else path.name
 
 
 def _summary(rows, sources=None):

@@ -219,12 +219,16 @@ def test_photos_with_dots_get_a_figure_each_and_missing_photos_are_not_counted(t
              "reference": reference, "mask": mask},
             {"photo": "ref_missing", "method": "pca", "render": reference,
              "delta_e_log_mean": None, "rel_rmse": None}]
+    # shot.png.exr's stem is shot.png: its figure was shot.exr's, figures/ref_shot.png
+    refs += [{"photo": stem, "method": "pca", "render": reference * k, "reference": reference,
+              "mask": mask} for stem, k in (("shot.png", 1.2), ("shot", 0.8))]
     report = write_report(tmp_path / "out", stages={"render": 1.0}, references=refs)
     figures = report["figures"]["references"]
     assert figures["ref.dir"] == "figures/ref_ref.dir.png"
     assert figures["ref.cam2"] == "figures/ref_ref.cam2.png"
+    assert len(set(figures.values())) == len(figures) == 5
     assert all((tmp_path / "out" / f).is_file() for f in figures.values())
-    assert report["summary"]["pca"]["references"] == 2
+    assert report["summary"]["pca"]["references"] == 4
 
 
 def test_a_reference_figure_of_a_large_photo_is_drawn_from_block_averages(tmp_path):
