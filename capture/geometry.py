@@ -88,10 +88,15 @@ def load_mesh(path):
     parts = [g for g in parts if len(g.faces)]
     if not parts:
         raise InputError(path, "no triangles in the mesh")
-    has_normals = all("vertex_normals" in g._cache.cache for g in parts)
+    with_normals = ["vertex_normals" in g._cache.cache for g in parts]
+    has_normals = any(with_normals)
     if len(parts) == 1:
         mesh = parts[0]
     else:
+        # a part without normals is shaded with its face normals (the contract's fallback), the
+        # others with theirs: one part without them turned the whole object faceted
+        parts = [g if given or not has_normals else _faceted(g)
+                 for g, given in zip(parts, with_normals)]
         offsets = np.cumsum([0] + [len(g.vertices) for g in parts[:-1]])
         mesh = trimesh.Trimesh(
             np.concatenate([g.vertices for g in parts]),
@@ -110,6 +115,16 @@ def load_mesh(path):
         raise InputError(path, f"a vertex coordinate {odd:.6g} is beyond ±{MAX_COORDINATE:g} (rays "
                                "are 32-bit floats)")
     return mesh, has_normals
+
+
+def _faceted(mesh):
+    """The mesh with each face on vertices of its own, whose normals are the face's: interpolated
+    vertex normals then shade it with face normals."""
+    import trimesh
+    faces = np.asarray(mesh.faces)
+    return trimesh.Trimesh(np.asarray(mesh.vertices)[faces].reshape(-1, 3),
+                           np.arange(faces.size).reshape(-1, 3),
+                           vertex_normals=np.repeat(mesh.face_normals, 3, axis=0), process=False)
 
 
 def _referenced_only(mesh, has_normals):

@@ -219,6 +219,32 @@ def test_gltf_file_normals_are_used_and_placed_by_the_scene_graph(tmp_path):
     assert np.allclose(hits.normals[0], [0.0, np.sin(tilt), -np.cos(tilt)], atol=1e-5)
 
 
+def test_a_part_without_normals_takes_face_normals_and_leaves_the_others_theirs(tmp_path):
+    """Contract geometry.mesh: the file's vertex normals, or the face normal where there are none.
+    A GLB of two parts, one with tilted file normals and one without any, was shaded with face
+    normals everywhere: the first part's ray saw (0, 0, -1) instead of its file's tilted normal."""
+    import trimesh
+    tilt = np.radians(30.0)
+    normal = [np.sin(tilt), 0.0, -np.cos(tilt)]
+    with_normals = trimesh.Trimesh([[-3.0, -1.0, 1.0], [-2.0, 2.0, 1.0], [-1.0, -1.0, 1.0]],
+                                   [[0, 1, 2]], vertex_normals=[normal] * 3, process=False)
+    without = trimesh.Trimesh([[1.0, -1.0, 1.0], [3.0, -1.0, 1.0], [2.0, 2.0, 1.5]], [[0, 1, 2]],
+                              process=False)
+    scene = trimesh.Scene()
+    scene.add_geometry(with_normals)
+    scene.add_geometry(without)
+    scene.export(tmp_path / "mixed.glb")
+    mesh, has_normals = capture.load_mesh(tmp_path / "mixed.glb")
+    assert has_normals
+    mi = capture.MeshIntersector(mesh, use_vertex_normals=has_normals)
+    hits = capture.intersect(mi, np.array([[-2.0, 0.0, 0.0], [2.0, 0.0, 0.0]]),
+                             np.array([[0.0, 0.0, 1.0]] * 2))
+    assert hits.hit.all()
+    assert np.allclose(hits.normals[0], normal, atol=1e-5)
+    # the second part's face normal, up to its side (which way the ray meets it)
+    assert np.allclose(np.abs(hits.normals[1]), np.abs(without.face_normals[0]), atol=1e-5)
+
+
 def test_non_numeric_normal_map_is_bad_input(tmp_path, capsys):
     """A normals.npy of strings is bad input (exit 2, one line naming the file), not a
     traceback (exit 1)."""
