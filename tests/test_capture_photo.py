@@ -20,7 +20,7 @@ def test_exr_roundtrip_and_masks(tmp_path):
     img = np.full((4, 5, 3), 0.5, np.float32)
     img[0, 0] = [np.nan, 1, 1]
     img[0, 1] = [np.inf, 1, 1]
-    img[0, 2] = [-0.1, 1, 1]
+    img[0, 2] = [-0.1, 1, 1]   # negative noise about a dim level is data (a flash − ambient EXR)
     img[0, 3] = 0.0
     img[0, 4] = [0.0, 0.2, 0.0]  # one dark channel is still data in a float image
     img[1, 0] = [7.0, 1, 1]
@@ -29,7 +29,7 @@ def test_exr_roundtrip_and_masks(tmp_path):
                                               return_clipped=True)
     assert rgb.dtype == np.float32 and rgb.shape == (4, 5, 3)
     assert np.array_equal(rgb[1:], img[1:]) and rgb[1, 0, 0] == 7.0  # never clamped
-    assert usable.tolist()[0] == [False, False, False, False, True]
+    assert usable.tolist()[0] == [False, False, True, False, True]
     assert not usable[1, 0] and clipped[1, 0] and clipped[0, 1] and not clipped[0, 0]
     assert usable[1:].sum() == 14
 
