@@ -64,7 +64,9 @@ def render_previews(scene, geometry, brdfs, sphere_tables, envmap_path, out, spp
     brdfs: {method: BRDF for render_scene (a model or a MaterialMap)}; sphere_tables: {method:
     {material k: 2D/3D table}}; envmap_path: the map; out: the (staged) output folder.
     Returns {method: {"object": relative path, "spheres": {k: relative path}}}."""
-    camera = preview_camera(scene.photos_with_role("flash")[0].camera)
+    # the first flash photo's view that sees the object (a turned-away first view is no preview)
+    cameras = [p.camera for p in scene.photos_with_role("flash")]
+    camera = preview_camera(next((c for c in cameras if geometry.sees_object(c)), cameras[0]))
     light = Light(type="envmap", file=Path(envmap_path),
                   world_from_envmap=camera_facing_envmap(camera), scale=1.0)
     view = Photo(index=-1, role="preview", camera=camera, where="run --envmap",

@@ -97,3 +97,30 @@ def test_neighbour_samples_pick_an_adjacent_sample():
     assert neighbour_samples(pixels, (3, 4), which=[2, 4]).tolist() == [2, 3]  # a subset
     # 2 px away: (0,0) -> (2,0) below; (0,1) -> (2,1); (2,0) -> (0,0) above; (1,3) none
     assert neighbour_samples(pixels, (3, 4), distance=2).tolist() == [3, 4, 2, 0, 1]
+
+
+def test_a_first_flash_photo_that_misses_the_object(tmp_path):
+    """Segmentation labels the first flash photo's pixels. When that photo sees no object pixel
+    (its view turned away) while another does: `--materials 1` needs no labelling and runs, as
+    extract does; auto names the photo and says what to do (it said "scene.json: photos: no
+    pixel passed the tests", naming no photo, and `run --materials 1` failed with it)."""
+    import json
+    from flashbrdf.cli.main import main
+    from synthetic import ggx_lambert
+    camera = pinhole_camera(64, 64, 250.0)
+    folder = write_synthetic_scene(tmp_path / "scene", sphere_mesh(), ggx_lambert(), camera,
+                                   [point_light([0.03, 0, 0])] * 2)
+    doc = json.loads((folder / "scene.json").read_text())
+    away = np.diag([1.0, 1.0, -1.0, 1.0])      # looks along -z, away from the sphere at z = 1
+    away[:, 0] *= -1                           # x flips too: a rotation, not a mirror
+    doc["photos"][0]["camera"] = {**camera, "world_from_camera": away.tolist()}
+    (folder / "scene.json").write_text(json.dumps(doc))
+    samples = collect_samples(capture.load_scene(folder), ExtractOptions())
+    one = segment_samples(samples, 1)
+    assert one.k == 1 and one.labels.max() == 0     # the first photo's grid holds no object
+    from flashbrdf.files.errors import InputError
+    with pytest.raises(InputError) as err:
+        segment_samples(samples, "auto")
+    assert str(err.value).startswith(str(folder / "flash0.exr")) and "--materials 1" in str(err.value)
+    assert main(["run", str(folder), "--out", str(tmp_path / "out"), "--methods", "chandraker",
+                 "--materials", "1"]) == 0

@@ -30,8 +30,19 @@ def _segment_samples(samples, materials, options):
     first = ~censored & np.all(np.isfinite(rho), axis=1)
     if not first.all():  # the usual case (one flash photo, nothing clipped) needs no copies
         rho, theta_h, pixels = rho[first], theta_h[first], pixels[first]
-    if not len(rho):  # nothing to segment: the error extracting a slice would give
-        raise samples.no_sample_error()
+    if not len(rho):
+        if len(samples.rho) == 0:  # nothing to segment: the error extracting a slice would give
+            raise samples.no_sample_error()
+        if materials != 1:
+            photo = samples.scene.photos_with_role("flash")[0]
+            raise InputError(photo.file or photo.brackets[0][0],
+                             "the first flash photo has no usable object pixel, and "
+                             "segmentation labels its pixels: list first a flash photo that "
+                             "sees the object, or give --materials 1")
+    if materials == 1:  # one material by request: every object pixel, nothing to cluster
+        labels = np.where(samples.object_mask, 1, 0).astype(np.int32)
+        return Segmentation(labels, 1, {"samples": int(len(rho)), "reason": "--materials 1",
+                                        "chosen_k": 1})
     if materials == "auto":
         every = slice(None, None, max(1, len(rho) // 50000))  # no 12-MP gather for a floor
         at_least = resolution_floor(rho[every], samples.radiance.reshape(-1, 3)[pixels[every]])
