@@ -232,8 +232,9 @@ def collect_samples(scene, options=None):
             edge = silhouette_mask(object_mask, options.silhouette_px) | depth_edge_mask(
                 depth, camera, options.depth_edge_slope, options.silhouette_px)
             if target is not None:  # the target's pixels, in front of the object, are not its
-                target_surfaces, target_mask = trace_target(target, camera, depth,
-                                                            options.chunk_pixels)
+                target_surfaces, target_mask = trace_target(
+                    target, camera, depth, options.chunk_pixels,
+                    f"{scene.json_path}: level.target")
                 target_edge = silhouette_mask(target_mask, options.silhouette_px)
                 edge |= target_mask
             del depth

@@ -44,19 +44,37 @@ def calibrated_record():
             "note": "absolute: the flash's intensity_rgb in scene.json was calibrated"}
 
 
-def trace_target(intersector, camera, object_depth, chunk):
+# A target farther from (or nearer to) the camera than this many times the object is in other
+# units or another frame (a card in cm or mm beside a model in metres): its level would be off
+# by the square of it, silently (ρ × 0.002 for cm), so it is refused.
+TARGET_DEPTH_RATIO = 4.0
+
+
+def trace_target(intersector, camera, object_depth, chunk, where):
     """capture.Surface batches of `camera`'s pixels whose ray meets the target before the object
-    (object_depth (H, W), inf where the object is missed), and the (H, W) mask of those pixels."""
+    (object_depth (H, W), inf where the object is missed), and the (H, W) mask of those pixels.
+    InputError naming `where` when the target's median depth is off the object's by more than
+    TARGET_DEPTH_RATIO either way."""
     mask = np.zeros(camera.shape, bool)
-    surfaces = []
+    surfaces, depths = [], []
     for surface in pixel_surfaces(camera, intersector, chunk):
-        front = (hit_depth(camera, surface.points)
-                 < object_depth[surface.rows, surface.cols])
+        depth = hit_depth(camera, surface.points)
+        depths.append(depth[::97])   # a sample is enough for a median
+        front = depth < object_depth[surface.rows, surface.cols]
         keep = [None if v is None else v[front] for v in
                 (surface.rows, surface.cols, surface.points, surface.normals, surface.view_dirs,
                  surface.face)]
         surfaces.append(capture.Surface(*keep))
         mask[keep[0], keep[1]] = True
+    target_depth = np.concatenate(depths) if depths else np.zeros(0)
+    seen = object_depth[np.isfinite(object_depth)]
+    if len(target_depth) and len(seen):
+        ratio = float(np.median(target_depth) / np.median(seen))
+        if not 1 / TARGET_DEPTH_RATIO <= ratio <= TARGET_DEPTH_RATIO:
+            raise InputError(where, f"the target lies {ratio:.3g}x as far from the camera as the "
+                                    "object: its mesh is not in the object's units and frame "
+                                    "(a card in cm or mm beside a model in metres?), and its "
+                                    f"level would be off by {ratio ** 2:.3g}x")
     return surfaces, mask
 
 

@@ -111,3 +111,19 @@ def test_a_bad_level_field_is_named(capture_with_card, tmp_path, capsys, level, 
     scene = _with_level(capture_with_card, tmp_path / "scene", level)
     assert main(["extract", str(scene), "--out", str(tmp_path / "s.csv")]) == 2
     assert field in capsys.readouterr().err
+
+
+def test_a_card_in_other_units_is_bad_input(capture_with_card, tmp_path, capsys):
+    """card.ply in cm beside a scene in metres: it was accepted, and its level divided the slice
+    by the square of its extra distance (ρ × 0.002 from a photogrammetry model); a target over
+    TARGET_DEPTH_RATIO times as far as the object is refused, naming the target."""
+    scene = _with_level(capture_with_card, tmp_path / "scene",
+                        {"target": {"mesh": "card_cm.ply", "reflectance": REFLECTANCE}})
+    card_cm = card_mesh()
+    card_cm.apply_scale(100.0)
+    card_cm.export(str(scene / "card_cm.ply"), vertex_normal=True)
+    assert main(["extract", str(scene), "--out", str(tmp_path / "s.csv")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "level.target" in err[0] and not (tmp_path / "s.csv").exists()
+    ratio = float(err[0].split("the target lies ")[1].split("x")[0])
+    assert 100 < ratio < 140       # 115 m against the sphere's ~0.9 m

@@ -31,6 +31,7 @@ _LOWER = np.array([0.0, 0.0, 0.0, 0.03] + [0.0] * (len(_SCALARS) - 1))
 # a Lambertian is still one.
 _LOWER[3 + _SCALARS.index("specular")] = 1e-12
 _UPPER = np.ones(3 + len(_SCALARS))
+_METALLIC = 3 + _SCALARS.index("metallic")
 
 
 def params_from_vector(x):
@@ -94,8 +95,13 @@ def fit_principled(table, n_bins=4000, n_starts=3, seed=0, offset=FIT_OFFSET, ma
     off_specular = cos_h < np.cos(np.radians(30.0))
     body = target[off_specular] if off_specular.any() else target
     base_guess = np.clip(np.pi * np.median(body, axis=0), 0.02, 0.98)
-    candidates = _starts(base_guess)
-    screened = sorted(candidates, key=lambda x: float(np.sum(residual(x) ** 2)))[:n_starts]
+    # the best starts of each kind, dielectric and metal: a metal start's base colour is the
+    # diffuse guess, so it screens badly, and kept only by overall rank a gold paint fitted as a
+    # black dielectric (loss 2.1x, 2D LAB-log 18.2 against 14.2)
+    ranked = sorted(_starts(base_guess), key=lambda x: float(np.sum(residual(x) ** 2)))
+    per_kind = -(-n_starts // 2)
+    screened = ([x for x in ranked if x[_METALLIC] < 0.5][:per_kind]
+                + [x for x in ranked if x[_METALLIC] >= 0.5][:per_kind])
     best, evaluations = None, 0
     for x0 in screened:
         # One BLAS thread: the trust-region SVD of a (12000, 11) Jacobian is 25x slower when
