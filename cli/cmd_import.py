@@ -101,6 +101,8 @@ def import_colmap(args):
                        encoding=args.encoding)
     for line in done.lines():
         print(line)
+    if done.frame.warning():
+        print(f"warning: {args.mesh}: {done.frame.warning()}", file=sys.stderr)
 
 
 def _reflectance(text):

@@ -211,8 +211,17 @@ def test_mesh_frame_check_reach(made, tmp_path):
                     (points, np.array([k for k, _ in careless]),
                      np.array([c for _, c in careless]))]:
         assert check_mesh_frame(true_mesh, p, o, c, cams).problem() is None
+    assert check_mesh_frame(true_mesh, points, observed, observers, cams).warning() is None
     T = trimesh.transformations
     centre = mesh.bounds.mean(axis=0)
+    # turned 8°: it passes (its points are within the tolerance in places), but is warned of,
+    # and so is a model without points, whose mesh nothing checks
+    turned = mesh.copy()
+    turned.apply_transform(T.rotation_matrix(np.radians(8), [1, 0, 0], centre))
+    check = check_mesh_frame(MeshIntersector(turned, False), points, observed, observers, cams)
+    assert check.problem() is None and "lie on it" in check.warning()
+    assert "not checked" in check_mesh_frame(true_mesh, np.zeros((0, 3)), [], np.zeros((0, 3)),
+                                             cams).warning()
     for transform in [T.translation_matrix([0.13 * diagonal, 0, 0]), T.scale_matrix(0.9, centre),
                       T.scale_matrix(1.05, centre), T.rotation_matrix(np.pi / 2, [1, 0, 0],
                                                                        centre)]:
