@@ -36,7 +36,7 @@ from flashbrdf.slice_extract.level import (TARGET_MIN_COS, calibrated_record, re
                                           target_level, trace_target)
 from flashbrdf.slice_extract.pose_refine import log_gradient, refine_flash_cameras
 from flashbrdf.slice_extract.samples import REASONS, light_setup, photo_samples
-from flashbrdf.slice_extract.slice_files import extraction_report
+from flashbrdf.slice_extract.slice_files import extraction_report, photo_level_warnings
 from flashbrdf.slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
                                    material_interior)
 from flashbrdf.files.progress import photo_progress
@@ -368,6 +368,8 @@ def bin_samples(samples):
                                censored)
     report["clamped_negative_bins"] = int(negative.any(axis=1).sum())
     report["level"] = samples.level
+    report["warnings"] += photo_level_warnings(samples.per_photo, bins, rho, censored,
+                                               samples.photo, estimate)
     return SliceResult(estimate, n, spread, report)
 
 
