@@ -34,8 +34,11 @@ def export_for_report(out, method, envmap=None, final_out=None, material=None):
     part = Path(method) if material is None else Path(method) / f"material_{material}"
     where = Path("export") if material is None else Path("export") / f"material_{material}"
     final = None if final_out is None else Path(final_out).absolute() / part / "brdf.binary"
+    # every run's table is brdf.binary: name the glTF material by run, method and material, so
+    # that several imported at once do not share one name
+    name = "_".join([Path(final_out or out).name, method] + [f"material_{material}"] * bool(material))
     result = export_brdf(out / part / "brdf.binary", out / where, envmap=envmap,
-                         final_path=final)
+                         final_path=final, name=name)
     fit = result["fit"]
     whose = f"{method}'s BRDF" if material is None else f"material {material}'s {method} BRDF"
     note = (f"--export: {whose} exported to {where.as_posix()}/ (Mitsuba 3, principled.json, "

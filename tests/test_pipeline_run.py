@@ -173,6 +173,9 @@ def test_run_export_puts_the_export_and_the_principled_render_beside_the_report(
     assert f'<string name="filename" value="{table}"/>' in (
         out / "export" / "mitsuba_tabulated.xml").read_text()
     assert json.loads((out / "export" / "principled.json").read_text())["table"] == table
+    # every run's table is brdf.binary: its glTF material was named "brdf" in every capture
+    gltf = json.loads((out / "export" / "material.gltf").read_text())
+    assert [m["name"] for m in gltf["materials"]] == ["out_chandraker"]
 
 
 def test_run_reports_a_reference_exposure_error_as_its_level(sphere_scene, tmp_path):
