@@ -32,7 +32,8 @@ from flashbrdf.pipeline.run_materials import (label_section, material_entries, r
                                               run_materials)
 from flashbrdf.pipeline.run_steps import (StageTimer, check_references, infer_method,
                                           load_methods, reference_outputs, render_and_compare,
-                                          drop_scratch, release_references)
+                                          drop_scratch, release_references,
+                                          spill_references)
 from flashbrdf.render.envmap import read_envmap_pixels
 from flashbrdf.render.scene_render import SceneGeometry
 from flashbrdf.slice_extract import ExtractOptions
@@ -100,6 +101,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
     stages = StageTimer(total=7 + 2 * len(settings.methods) + 2 * settings.export
                         + settings.albedo_map)
     notes = []
+    spill_references(loaded, out)
     fitted = stages.run("load model", read_methods, list(settings.methods), settings.model_path,
                         settings.anchor)
     options = ExtractOptions(refine_poses=settings.refine_poses)
