@@ -438,3 +438,24 @@ def test_a_target_or_a_calibrated_flash_goes_into_the_scene(made, tmp_path, caps
         assert main(["import-colmap", *common, "--out", str(tmp_path / "bad"), *extra]) == 2
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and flag in err[0] and not (tmp_path / "bad").exists()
+    # --target alone: it said "--reflectance: expected 3 finite numbers, got ()"
+    assert main(["import-colmap", *common, "--out", str(tmp_path / "bad"), "--target",
+                 str(tmp_path / "down.ply")]) == 2
+    assert "--target needs the target's reflectance" in capsys.readouterr().err
+
+
+def test_two_model_images_of_one_name_blame_the_model(made, tmp_path, capsys):
+    """A model listing one name twice was blamed on the photo ("is the photo of two model images,
+    view_01.jpg and view_01.jpg ... give each its own photo, in subfolders"), which no photo
+    layout can fix; it names the model's images file and both image ids."""
+    import re
+    sparse = tmp_path / "sparse"
+    shutil.copytree(made["sparse"], sparse)
+    text = (sparse / "images.txt").read_text()
+    names = re.findall(r"^\d+ (?:\S+ ){8}(\S+)$", text, flags=re.M)
+    (sparse / "images.txt").write_text(text.replace(names[1], names[0]))
+    assert main(["import-colmap", str(sparse), "--images", str(made["images"]), "--mesh",
+                 str(made["mesh"]), "--out", str(tmp_path / "scene")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{sparse / 'images.txt'}: images " in err[0]
+    assert f"are both named {names[0]}" in err[0] and not (tmp_path / "scene").exists()

@@ -177,10 +177,17 @@ def match_photos(model, images_dir):
                                        "per stem in --images (e.g. the flash RAW files in a "
                                        "folder of their own)")
         if found[0] in claimed:
-            raise InputError(found[0], f"is the photo of two model images, {claimed[found[0]]} "
+            first = claimed[found[0]]
+            if first.name == image.name:   # the model's own fault: no photo layout can fix it
+                images_file = Path(model.folder) / ("images.txt" if model.format == "text"
+                                                    else "images.bin")
+                raise InputError(images_file, f"images {first.image_id} and {image.image_id} "
+                                              f"are both named {image.name}: a damaged model "
+                                              "(reconstruct, or remove one)")
+            raise InputError(found[0], f"is the photo of two model images, {first.name} "
                                        f"and {image.name} (matched by stem): give each its own "
                                        "photo, in subfolders named as in the model")
-        claimed[found[0]] = image.name
+        claimed[found[0]] = image
         matched.append((image, found[0]))
     return matched, skipped
 
@@ -342,7 +349,10 @@ def _level(target, reflectance, calibrated):
         return None
     if not Path(target).is_file():
         raise InputError(target, "target mesh not found")
-    values = _triple(reflectance if reflectance is not None else (), "--reflectance")
+    if reflectance is None:
+        raise InputError("--reflectance", "--target needs the target's reflectance (e.g. "
+                                          "--reflectance 0.18 for a grey card)")
+    values = _triple(reflectance, "--reflectance")
     if not all(0 < v <= 1 for v in values):
         raise InputError("--reflectance", f"expected 3 values in (0, 1], got {values}")
     return {"target": {"mesh": None, "reflectance": values}}
