@@ -92,7 +92,7 @@ def run_capture(scene_dir, out, *, model=None, methods="dsgplvm", spp=64, materi
     with staged_output_dir(out, force=force, command="run") as staged:
         stages, report = _run_stages(settings, scene, references, loaded, Path(staged),
                                      read_methods or load_methods)
-    _print_summary(stages, report, Path(out))
+    _print_summary(stages, report, settings.final_out)  # batch: where the folder is published
     return report
 
 

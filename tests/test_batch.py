@@ -116,7 +116,10 @@ def test_two_workers_equal_sequential_runs(two_workers, sequential):
     # each of the 2 local workers renders on its share of this machine's cores
     threads = threads_per_worker(2)
     for name in MATERIALS:
-        assert f", {threads} thread(s)" in (out / "logs" / f"{name}.log").read_text()
+        log = (out / "logs" / f"{name}.log").read_text()
+        assert f", {threads} thread(s)" in log
+        # the page the log names is where the capture was published, not its staging folder
+        assert f"report: {(out / name / 'report.html').resolve()} " in log and ".partial-" not in log
 
 
 def test_cores_are_shared_out_between_local_workers():
