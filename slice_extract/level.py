@@ -88,7 +88,8 @@ def target_level(rho, level, where):
                                 f"least {MIN_TARGET_SAMPLES} are needed to fix the level): "
                                 "check its mesh's frame, that it faces the camera within "
                                 f"{np.degrees(np.arccos(TARGET_MIN_COS)):.0f}° in some photos, "
-                                "and that it is not clipped")
+                                "that it is not clipped, and that its faces were cut out of the "
+                                "object's mesh (a card left in it hides itself)")
     median = np.median(usable, axis=0)
     if not np.all(median > 0):
         raise InputError(where, "the target's pixels are black in some channel: its level "
