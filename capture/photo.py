@@ -12,9 +12,9 @@ A pixel is unusable (never clamped, just flagged) when any channel is NaN/Inf, w
 at or above the clipping level (integer codes >= SATURATION_FRACTION x max code: sensors turn
 non-linear in the top few percent, and 12/14-bit data rescaled to 16 bits tops out below 65535;
 float images: photos[].saturation if given), or when it carries no signal: any channel at code 0
-for integer images (at the black level, so the true value is unknown), or no channel > 0 / any
-channel is nonzero for float images (a float image has no code floor: one dark channel, and
-negative noise about a dim level, are data).
+for integer images (at the black level, so the true value is unknown), or every channel exactly 0
+for float images (a float image has no code floor: one dark channel, and negative noise about a
+dim level, are data).
 """
 
 import os
@@ -151,7 +151,7 @@ def _float_masks(rgb, saturation):
     with np.errstate(invalid="ignore"):
         clipped = (high >= ceiling) & ~np.isnan(low)
         # a negative value is noise about a dim level (a flash − ambient difference saved as a
-        # float image): dropping it keeps only the upward noise and biases dim bins high, ×2–4 at
+        # float image): dropping it keeps only the upward noise and biases dim bins high, up to ×4.5 at
         # grazing θh; a pixel whose channels are all 0 is a float image's black (no value)
         usable = (low > -np.inf) & (high < ceiling) & ((low != 0) | (high != 0))
     return usable, clipped

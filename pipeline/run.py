@@ -106,7 +106,10 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
                         settings.anchor)
     options = ExtractOptions(refine_poses=settings.refine_poses)
     samples = stages.run("extract", collect_samples, scene, options)
-    segmentation, faces = stages.run("segment", segment_scene, samples, settings.materials)
+    # one material needs no labels, unless the albedo map reads them: a first flash view that
+    # misses the object is then no reason to stop
+    segmentation, faces = stages.run("segment", segment_scene, samples, settings.materials,
+                                     empty_ok=not settings.albedo_map)
     fewer = fewer_materials_warning(segmentation, settings.materials)
     if fewer:
         print(f"warning: {fewer}", file=sys.stderr)

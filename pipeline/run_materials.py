@@ -76,7 +76,7 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
             warnings += [f"material {k}: {w}" for w in auto
                          if not (k in flagged and w.startswith("θh above"))]
     # the whole object's slice too, as a single-material run writes it (for comparison)
-    whole = stages.run("extract", bin_samples, samples)
+    whole = stages.run("extract", bin_samples, samples, photo_levels=False)
     write_extraction(out / "slice.csv", settings.scene_dir, whole, ExtractOptions(),
                      final_path=settings.final_out / "slice.csv")
     for w in whole.report.get("warnings", []):  # the flash too far from the lens: every material

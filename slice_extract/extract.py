@@ -36,7 +36,7 @@ from flashbrdf.slice_extract.level import (TARGET_MIN_COS, calibrated_record, re
                                           target_level, trace_target)
 from flashbrdf.slice_extract.pose_refine import log_gradient, refine_flash_cameras
 from flashbrdf.slice_extract.samples import REASONS, light_setup, photo_samples
-from flashbrdf.slice_extract.slice_files import extraction_report, photo_level_warnings
+from flashbrdf.slice_extract.slice_files import extraction_report, photo_levels as photo_level_check
 from flashbrdf.slice_extract.segment import (BORDER_MIN_BIN, border_width_px, check_labels,
                                    material_interior)
 from flashbrdf.files.progress import photo_progress
@@ -232,9 +232,12 @@ def collect_samples(scene, options=None):
             edge = silhouette_mask(object_mask, options.silhouette_px) | depth_edge_mask(
                 depth, camera, options.depth_edge_slope, options.silhouette_px)
             if target is not None:  # the target's pixels, in front of the object, are not its
+                # distance sets the level only under a point light, seen through a pinhole
+                distance_matters = (camera.model == "pinhole"
+                                    and image.photo.light.type == "point")
                 target_surfaces, target_mask = trace_target(
                     target, camera, depth, options.chunk_pixels,
-                    f"{scene.json_path}: level.target")
+                    f"{scene.json_path}: level.target" if distance_matters else None)
                 target_edge = silhouette_mask(target_mask, options.silhouette_px)
                 edge |= target_mask
             del depth
@@ -333,8 +336,11 @@ def _measured(scene, options):
             bin_samples(samples).rho)
 
 
-def bin_samples(samples):
+def bin_samples(samples, photo_levels=True):
     """The slice (SliceResult) of FlashSamples: robust binning over the 90 theta_h bins.
+    photo_levels: record each photo's level against the slice and warn of those far off it
+    (slice_files.photo_levels); not for the pool of several materials, whose views may each
+    see another mix of them.
 
     InputError (exit 2) when no sample is usable or every bin is mostly clipped.
     """
@@ -368,8 +374,12 @@ def bin_samples(samples):
                                censored)
     report["clamped_negative_bins"] = int(negative.any(axis=1).sum())
     report["level"] = samples.level
-    report["warnings"] += photo_level_warnings(samples.per_photo, bins, rho, censored,
-                                               samples.photo, estimate)
+    if photo_levels:
+        levels, warned = photo_level_check(samples.per_photo, bins, rho, censored, samples.photo,
+                                           estimate)
+        report["photos"] = [dict(p, **({"level_vs_slice": levels[k]} if k in levels else {}))
+                            for k, p in enumerate(report["photos"])]
+        report["warnings"] += warned
     return SliceResult(estimate, n, spread, report)
 
 

@@ -199,32 +199,33 @@ PHOTO_LEVEL_RANGE = (0.5, 2.0)
 _LEVEL_SAMPLES = 200_000
 
 
-def photo_level_warnings(per_photo, bins, rho, censored, photo, estimate):
-    """[a warning] naming the flash photos whose level is off the pooled slice, and each
-    per_photo record's "level_vs_slice": the median over (up to _LEVEL_SAMPLES of the pooled,
-    evenly spaced) unclipped samples of the photo of their channel mean over their bin's. bins
-    (N,) θh bin, rho (N, 3) 1/sr, censored (N,), photo (N,) index into per_photo, estimate
-    (90, 3) the slice."""
+def photo_levels(per_photo, bins, rho, censored, photo, estimate):
+    """({photo index: its level}, [a warning] naming the flash photos whose level is off the
+    pooled slice): a photo's level is the median over its unclipped samples (up to
+    _LEVEL_SAMPLES of the pooled, evenly spaced) of their channel mean over their bin's. bins
+    (N,) θh bin, rho (N, 3) 1/sr, censored (N,), photo (N,) index into per_photo (records with
+    "photo", the name), estimate (90, 3) the slice. Photos with under 20 such samples have none."""
     level = np.asarray(estimate, float).mean(axis=1)                          # (90,), NaN empty
     pick = slice(None, None, max(1, len(bins) // _LEVEL_SAMPLES))
     with np.errstate(divide="ignore", invalid="ignore"):    # black and empty bins: no ratio
         ratio = rho[pick].mean(axis=1) / np.where(level > 0, level, np.nan)[bins[pick]]
     ok = ~censored[pick] & np.isfinite(ratio)
     ratio, photo = ratio[ok], photo[pick][ok]
-    off = []
+    levels, off = {}, []
     for k, record in enumerate(per_photo):
         mine = ratio[photo == k]
         if len(mine) < 20:
             continue
-        record["level_vs_slice"] = value = float(np.median(mine))
+        levels[k] = value = float(np.median(mine))
         if not PHOTO_LEVEL_RANGE[0] <= value <= PHOTO_LEVEL_RANGE[1]:
             off.append(f"{record['photo']} ({value:.2g}x)")
     if not off:
-        return []
-    return [f"{len(off)} of {len(per_photo)} flash photos read under half or over twice the "
-            f"slice the photos pool: {', '.join(off[:5])}{', ...' if len(off) > 5 else ''}; a "
-            "photo without flash, or an exposure whose scale is not given? Leave it out or give "
-            "its scale: it pulls the slice's bins"]
+        return levels, []
+    return levels, [f"{len(off)} of {len(per_photo)} flash photos read under half or over twice "
+                    f"the slice the photos pool: {', '.join(off[:5])}"
+                    f"{', ...' if len(off) > 5 else ''}; a photo without flash, or an exposure "
+                    "whose scale is not given? Leave it out or give its scale: it pulls the "
+                    "slice's bins"]
 
 
 def theta_d_warnings(rejected, used, max_theta_d_deg):

@@ -35,3 +35,20 @@ def test_photos_that_agree_are_not_named(tmp_path, capsys):
     assert "flash photos read" not in capsys.readouterr().err
     levels = [p["level_vs_slice"] for p in json.loads((tmp_path / "s.json").read_text())["photos"]]
     assert np.allclose(levels, 1.0, atol=0.05)
+
+
+def test_the_photo_records_of_one_pool_are_not_shared_between_slices(tmp_path):
+    """Every material's samples share the pool's per-photo records: writing each slice's levels
+    into them made every material's coverage read the last one's."""
+    from flashbrdf import capture
+    from flashbrdf.slice_extract.extract import ExtractOptions, bin_samples, collect_samples
+    lights = [point_light([0.03, 0, 0]), point_light([-0.03, 0, 0])]
+    folder = write_synthetic_scene(tmp_path / "scene", sphere_mesh(), ggx_lambert(),
+                                   pinhole_camera(96, 96, 400.0), lights, photons=5000)
+    samples = collect_samples(capture.load_scene(folder), ExtractOptions())
+    whole = bin_samples(samples)
+    half = bin_samples(samples.subset(samples.photo == 0))
+    assert all("level_vs_slice" not in p for p in samples.per_photo)
+    assert [("level_vs_slice" in p) for p in half.report["photos"]] == [True, False]
+    assert all("level_vs_slice" in p for p in whole.report["photos"])
+    assert "level_vs_slice" not in bin_samples(samples, photo_levels=False).report["photos"][0]

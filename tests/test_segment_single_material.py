@@ -99,7 +99,7 @@ def test_neighbour_samples_pick_an_adjacent_sample():
     assert neighbour_samples(pixels, (3, 4), distance=2).tolist() == [3, 4, 2, 0, 1]
 
 
-def test_a_first_flash_photo_that_misses_the_object(tmp_path):
+def test_a_first_flash_photo_that_misses_the_object(tmp_path, capsys):
     """Segmentation labels the first flash photo's pixels. When that photo sees no object pixel
     (its view turned away) while another does: `--materials 1` needs no labelling and runs, as
     extract does; auto names the photo and says what to do (it said "scene.json: photos: no
@@ -116,11 +116,19 @@ def test_a_first_flash_photo_that_misses_the_object(tmp_path):
     doc["photos"][0]["camera"] = {**camera, "world_from_camera": away.tolist()}
     (folder / "scene.json").write_text(json.dumps(doc))
     samples = collect_samples(capture.load_scene(folder), ExtractOptions())
-    one = segment_samples(samples, 1)
-    assert one.k == 1 and one.labels.max() == 0     # the first photo's grid holds no object
+    # run, for one material: no labels needed (the first photo's grid holds no object)
+    one = segment_samples(samples, 1, empty_ok=True)
+    assert one.k == 1 and one.labels.max() == 0
     from flashbrdf.files.errors import InputError
     with pytest.raises(InputError) as err:
-        segment_samples(samples, "auto")
+        segment_samples(samples, "auto", empty_ok=True)
     assert str(err.value).startswith(str(folder / "flash0.exr")) and "--materials 1" in str(err.value)
+    # segment, whose LABELS.png is that photo's grid: an empty one is no answer
+    with pytest.raises(InputError, match="list first a flash photo that sees the object$"):
+        segment_samples(samples, 1)
     assert main(["run", str(folder), "--out", str(tmp_path / "out"), "--methods", "chandraker",
                  "--materials", "1"]) == 0
+    capsys.readouterr()
+    assert main(["run", str(folder), "--out", str(tmp_path / "out2"), "--methods", "chandraker",
+                 "--materials", "1", "--albedo-map"]) == 2   # the albedo map reads the labels
+    assert capsys.readouterr().err.startswith(f"flashbrdf run: error: {folder / 'flash0.exr'}: ")

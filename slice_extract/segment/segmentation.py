@@ -17,15 +17,17 @@ from flashbrdf.slice_extract.segment.labels import align_bin_labels, clean_label
 from flashbrdf.slice_extract.segment.slices import assign_all, refine_labels
 
 
-def segment_samples(samples, materials="auto", options=None):
+def segment_samples(samples, materials="auto", options=None, empty_ok=False):
     """Segmentation of FlashSamples (slice_extract.extract.collect_samples) of the first flash
-    photo; materials: "auto" or an int K >= 1 (then the mixture has K components, unmerged)."""
+    photo; materials: "auto" or an int K >= 1 (then the mixture has K components, unmerged).
+    empty_ok: with materials 1, a first flash photo that sees no object pixel gives an empty
+    label image (`run`, which needs no labels for one material) instead of an InputError."""
     options = options or SegmentOptions()
     with threadpool_limits(1):  # tiny 3x3 algebra: BLAS threads only contend on a busy machine
-        return _segment_samples(samples, materials, options)
+        return _segment_samples(samples, materials, options, empty_ok)
 
 
-def _segment_samples(samples, materials, options):
+def _segment_samples(samples, materials, options, empty_ok):
     rho, theta_h, pixels, censored = samples.first_photo()
     first = ~censored & np.all(np.isfinite(rho), axis=1)
     if not first.all():  # the usual case (one flash photo, nothing clipped) needs no copies
@@ -33,16 +35,16 @@ def _segment_samples(samples, materials, options):
     if not len(rho):
         if len(samples.rho) == 0:  # nothing to segment: the error extracting a slice would give
             raise samples.no_sample_error()
-        if materials != 1:
+        if materials != 1 or not empty_ok:
             photo = samples.scene.photos_with_role("flash")[0]
             raise InputError(photo.file or photo.brackets[0][0],
                              "the first flash photo has no usable object pixel, and "
                              "segmentation labels its pixels: list first a flash photo that "
-                             "sees the object, or give --materials 1")
+                             "sees the object" + (", or give --materials 1" if empty_ok else ""))
     if materials == 1:  # one material by request: every object pixel, nothing to cluster
         labels = np.where(samples.object_mask, 1, 0).astype(np.int32)
         return Segmentation(labels, 1, {"samples": int(len(rho)), "reason": "--materials 1",
-                                        "chosen_k": 1})
+                                        "bins_renamed": 0, "chosen_k": 1})
     if materials == "auto":
         every = slice(None, None, max(1, len(rho) // 50000))  # no 12-MP gather for a floor
         at_least = resolution_floor(rho[every], samples.radiance.reshape(-1, 3)[pixels[every]])
@@ -84,10 +86,10 @@ def _fixed_k(rho, theta_h, k, options):
     return assign_all(rho, theta_h, pick, labels, kept), {"samples": int(n), "reason": reason}
 
 
-def segment_scene(samples, materials="auto", options=None):
+def segment_scene(samples, materials="auto", options=None, empty_ok=False):
     """(Segmentation, face labels (F,) int32 or None) of FlashSamples: with a mesh, each face
-    takes its pixels' label (face_labels)."""
-    segmentation = segment_samples(samples, materials, options)
+    takes its pixels' label (face_labels). empty_ok: see segment_samples."""
+    segmentation = segment_samples(samples, materials, options, empty_ok)
     faces = None
     if samples.face_image is not None:
         mesh = samples.mesh if samples.mesh is not None else \
