@@ -151,8 +151,8 @@ def _float_masks(rgb, saturation):
     with np.errstate(invalid="ignore"):
         clipped = (high >= ceiling) & ~np.isnan(low)
         # a negative value is noise about a dim level (a flash − ambient difference saved as a
-        # float image): dropping it keeps only the upward noise and biases dim bins high, up to ×4.5 at
-        # grazing θh; a pixel whose channels are all 0 is a float image's black (no value)
+        # float image): dropping it keeps only the upward noise and biases dim bins high, up to
+        # ×4.5 at grazing θh; a pixel whose channels are all 0 is a float image's black (no value)
         usable = (low > -np.inf) & (high < ceiling) & ((low != 0) | (high != 0))
     return usable, clipped
 
