@@ -328,7 +328,8 @@ def markdown():
                   "90th percentile / max); fit seconds (wall, at nice 10 on 2 cores: they rise "
                   "with the machine's load; the recovery table's CPU seconds are the fit's own "
                   "cost); sphere Delta E log under pisa where rendered (tabulated fit against "
-                  "the table, same sampler and seed).", "",
+                  "the table, same seed, 256 spp: each samples its own table, so noise adds a "
+                  "little).", "",
                   "| group | LAB-log 2D | fit s | sphere Delta E log |", "|---|---|---|---|"]
         groups = [("all", rows)] + [(s, [r for r in rows if r["set"] == s])
                                     for s in dict.fromkeys(r["set"] for r in rows)]
