@@ -84,27 +84,28 @@ def render(scene_dir, brdf, out, *, labels_png=None, albedo_exr=None, spp=64, se
         report["labels"] = str(Path(labels_png).resolve())
     if albedo_exr:
         report["albedo"] = str(Path(albedo_exr).resolve())
-    # Render and load every reference first, write afterwards: bad input found part-way (an
-    # unreadable envmap or photo) then leaves no output file behind.
-    results = []
-    started = time.perf_counter()
-    for photo, image, mask in render_scene(scene, model, spp=spp, seed=seed, photos=references):
-        entry = {"photo": photo.stem, "exr": f"{photo.stem}.exr",
-                 "seconds": round(time.perf_counter() - started, 3), "pixels": int(mask.sum())}
-        reference = capture.load_reference_entry(photo) if capture.photo_exists(photo) else None
-        results.append((photo, image, mask, reference, entry))
-        started = time.perf_counter()
+    # Each photo's files are written into the staged folder as it is rendered, and its arrays
+    # let go: bad input found part-way (an unreadable envmap or photo) removes the folder whole,
+    # so nothing is left behind, and 12 views of 24 MP no longer sit in memory (0.6 GB each)
     with staged_output_dir(out, force=force, command="render") as staged:
         staged = Path(staged)
-        for photo, image, mask, reference, entry in results:
+        started = time.perf_counter()
+        for photo, image, mask in render_scene(scene, model, spp=spp, seed=seed,
+                                               photos=references):
+            entry = {"photo": photo.stem, "exr": f"{photo.stem}.exr",
+                     "seconds": round(time.perf_counter() - started, 3),
+                     "pixels": int(mask.sum())}
             write_exr(staged / f"{photo.stem}.exr", image)
             write_preview(staged / f"{photo.stem}.png", image)
-            if reference is not None:
-                rgb, measured = reference
+            if capture.photo_exists(photo):
+                rgb, measured = capture.load_reference_entry(photo)
                 entry["compare"] = write_comparison(staged, image, rgb, mask & measured,
                                                     json_name=f"{photo.stem}_compare.json",
                                                     png_name=f"{photo.stem}_delta_e.png")
+                del rgb, measured
             report["renders"].append(entry)
+            del image, mask
+            started = time.perf_counter()
         write_text(staged / "render.json", json.dumps(report, indent=2) + "\n")
 
 
