@@ -127,3 +127,29 @@ def test_a_card_in_other_units_is_bad_input(capture_with_card, tmp_path, capsys)
     assert len(err) == 1 and "level.target" in err[0] and not (tmp_path / "s.csv").exists()
     ratio = float(err[0].split("the target lies ")[1].split("x")[0])
     assert 100 < ratio < 140       # 115 m against the sphere's ~0.9 m
+
+
+def test_a_card_far_behind_an_orthographic_view_under_a_directional_flash_is_used(tmp_path):
+    """Distance sets the level only for a point light through a pinhole: an orthographic camera's
+    depth is from an arbitrary plane and a directional light's irradiance does not fall off. With
+    the image plane 2 cm before the sphere and the card 60 cm behind it (depth ratio ~12), the
+    card must still give the level (the distance check refused it)."""
+    from synthetic import directional_light, orthographic_camera
+    sphere, card = sphere_mesh(), card_mesh(z=1.5, half=0.3)
+    brdf = by_region([ggx_lambert(), lambert(REFLECTANCE)], lambda p: (p[:, 2] > 1.4).astype(int))
+    pose = np.eye(4)
+    pose[2, 3] = 0.88
+    folder = write_synthetic_scene(tmp_path / "scene", combine(sphere, card), brdf,
+                                   orthographic_camera(160, 160, 0.0025, pose),
+                                   [directional_light([0, 0, -1], [TRUE_INTENSITY] * 3)])
+    sphere.export(str(folder / "object.ply"), vertex_normal=True)
+    card.export(str(folder / "card.ply"), vertex_normal=True)
+    doc = json.loads((folder / "scene.json").read_text())
+    doc["photos"][0]["light"]["irradiance_rgb"] = [1.0, 1.0, 1.0]
+    doc["level"] = {"target": {"mesh": "card.ply", "reflectance": REFLECTANCE}}
+    (folder / "scene.json").write_text(json.dumps(doc))
+    assert main(["extract", str(folder), "--out", str(tmp_path / "s.csv")]) == 0
+    rho, n = read_slice_csv(tmp_path / "s.csv")
+    want = true_slice(ggx_lambert())
+    ok = n >= 20
+    assert ok.sum() >= 20 and abs(np.median(rho[ok] / want[ok]) - 1) < 0.02
