@@ -32,8 +32,7 @@ from flashbrdf.pipeline.run_materials import (label_section, material_entries, r
                                               run_materials)
 from flashbrdf.pipeline.run_steps import (StageTimer, check_references, infer_method,
                                           load_methods, reference_outputs, render_and_compare,
-                                          drop_scratch, release_references,
-                                          spill_references)
+                                          drop_scratch, spill_references)
 from flashbrdf.render.envmap import read_envmap_pixels
 from flashbrdf.render.scene_render import SceneGeometry
 from flashbrdf.slice_extract import ExtractOptions
@@ -191,7 +190,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
             {name: {1: p["table"]} for name, p in predictions.items()}, out)
         sections += lines
     geometry = None  # its cached primary hits (96 bytes a pixel): the report needs none
-    release_references(rows, loaded, out)
+    loaded.clear()  # the references are files by now (spill_references)
     report = stages.run("report", write_report, out, stages=dict(stages.seconds), references=rows,
                         observed=observed, predictions=predictions, notes=notes,
                         title=settings.title, warnings=ood_warnings, extra=extra,

@@ -36,7 +36,8 @@ def export_for_report(out, method, envmap=None, final_out=None, material=None):
     final = None if final_out is None else Path(final_out).absolute() / part / "brdf.binary"
     # every run's table is brdf.binary: name the glTF material by run, method and material, so
     # that several imported at once do not share one name
-    name = "_".join([Path(final_out or out).name, method] + [f"material_{material}"] * bool(material))
+    name = "_".join([Path(final_out or out).name, method]
+                    + ([f"material_{material}"] if material else []))
     result = export_brdf(out / part / "brdf.binary", out / where, envmap=envmap,
                          final_path=final, name=name)
     fit = result["fit"]

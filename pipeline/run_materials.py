@@ -22,8 +22,7 @@ from flashbrdf.pipeline.label_files import write_labels
 from flashbrdf.pipeline.previews import previews_under_envmap
 from flashbrdf.pipeline.report import coverage, write_report
 from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
-from flashbrdf.pipeline.run_steps import (drop_scratch, infer_method, release_references,
-                                          render_and_compare)
+from flashbrdf.pipeline.run_steps import drop_scratch, infer_method, render_and_compare
 from flashbrdf.render import DiffuseAlbedoMap, MaterialMap
 from flashbrdf.render.images import write_preview
 from flashbrdf.render.scene_render import SceneGeometry
@@ -174,7 +173,7 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
             "previews", previews_under_envmap, settings, scene, None, brdfs,
             {m: {k: tables[m][k].table for k in sorted(rhos)} for m in settings.methods}, out)
         sections += lines
-    release_references(rows, loaded, out)
+    loaded.clear()  # the references are files by now (spill_references)
     report = stages.run("report", write_report, out, stages=dict(stages.seconds),
                         references=rows, warnings=warnings, notes=notes, title=settings.title,
                         extra=extra, sections=sections, materials=page)

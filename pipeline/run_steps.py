@@ -140,24 +140,11 @@ def scratch_array(out, array):
 
 def spill_references(loaded, out):
     """Right after the output folder is staged: each reference photo goes to
-    OUT/.report_scratch/ and `loaded` names the file, so render_and_compare reads one photo at a
-    time instead of every photo being held from the start (0.3 GB each at 24 MP)."""
+    OUT/.report_scratch/ and `loaded` names the file, so render_and_compare and the report read
+    one photo at a time instead of every photo being held from the start (0.3 GB each at 24 MP);
+    the rows name the same files."""
     for index, (rgb, measured) in list(loaded.items()):
         loaded[index] = (scratch_array(out, rgb), measured)
-
-
-def release_references(rows, loaded, out):
-    """Before the report: each reference photo the rows share goes to OUT/.report_scratch/ (once
-    per photo; the rows name the file) and `loaded` is emptied, so the report holds one photo's
-    images at a time, not every photo's (0.3 GB each at 24 MP)."""
-    saved = {}
-    for row in rows:
-        photo = row.get("reference")
-        if isinstance(photo, np.ndarray):
-            if id(photo) not in saved:
-                saved[id(photo)] = scratch_array(out, photo)
-            row["reference"] = saved[id(photo)]
-    loaded.clear()
 
 
 def drop_scratch(out):

@@ -333,7 +333,7 @@ def _measured(scene, options):
     gradient = samples.log_gradient if samples.log_gradient is not None else np.zeros((0, 2))
     return (SimpleNamespace(photo=samples.photo, theta_h=samples.theta_h, rho=samples.rho,
                             censored=samples.censored, log_gradient=gradient),
-            bin_samples(samples).rho)
+            bin_samples(samples, photo_levels=False).rho)
 
 
 def bin_samples(samples, photo_levels=True):

@@ -69,7 +69,8 @@ def trace_target(intersector, camera, object_depth, chunk, where):
         surfaces.append(capture.Surface(*keep))
         mask[keep[0], keep[1]] = True
     target_depth = np.concatenate(depths) if depths else np.zeros(0)
-    seen = object_depth[np.isfinite(object_depth)][::97]
+    seen = object_depth.ravel()[::97]       # a sample, as for the target
+    seen = seen[np.isfinite(seen)]
     if where is not None and len(target_depth) and len(seen):
         ratio = float(np.median(target_depth) / np.median(seen))
         if not 1 / TARGET_DEPTH_RATIO <= ratio <= TARGET_DEPTH_RATIO:
