@@ -87,6 +87,41 @@ def test_noll_passes_through_observed_samples(mixed_set):
     np.testing.assert_allclose(table[:, 0], s, rtol=1e-6, atol=2e-9)
 
 
+def test_noll_recovers_a_nonnegative_mixture_of_training_materials(mixed_set):
+    """Nöll's assumption holds exactly: the material is 0.3 m0 + 0.5 m2 + 0.2 m4 of the training
+    set. Its slice fixes the weights (the six slices are independent), the correction is then 1,
+    and every 2D and 3D bin comes back. Tolerance: the 3D rows are float32 (half-ulp 6e-8
+    relative) and least squares stops near 1e-8 relative; 1e-6 is well above both."""
+    w = np.array([0.3, 0.0, 0.5, 0.0, 0.2, 0.0])
+    mixture = training_set([np.einsum("i,ijc->jc", w, np.asarray(mixed_set.valid_3d, float))])
+    method = Noll().fit(mixed_set)
+    np.testing.assert_allclose(method.weights(mixture.slices[0]), w, atol=1e-6)
+    table, _ = method.predict(mixture.slices[0], "2d")
+    truth = mixture.tables_2d[0]
+    ok = np.isfinite(truth).all(-1)
+    np.testing.assert_allclose(table[ok], truth[ok], rtol=1e-6)
+    table3, _ = method.predict(mixture.slices[0], "3d")
+    ih, jd, kd = valid_bins_3d()
+    np.testing.assert_allclose(table3[ih, jd, kd], mixture.valid_3d[0], rtol=1e-6)
+
+
+def test_chandraker_recovers_a_theta_d_invariant_material():
+    """Chandraker's assumption holds exactly: ρ depends on θh alone (a Blinn-like lobe over a
+    diffuse floor). The 2D and 3D predictions from its slice equal the truth on every valid bin
+    (the same values copied: exact but for the float32 3D rows, 6e-8 relative)."""
+    ih, _, _ = valid_bins_3d()
+    th = merl.theta_h_centres()
+    per_theta_h = (0.05 + 20.0 * np.cos(th) ** 200)[:, None] * np.array([0.9, 0.6, 0.3])
+    material = training_set([per_theta_h[ih]])
+    table, _ = Chandraker().fit(None).predict(material.slices[0], "2d")
+    truth = material.tables_2d[0]
+    ok = np.isfinite(truth).all(-1)
+    np.testing.assert_allclose(table[ok], truth[ok], rtol=1e-12)
+    table3, _ = Chandraker().fit(None).predict(material.slices[0], "3d")
+    jd, kd = valid_bins_3d()[1:]
+    np.testing.assert_allclose(table3[ih, jd, kd], material.valid_3d[0], rtol=1e-6)
+
+
 def test_noll_leaves_a_tables_hole_to_the_others(mixed_set):
     """The slice of training material 0 is fitted by material 0 (weight 1, the others ~1e-10):
     a hole in material 2's 2D table (NaN at θd > 0, where the others hold data) must not void
