@@ -5,7 +5,8 @@ experiments); in each, one fold (20 %) is the test set, the next fold the valida
 (60 %) the training set. Validation picks the DS-GPLVM's β and feature space and the pca/oracle
 hyperparameters (LAB-log 2D error). Two DS-GPLVMs are scored from the same fits: "dsgplvm" is what
 `flashbrdf infer` does (slice anchoring on, log-LAB or log-RGB features as validation picks) and
-"dsgplvm-paper" is the paper's method as written (log-LAB features, no anchoring). Errors: brdf.metrics for every test prediction (2D; 3D on the experiments that fit
+"dsgplvm-paper" is the paper's method (log-LAB features, no anchoring; docs/methods.md lists
+its departures). Errors: brdf.metrics for every test prediction (2D; 3D on the experiments that fit
 the time budget, the paper's mean-performing one first), pooled mean and median, plus the
 "mean-performing experiment" (dsgplvm 2D LAB-log mean closest to the mean over experiments).
 """

@@ -104,7 +104,8 @@ def _markdown(result):
              f"{len(result['materials'])} materials; {result['size']}^2 sphere, "
              f"{result['spp']} spp, seed {result['seed']}; mean / median across materials.", "",
              "dsgplvm is what `flashbrdf infer` does (slice anchoring, feature space picked on "
-             "validation); dsgplvm-paper is the paper's DS-GPLVM as written.", "",
+             "validation); dsgplvm-paper is the paper's DS-GPLVM (docs/methods.md lists its "
+             "departures).", "",
              "| method | " + " | ".join(envs) + " |", "|---|" + "---|" * len(envs)]
     for method, entry in result["summary"].items():
         cells = [f"{entry[e]['mean']:.3f} / {entry[e]['median']:.3f}" if entry.get(e) else "n/a"
