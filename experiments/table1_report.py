@@ -94,7 +94,7 @@ def write_markdown(path, result):
               f"Protocol: {result['protocol']}", "",
               "Cells: ours (the paper's number for the same column on the real MERL, where it has "
               "one; its LAB figures are on a scale about half the contract's, "
-              "benchmarks/results/lab_scale.md, so compare LAB columns as ratios between "
+              "docs/results.md, so compare LAB columns as ratios between "
               "methods). dsgplvm-paper = the paper's DS-GPLVM (log-LAB features, no anchoring; "
               "docs/methods.md lists where it departs from the paper); dsgplvm = what `flashbrdf infer` does: the same model with slice "
               "anchoring (its theta_d = 0 row corrected to the observed slice, carried over "
