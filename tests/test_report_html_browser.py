@@ -220,6 +220,32 @@ def test_hover_shows_the_linear_values(page, embedded):
                for v in photo_line.removeprefix("photo").split())
 
 
+def test_hover_reads_the_pixel_under_a_pointer_between_css_pixels(page, embedded):
+    """A pointer sits between CSS pixels (a high-DPI screen, a zoomed page). mousemove's clientX
+    is truncated to a whole CSS pixel, which can name the image pixel left of the one under the
+    pointer; the readout must be of the pixel the pointer is on."""
+    meta, arrays = embedded
+    w = arrays["reference"].shape[1]
+    y = arrays["reference"].shape[0] // 2
+    canvas = page.page.locator(f'figure.frame[data-method="{METHODS[0]}"] canvas')
+    # shown 1.37x (an image pixel 1.37 CSS pixels wide, as a zoomed page would)
+    canvas.evaluate("(c, w) => { c.style.width = `${1.37 * w}px`; c.style.maxWidth = 'none'; "
+                    "c.scrollIntoView({block: 'center'}); }", w)
+    left, top, width, height = page.page.evaluate(f"""() => {{ const r = document.querySelector(
+        'figure.frame[data-method="{METHODS[0]}"] canvas').getBoundingClientRect();
+        return [r.left, r.top, r.width, r.height]; }}""")
+    pitch = width / w
+    assert pitch > 1.05                       # else a whole CSS pixel spans several image pixels
+    # pixel k's left edge at a fraction 0.2..0.8 of a CSS pixel: 0.1 right of it, truncation
+    # lands left of the edge, in pixel k - 1
+    k = next(k for k in range(w // 3, w) if 0.2 < (left + k * pitch) % 1 < 0.8)
+    x = left + k * pitch + 0.1
+    page.page.mouse.move(x, top + (y + 0.5) * height / arrays["reference"].shape[0])
+    first = page.page.inner_text(f'figure.frame[data-method="{METHODS[0]}"] .readout')
+    box = meta["photos"][0]["box"]
+    assert first.startswith(f"({box[2] + k}, {box[0] + y})"), (first.splitlines()[0], k)
+
+
 def _readout(page, method=METHODS[0]):
     """(col, row) and the photo's RGB of a frame's readout."""
     first, photo_line, _ = page.page.inner_text(

@@ -320,7 +320,7 @@ function heatCanvas(values, lo, hi, lut, title, barLabel, onHover) {
   }
   // turned a quarter clockwise, text reads top to bottom and its lines run right to left
   lines.forEach((line, k) => c.fillText(line, 0, -12 * (lines.length - 1 - k))); c.restore();
-  canvas.addEventListener("mousemove", (e) => {
+  canvas.addEventListener("pointermove", (e) => {
     const [x, y] = ax.eventPoint(e);
     const j = Math.floor((x - ax.box.left) / ax.box.width * 90), i = Math.floor((y - ax.box.top) / ax.box.height * 90);
     if (i >= 0 && i < 90 && j >= 0 && j < 90) onHover(i, j);

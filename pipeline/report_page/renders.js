@@ -54,7 +54,7 @@ function buildFrames() {
     keyCursor(canvas, () => (R.photo ? [R.photo.h, R.photo.w] : [0, 0]), (y, x) => keyRead(x, y),
               () => (R.photo ? [R.photo.h >> 1, R.photo.w >> 1] : [0, 0]),
               () => (R.point ? [R.point.y, R.point.x] : null));
-    canvas.addEventListener("mousemove", (e) => hover(frame, e));
+    canvas.addEventListener("pointermove", (e) => hover(frame, e));
     canvas.addEventListener("mouseleave", () => { if (!R.keyCursor) clearReadouts(); });
     R.frames.push(frame);
   }
@@ -112,6 +112,9 @@ function drawFrame(frame) {
 
 function drawAll() { R.frames.forEach(drawFrame); }
 
+// pointermove, not mousemove: its clientX keeps the fraction of a CSS pixel (mousemove's is
+// truncated, which names the pixel left of the pointer's when an image pixel is a CSS pixel
+// and a bit wide)
 function hover(frame, event) {
   const photo = R.photo;
   if (!photo) return;
