@@ -166,6 +166,46 @@ def test_keys_flip_to_the_photo_and_back(page, embedded):
     assert _agree(page.canvas(), render)
 
 
+def test_tev_keys_set_the_exposure(page, embedded):
+    """tev's keys: E / Shift+E ±½ stop, R 0 EV, N the photo's auto exposure."""
+    meta, _ = embedded
+    start = page.stops()
+    page.page.keyboard.press("e")
+    assert page.stops() == pytest.approx(start + 0.5)
+    page.page.keyboard.press("Shift+E")
+    page.page.keyboard.press("Shift+E")
+    assert page.stops() == pytest.approx(start - 0.5)
+    page.page.keyboard.press("r")
+    assert page.stops() == 0 and page.page.inner_text("#exposure-out") == "+0.0 EV"
+    page.page.keyboard.press("n")
+    assert page.stops() == pytest.approx(meta["photos"][0]["auto_stops"])
+
+
+def test_a_number_key_shows_that_method_alone_at_a_whole_zoom(page, embedded):
+    """Key 2: the second method's frame alone, its image pixels squares of a whole number (>= 2)
+    of CSS pixels (the sample's 248 px crop fits 5x across 1366 px); its readout still names the
+    pixel under the pointer. Key 2 again: every method."""
+    meta, arrays = embedded
+    h, w = arrays["reference"].shape[:2]
+    frame = f'figure.frame[data-method="{METHODS[1]}"]'
+    before = page.page.locator(f"{frame} canvas").bounding_box()["width"]
+    page.page.keyboard.press("2")
+    assert not page.page.locator(f'figure.frame[data-method="{METHODS[0]}"]').is_visible()
+    canvas = page.page.locator(f"{frame} canvas")
+    width = canvas.bounding_box()["width"]
+    assert width > 1.5 * before and width / w == round(width / w) >= 2
+    canvas.evaluate("c => c.scrollIntoView({block: 'start'})")
+    box = canvas.bounding_box()
+    x, y = w // 3, h // 2
+    page.page.mouse.move(box["x"] + (x + 0.5) * width / w, box["y"] + (y + 0.5) * width / w)
+    photo = meta["photos"][0]["box"]
+    assert page.page.inner_text(f"{frame} .readout").startswith(f"({photo[2] + x}, {photo[0] + y})")
+    page.page.keyboard.press("2")
+    assert page.page.locator(f'figure.frame[data-method="{METHODS[0]}"]').is_visible()
+    assert page.page.locator(f"{frame} canvas").bounding_box()["width"] == pytest.approx(before)
+    assert page.errors == []
+
+
 def test_split_shows_the_photo_left_of_the_line(page, embedded):
     _, arrays = embedded
     stops = page.stops()

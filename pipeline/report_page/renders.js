@@ -8,6 +8,7 @@ const R = {
   cache: new Map(), frames: [], photo: null,
   point: null,      // {x, y}: the pixel the readouts show (mouse or arrow keys), in shown pixels
   keyCursor: false, // the point was set by the arrow keys: it is marked on the frames
+  solo: null,       // the one method shown alone, large (number keys, or its name), or null
 };
 const NO_DATA_RGB = [255, 0, 255];  // a pixel with a NaN or inf channel (readout: –)
 const CACHE_PHOTOS = 6;  // decoded photos kept (a DiLiGenT photo is ~1 MB of float32)
@@ -40,8 +41,10 @@ function buildFrames() {
   for (const method of META.methods) {
     const canvas = el("canvas", {tabindex: "0", role: "img",
       "aria-label": `${method}: render and reference photo; click or Enter to flip`});
-    const caption = el("figcaption", {}, [el("strong", {text: method}), el("span", {class: "de"}),
-                                          el("span", {class: "which"})]);
+    const name = el("button", {type: "button", class: "method",
+      title: `show ${method} alone, large (key ${META.methods.indexOf(method) + 1}); again: every method`,
+      onclick: () => setSolo(R.solo === method ? null : method)}, [el("strong", {text: method})]);
+    const caption = el("figcaption", {}, [name, el("span", {class: "de"}), el("span", {class: "which"})]);
     const readout = el("div", {class: "readout", "aria-live": "off"});
     const figure = el("figure", {class: "frame", "data-method": method}, [caption, canvas, readout]);
     box.append(figure);
@@ -110,7 +113,31 @@ function drawFrame(frame) {
   label.title = "ΔE log mean of this render against this photo";
 }
 
-function drawAll() { R.frames.forEach(drawFrame); }
+function drawAll() { R.frames.forEach((f) => { if (!R.solo || f.method === R.solo) drawFrame(f); }); }
+
+// One method alone, at the largest whole zoom (image pixels as squares of whole CSS pixels, as
+// in tev) that fits the width and the window's height below the toolbar; below 1×, what fits.
+function setSolo(method) {
+  R.solo = method;
+  document.getElementById("frames").classList.toggle("solo", Boolean(method));
+  for (const f of R.frames) f.canvas.closest("figure").hidden = Boolean(method) && f.method !== method;
+  sizeFrames();
+  drawAll();
+}
+
+function sizeFrames() {
+  const box = document.getElementById("frames");
+  for (const f of R.frames) f.canvas.style.width = "";
+  if (!R.solo || !R.photo) return;
+  const frame = R.frames.find((f) => f.method === R.solo);
+  // the window below the header and the toolbar, stuck at the top once scrolled to the frame,
+  // less the caption and the readout
+  const above = document.querySelector("header.top").offsetHeight +
+    document.querySelector("#renders .toolbar").offsetHeight;
+  const high = Math.max(120, window.innerHeight - above - 90);
+  const fit = Math.min(box.clientWidth / R.photo.w, high / R.photo.h);
+  frame.canvas.style.width = `${R.photo.w * (fit >= 1 ? Math.floor(fit) : fit)}px`;
+}
 
 // pointermove, not mousemove: its clientX keeps the fraction of a CSS pixel (mousemove's is
 // truncated, which names the pixel left of the pointer's when an image pixel is a CSS pixel
@@ -194,6 +221,7 @@ async function showPhoto(index) {
   // the readouts must not keep the photo shown before: read the same pixel of this one
   if (R.point && R.point.x < photo.w && R.point.y < photo.h) readAt(R.point.x, R.point.y);
   else { clearReadouts(); R.keyCursor = false; }
+  sizeFrames();  // a photo of another size
   drawAll();
   const p = photo.meta;
   status.textContent = `${p.name}: ${p.width}×${p.height} px shown, the object's box in the ` +
@@ -304,6 +332,7 @@ function initRenders() {
   const overlay = document.getElementById("overlay");
   overlay.addEventListener("change", () => setOverlay(overlay.checked));
   buildFrames();
+  window.addEventListener("resize", sizeFrames);
   deColorbar();
   photoTable();
   errorsPlot();
@@ -311,13 +340,20 @@ function initRenders() {
   showPhoto(0);
 }
 
+// tev's keys where it has one: E / Shift+E exposure ±½ stop, R reset (0 EV), N normalise (here:
+// the photo's auto exposure), number keys pick an image (here: one method alone, large).
 function rendersKey(event) {
   if (!META.photos.length) return false;
   const k = event.key;
   if (k === "f" || k === "F") setFlip(!R.flipped);
-  else if (k === "+" || k === "=") setStops(R.stops + 0.5);
-  else if (k === "-" || k === "_") setStops(R.stops - 0.5);
-  else if (k === "0") setStops(META.photos[R.index].auto_stops);
+  else if (k === "+" || k === "=" || k === "e") setStops(R.stops + 0.5);
+  else if (k === "-" || k === "_" || k === "E") setStops(R.stops - 0.5);
+  else if (k === "r" || k === "R") setStops(0);
+  else if (k === "0" || k === "n" || k === "N") setStops(META.photos[R.index].auto_stops);
+  else if (/^[1-9]$/.test(k) && Number(k) <= META.methods.length) {
+    const method = META.methods[Number(k) - 1];
+    setSolo(R.solo === method ? null : method);
+  } else if (k === "Escape" && R.solo) setSolo(null);
   else if (k === "d" || k === "D") setOverlay(!R.overlay);
   else if (k === "[") showPhoto(R.index - 1);
   else if (k === "]") showPhoto(R.index + 1);
