@@ -41,8 +41,14 @@ def write_batch_index(out_dir, rows, methods=(), header_lines=()):
                      "not of these inputs or options)")
         values = [(r.get("delta_e_log") or {}).get(m) for m in methods]
         best = min((v for v in values if v is not None), default=None)
-        cells = "".join(f'<td{" class=best" if v is not None and v == best else ""}>'
-                        f"{_number(v)}</td>" for v in values)
+        # an ok capture with no ΔE compared nothing (no reference photo): said, not a blank
+        # cell that reads as a lost value
+        missing = ("<td title='nothing compared: the capture has no reference photo'>–</td>"
+                   if ok and best is None else "<td title='not compared'>–</td>" if ok else
+                   "<td></td>")
+        cells = "".join(missing if v is None else
+                        f'<td{" class=best" if v == best else ""}>{_number(v)}</td>'
+                        for v in values)
         body.append(f"<tr><td>{link}</td><td class={'ok' if ok else 'failed'}>"
                     f"{html.escape(str(r.get('status', '')))}</td>{cells}"
                     f"<td>{_number(r.get('seconds'), 1)}</td>"
@@ -60,7 +66,7 @@ def write_batch_index(out_dir, rows, methods=(), header_lines=()):
             f"<h2>{len(rows)} capture(s)</h2><ul>{notes}</ul>"
             "<p class=hint>Each capture's name opens its report.html (renders, BRDF, "
             "materials). ΔE log: the mean over its reference photos; the best per capture in "
-            "bold.</p>"
+            "bold; –: nothing compared (no reference photo).</p>"
             f"<table><thead><tr><th>capture</th><th>status</th>{head}<th>seconds</th>"
             f"<th>reason</th></tr></thead><tbody>{''.join(body)}</tbody></table>"
             "</section></main></body></html>\n")

@@ -234,7 +234,11 @@ def test_batch_index_links_each_report_and_is_known_to_the_next_batch(tmp_path):
             {"capture": "b<c>", "status": "failed", "reason": "InputError: x", "seconds": None,
              "delta_e_log": {}},
             {"capture": "rerun", "status": "failed", "reason": "InputError: y", "seconds": 1.0,
+             "delta_e_log": {}},
+            {"capture": "no photo", "status": "ok", "reason": "", "seconds": 9.0,
              "delta_e_log": {}}]
+    (tmp_path / "no photo").mkdir()
+    (tmp_path / "no photo" / "report.html").write_text("<!doctype html>")
     (tmp_path / "rerun").mkdir()  # a capture whose rerun failed keeps its earlier run's folder
     (tmp_path / "rerun" / "report.html").write_text("<!doctype html>")
     write_batch_index(tmp_path, rows, ["dsgplvm", "pca"], ["- 2 capture(s)"])
@@ -246,6 +250,9 @@ def test_batch_index_links_each_report_and_is_known_to_the_next_batch(tmp_path):
     assert ("<td>rerun (<a href=\"rerun/report.html\">an earlier run's report</a>, not of these "
             "inputs or options)</td>") in page
     assert "<td class=best>1.250</td>" in page and "pca/ref_1" not in page
+    # an ok capture with no reference photo: a dash that says why, not a blank
+    row = page.split("no photo</a></td>")[1].split("</tr>")[0]
+    assert row.count("<td title='nothing compared: the capture has no reference photo'>–</td>") == 2
     # (test_batch.py's summary test checks that a second batch accepts the index: write_summary
     # writes it, and the folder check knows it by INDEX_HEAD)
 
