@@ -63,6 +63,13 @@ def table_2d(merl_table):
     return _nanmean(np.asarray(merl_table), axis=2)
 
 
+def table_in_plane(merl_table):
+    """rho(theta_h, theta_d) (90, 90, 3) in the plane of incidence, where phi_d = 0 (folded into
+    [0, pi)): the mean of phi_d bins 0 and 179, either side of it, NaN where neither has data."""
+    sides = np.asarray(merl_table, dtype=float)[:, :, [0, -1]]
+    return _nanmean(sides, axis=2)
+
+
 def table_2d_view(table):
     """rho(theta_h, theta_d) (90, 90, 3) of a 2D table (as is) or a 3D one (table_2d)."""
     table = np.asarray(table, dtype=float)

@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from flashbrdf.brdf.views import table_2d_view, variance_2d_view
+from flashbrdf.brdf.views import table_2d_view, table_in_plane, variance_2d_view
 from flashbrdf.files.errors import InputError
 from flashbrdf.render import images
 
@@ -207,9 +207,12 @@ def uniform_value(values):
 
 
 def brdf_entry(table, variance=None, variance_label="uncertainty", variance_note=None):
-    """One method's BRDF for the page: the 2D table, and its uncertainty as a map, as one
-    number (every bin alike: one isotropic GP per view), or absent (variance_note: why)."""
+    """One method's BRDF for the page: the 2D table (a 3D one's phi_d mean) and, for a 3D
+    table, its plane of incidence (the polar plot's); its uncertainty as a map, as one number
+    (every bin alike: one isotropic GP per view), or absent (variance_note: why)."""
     entry = {"table": float32_b64(table_2d_view(table)), "variance_label": variance_label}
+    if np.ndim(table) == 4:
+        entry["in_plane"] = float32_b64(table_in_plane(table))
     if variance_note:
         entry["variance_note"] = variance_note
     variance = variance_2d_view(variance)

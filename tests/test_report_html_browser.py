@@ -430,6 +430,36 @@ def test_brdf_readouts_are_cleared_when_the_plots_are_redrawn(page, embedded):
     assert len(value.replace(".", "").replace("-", "").lstrip("0").split("e")[0]) == 4
 
 
+def test_the_lobe_of_a_3d_table_is_its_plane_of_incidence_not_its_phi_d_mean(browser,
+                                                                            tmp_path):
+    """In the plane of incidence φd = 0 (folded): the polar plot of a 3D table reads its φd bins
+    0 and 179 (either side of 0), not the φd mean the heat maps show. A table of 2 there and 1 at
+    every other φd reads 2 (its φd mean is ~1.01)."""
+    from flashbrdf.brdf.merl import merl_valid_mask
+    from flashbrdf.pipeline.report_html import write_report_html
+    table = np.ones((90, 90, 180, 3))
+    table[:, :, [0, 179]] = 2.0
+    table[~merl_valid_mask()] = np.nan
+    write_report_html(tmp_path, {"title": "3d"}, predictions={"m3d": {"table": table}})
+    page = browser.new_page(viewport={"width": 1366, "height": 768})
+    errors = []
+    page.on("pageerror", lambda e: errors.append(str(e)))
+    try:
+        page.goto((tmp_path / "report.html").resolve().as_uri())
+        page.wait_for_function("document.getElementById('polar-plot').polar")
+        page.locator("#polar-plot").focus()
+        readouts = []
+        for key in ["ArrowLeft"] + ["Shift+ArrowRight"] * 8:   # θo 0° to 40°, light at 30°
+            page.keyboard.press(key)
+            readouts.append(page.inner_text("#polar-readout"))
+        assert readouts[0].startswith("θo 0.0° (θh 15.0°, θd 15.0°)")
+        values = [float(r.split("m3d ")[1]) for r in readouts]
+        assert values == [2.0] * len(values), readouts    # 2 exactly: every neighbour is 2
+        assert errors == []
+    finally:
+        page.close()
+
+
 def test_screenshot(page, tmp_path):
     path = tmp_path / "report.png"
     page.page.screenshot(path=str(path), full_page=True)

@@ -218,6 +218,22 @@ def test_materials_are_shown_and_the_principled_fit_read_from_out_dir(tmp_path):
     assert meta["principled"][0]["fit"] == {"lab_log_2d": 4.5, "render_delta_e_log": None}
 
 
+def test_a_3d_table_carries_its_plane_of_incidence():
+    """φd = 0 (folded) is the plane of incidence: a 3D table's entry holds the mean of φd bins 0
+    and 179 beside its φd mean; a 2D table (the same at every φd) needs none."""
+    from flashbrdf.brdf.merl import merl_valid_mask
+    table = np.ones((90, 90, 180, 3))
+    table[:, :, 0] = 2.0
+    table[:, :, 179] = 4.0
+    table[~merl_valid_mask()] = np.nan
+    entry = data.brdf_entry(table)
+    plane = np.frombuffer(base64.b64decode(entry["in_plane"]), np.float32).reshape(90, 90, 3)
+    valid = merl_valid_mask()[:, :, 0]          # bins 0 and 179 are mirror images: same mask
+    assert np.array_equal(valid, merl_valid_mask()[:, :, 179])
+    assert np.all(plane[valid] == 3.0) and np.all(np.isnan(plane[~valid]))
+    assert "in_plane" not in data.brdf_entry(table[:, :, 90])
+
+
 def test_inline_markdown_escapes_and_links_figures():
     html = inline_markdown("**Level:** `x<y` ![map](figures/a.png)")
     assert html == ('<strong>Level:</strong> <code>x&lt;y</code> '

@@ -16,7 +16,8 @@ function dataset(index) {  // META.brdf[index] with its base64 arrays decoded, o
                     spread: d.observed.spread ? float32s(d.observed.spread) : null};
   }
   for (const [m, e] of Object.entries(d.methods)) {
-    out.methods[m] = {table: float32s(e.table), variance: e.variance ? float32s(e.variance) : null,
+    out.methods[m] = {table: float32s(e.table), inPlane: e.in_plane ? float32s(e.in_plane) : null,
+                      variance: e.variance ? float32s(e.variance) : null,
                       constant: e.variance_constant ?? null, label: e.variance_label,
                       note: e.variance_note ?? null};
   }
@@ -173,14 +174,16 @@ function methodToggles() {
 
 // ---- the lobe in the plane of incidence ----------------------------------------------------
 
+// In the plane of incidence φd = 0: a 3D table is read there (inPlane), not at its φd mean.
 function polarValues(d, thetaI, channel, withCos) {
   const angles = [];
   for (let a = -89.5; a <= 89.5; a += 0.5) angles.push(a);
   const curves = {};
   for (const m of Object.keys(d.methods)) {
+    const table = d.methods[m].inPlane || d.methods[m].table;
     curves[m] = angles.map((a) => {
       const t = a * Math.PI / 180, [th, td] = halfDiff(thetaI, t);
-      return lookup(d.methods[m].table, th, td, channel) * (withCos ? Math.cos(t) : 1);
+      return lookup(table, th, td, channel) * (withCos ? Math.cos(t) : 1);
     });
   }
   return {angles, curves};
@@ -352,7 +355,8 @@ function heatmaps() {
       readout.textContent = text;
     };
     const row = el("div", {class: "heatcard"});
-    row.append(heatCanvas(logs[m], lo, hi, "magma", `${m}: log10 ρ ${CHANNEL_NAMES[channel]}`, "log10 ρ (1/sr)", show));
+    row.append(heatCanvas(logs[m], lo, hi, "magma", `${m}: log10 ρ ${CHANNEL_NAMES[channel]}` +
+                          (e.inPlane ? ", φd mean" : ""), "log10 ρ (1/sr)", show));
     if (e.variance) {
       const values = new Float32Array(8100);
       for (let k = 0; k < 8100; k++) {
