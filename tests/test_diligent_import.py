@@ -87,15 +87,46 @@ def test_synthetic_scene_reproduces_pixel_model(tmp_path, capsys):
         assert np.abs(rho / ALBEDO - 1).max() < 2e-3
 
 
-def test_clipped_pixels_become_nan(tmp_path):
+def test_clipped_reference_pixels_become_nan(tmp_path):
     make_diligent(tmp_path / "obj")
     png = cv2.imread(str(tmp_path / "obj" / "002.png"), cv2.IMREAD_UNCHANGED)
     png[10, 30, 0] = 65535  # one channel clipped is enough: the pixel's colour is unknown
     cv2.imwrite(str(tmp_path / "obj" / "002.png"), png)
-    assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "2",
+    assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "1",
                  "--out", str(tmp_path / "s")]) == 0
     image = _read_exr(tmp_path / "s" / "002.exr")
-    assert np.isnan(image[10, 30]).all() and np.isfinite(image).sum() == image.size - 3
+    assert np.isnan(image[10, 30]).all()
+    assert np.count_nonzero(np.isnan(image).any(axis=2)) == 1 + np.count_nonzero(
+        (png == 0).all(axis=2))  # and the black background, stored as unknown too
+
+
+def test_clipped_flash_pixels_are_counted_as_clipped_by_extract(tmp_path):
+    """The flash photo's clipped pixels are right-censored (+inf), not NaN: extract counts
+    them as clipped, and a θh bin clipped on more than half its pixels is left empty instead
+    of reading as the mean of its unclipped rest (as NaN they vanished: the bin kept ALBEDO,
+    "clipped 0"). The sphere is Lambertian, so the unclipped pixels give ALBEDO exactly."""
+    normals, mask, directions = make_diligent(tmp_path / "obj")
+    light, view = directions[0], np.array([0.0, 0.0, 1.0])
+    half = (light + view) / np.linalg.norm(light + view)
+    theta_h = np.degrees(np.arccos(np.clip(normals @ half, -1, 1)))
+    bins = np.floor(np.sqrt(theta_h / 90) * 90).astype(int)
+    target = 40  # θh 17.8-18.7°: well inside the disc, away from the silhouette
+    members = np.argwhere(mask & (bins == target))
+    assert len(members) >= 5
+    chosen = members[: len(members) // 2 + 1]  # a majority of the bin
+    png = cv2.imread(str(tmp_path / "obj" / "001.png"), cv2.IMREAD_UNCHANGED)
+    png[chosen[:, 0], chosen[:, 1], 2] = 65535  # red (BGR on disk) clips
+    cv2.imwrite(str(tmp_path / "obj" / "001.png"), png)
+    assert main(["import-diligent", str(tmp_path / "obj"), "--flash", "1",
+                 "--out", str(tmp_path / "s")]) == 0
+    image = _read_exr(tmp_path / "s" / "001.exr")
+    assert np.isposinf(image[chosen[:, 0], chosen[:, 1], 0]).all()
+    assert main(["extract", str(tmp_path / "s"), "--out", str(tmp_path / "slice.csv")]) == 0
+    report = json.loads((tmp_path / "slice.json").read_text())
+    assert report["rejected"]["clipped"] == len(chosen)
+    rows = [line.split(",") for line in (tmp_path / "slice.csv").read_text().splitlines()
+            if line and not line.startswith(("#", "theta"))]
+    assert rows[target][1] == "" and rows[target][4] == "0"  # unknown, not ALBEDO
 
 
 def test_black_reference_pixels_become_nan_and_the_flash_keeps_its_zeros(tmp_path):
@@ -354,6 +385,7 @@ def test_rim_normals_facing_away_are_not_compared(tmp_path):
         assert got["delta_e_log_mean"] < 0.05, (stem, got)
 
 
+@pytest.mark.skipif(not BALL.is_dir(), reason=f"real DiLiGenT ball not found at {BALL}")
 def test_a_flash_too_far_off_the_view_is_warned_of_at_import(tmp_path, capsys):
     """A directional light and an orthographic view: θd is half the angle between them, the
     same at every pixel. The ball's light 60 is 11.0° off (θd 5.5°, past extract's 5°): the

@@ -11,7 +11,9 @@ Frames (pbrt-like, named):
 Photos: each 16-bit PNG k is divided by 65535 and by light_intensities.txt row k (RGB) and written
 as a linear float32 EXR, so the directional light has irradiance_rgb = (1, 1, 1) and the contract's
 pixel model reads pixel = rho * cos(theta_i) directly. Clipped pixels (65535 in any channel) are
-written as NaN: their true value is unknown, and NaN is the contract's "not a measurement".
+written as NaN in reference photos: their true value is unknown, and NaN is the contract's "not a
+measurement". In the flash photo the clipped channels are +inf, a float image's clip mark: a
+right-censored sample that extraction counts as clipped.
 8-bit PNGs (linear crops, the 16-bit value / 257) are divided by 255 instead, which gives the same
 scale; scene.json then records each photo's bit_depth and a provenance precision_note.
 """
@@ -270,7 +272,13 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
             black = np.zeros_like(clipped) if is_flash else np.all(raw == 0, axis=2)
             linear = raw.astype(np.float32) / np.float32(top) \
                 / obj.light_intensities[k].astype(np.float32)
-            linear[clipped | black] = np.nan
+            if is_flash:
+                # A clipped flash pixel is right-censored, brighter than it reads: +inf is the
+                # float image's clip mark, so extraction counts it (a bin half clipped or more is
+                # left empty). As NaN it vanished, and a bin kept its dimmer unclipped rest.
+                linear[raw >= top] = np.inf
+            else:
+                linear[clipped | black] = np.nan
             unseen = np.zeros_like(clipped) if is_flash else facing_away
             linear[unseen] = np.nan
             name = src.stem + ".exr"
@@ -284,7 +292,8 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
                 "source": {"file": src.name, "index": k + 1, "bit_depth": raw.dtype.itemsize * 8,
                            f"divided_by_{top}_and_intensity_rgb":
                                [float(x) for x in obj.light_intensities[k]],
-                           "clipped_pixels_set_to_nan": int(clipped.sum()),
+                           ("clipped_pixels_set_to_inf" if is_flash else
+                            "clipped_pixels_set_to_nan"): int(clipped.sum()),
                            "black_pixels_set_to_nan": int(black.sum()),
                            # counted apart from the clipped and black ones it overlaps
                            "unseen_normal_pixels_set_to_nan":
@@ -306,7 +315,8 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
                 "world_frame": "DiLiGenT frame (x image right, y image up, z toward the camera); "
                                "world_from_camera = diag(1,-1,-1,1)",
                 "photos": "16-bit PNG / 65535 (8-bit: / 255) / light_intensities.txt row (RGB), "
-                          "float32 EXR; clipped pixels (the top code value) are NaN",
+                          "float32 EXR; clipped pixels (the top code value) are NaN, "
+                          "in the flash photo +inf (clipped)",
                 "cite": "B. Shi et al., A Benchmark Dataset and Evaluation for Non-Lambertian and "
                         "Uncalibrated Photometric Stereo, CVPR 2016 (research use only)",
             },
