@@ -18,7 +18,7 @@ from flashbrdf.pipeline.label_files import (faces_path, read_face_labels, read_l
 from flashbrdf.pipeline.options import fewer_materials_warning, materials_option
 from flashbrdf.slice_extract import ExtractOptions, extract_slice
 from flashbrdf.slice_extract.extract import collect_samples, extract_material_slices
-from flashbrdf.slice_extract.segment import segment_scene
+from flashbrdf.slice_extract.segment import coarse_faces_warning, segment_scene
 from flashbrdf.slice_extract.slice_files import (material_coverage, write_extraction,
                                                  write_material_slices)
 
@@ -93,9 +93,10 @@ def segment(scene_dir, out, materials="auto", albedo_out=None):
     traced = time.perf_counter()
     segmentation, faces = segment_scene(samples, materials)
     done = time.perf_counter()
-    fewer = fewer_materials_warning(segmentation, materials)
-    if fewer:
-        print(f"warning: {fewer}", file=sys.stderr)
+    for warning in (fewer_materials_warning(segmentation, materials),
+                    coarse_faces_warning(segmentation, faces, scene)):
+        if warning:
+            print(f"warning: {warning}", file=sys.stderr)
     albedo_written = False
     try:
         if albedo_out:  # computed before anything is written: a failure leaves no file

@@ -28,6 +28,7 @@ from flashbrdf.render.images import write_preview
 from flashbrdf.render.scene_render import SceneGeometry
 from flashbrdf.slice_extract import ExtractOptions
 from flashbrdf.slice_extract.extract import bin_samples, extract_material_slices
+from flashbrdf.slice_extract.segment import coarse_faces_warning
 from flashbrdf.slice_extract.slice_files import (NARROW_LAST_THETA_H_DEG, material_coverage,
                                                  write_extraction, write_material_slices)
 
@@ -78,8 +79,9 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
     whole = stages.run("extract", bin_samples, samples, photo_levels=False)
     write_extraction(out / "slice.csv", settings.scene_dir, whole, ExtractOptions(),
                      final_path=settings.final_out / "slice.csv")
-    for w in whole.report.get("warnings", []):  # the flash too far from the lens: every material
-        print(f"warning: {w}", file=sys.stderr)
+    coarse = coarse_faces_warning(segmentation, faces, scene)
+    for w in whole.report.get("warnings", []) + ([coarse] if coarse else []):
+        print(f"warning: {w}", file=sys.stderr)  # the flash too far from the lens: every material
         warnings.insert(0, w)
     for k, result in slices.items():
         if result is None:

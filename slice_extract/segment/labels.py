@@ -238,6 +238,18 @@ def check_labels(labels, shape, where, count=None):
     return k
 
 
+def face_label_agreement(labels, face_image, faces):
+    """The share (0..1) of the labelled pixels of labels (H, W) that hit a face (face_image
+    (H, W), -1 none) whose label in faces (F,) is theirs; None when none hits a face. A face
+    takes its pixels' majority label, so a mesh coarser than the materials' patches (a card
+    of several inks as two triangles) leaves most pixels of the minority materials off."""
+    seen = (face_image >= 0) & (labels > 0)
+    count = int(np.count_nonzero(seen))
+    if not count:
+        return None
+    return int(np.count_nonzero(np.asarray(faces)[face_image[seen]] == labels[seen])) / count
+
+
 def face_labels(labels, face_image, faces_centroids):
     """Label per mesh face (F,) int32 from a label image (H, W) and the face each pixel hits
     (H, W) int (-1 none); faces_centroids (F, 3). A seen face takes its pixels' majority label;

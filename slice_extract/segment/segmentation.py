@@ -5,6 +5,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from flashbrdf.capture import load_mesh
+from flashbrdf.capture.scene import same_view
 from flashbrdf.files.errors import InputError
 from flashbrdf.slice_extract.segment.clustering import Segmentation, SegmentOptions, cluster_samples
 from flashbrdf.slice_extract.segment.features import (
@@ -13,7 +14,12 @@ from flashbrdf.slice_extract.segment.features import (
     resolution_floor,
     theta_h_bins,
 )
-from flashbrdf.slice_extract.segment.labels import align_bin_labels, clean_label_image, face_labels
+from flashbrdf.slice_extract.segment.labels import (align_bin_labels, clean_label_image,
+                                                    face_label_agreement, face_labels)
+
+# share of the flash view's labelled pixels whose face carries their label, at least (faces
+# straddling a border between materials cost a few percent)
+FACES_CARRY = 0.9
 from flashbrdf.slice_extract.segment.slices import assign_all, refine_labels
 
 
@@ -95,4 +101,28 @@ def segment_scene(samples, materials="auto", options=None, empty_ok=False):
         mesh = samples.mesh if samples.mesh is not None else \
             load_mesh(samples.scene.geometry.mesh)[0]
         faces = face_labels(segmentation.labels, samples.face_image, mesh.triangles_center)
+        if segmentation.k > 1:
+            share = face_label_agreement(segmentation.labels, samples.face_image, faces)
+            if share is not None:
+                segmentation.criterion["faces_agree"] = round(share, 4)
     return segmentation, faces
+
+
+def coarse_faces_warning(segmentation, faces, scene):
+    """A warning line when the mesh's faces carry the flash view's materials on under
+    FACES_CARRY of its labelled pixels and some photo from another camera takes its materials
+    from them (LABELS.faces.npy); else None. Those photos then get a face's majority material
+    where the flash photo shows several, silently (a 2-triangle card: every view one ink)."""
+    share = segmentation.criterion.get("faces_agree")
+    flash = scene.photos_with_role("flash")
+    if faces is None or share is None or share >= FACES_CARRY or not flash:
+        return None
+    others = [p for p in scene.photos if p.role in ("flash", "reference")
+              and not same_view(p.camera, flash[0].camera)]
+    if not others:
+        return None
+    return (f"the mesh's {len(faces)} faces carry the flash view's {segmentation.k} materials "
+            f"on only {share:.0%} of its labelled pixels (a face takes its pixels' majority "
+            f"material): the {len(others)} photo(s) from other cameras take their materials "
+            "from the faces, so they are wrong where a face spans several; subdivide the mesh "
+            "into faces smaller than the materials' patches")
