@@ -52,14 +52,33 @@ def load_raw(path, saturation_fraction):
             high = sensels >= black + saturation_fraction * (white - black)
             low = sensels <= black
             flip = raw.sizes.flip
+            headroom = _white_balance_spread(raw)
+            # LibRaw's default (clip) scales the weakest white-balance channel to 65535 at the
+            # white level, so a channel with a larger multiplier clips in 16 bits before its
+            # sensels saturate (red x2.5 under a warm as-shot balance: at 40% of the sensor's
+            # range). "Ignore" scales the strongest channel there instead; the headroom is
+            # multiplied back in float.
             img = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=True,
                                   output_bps=16, output_color=rawpy.ColorSpace.sRGB,
-                                  user_flip=None)
+                                  highlight_mode=rawpy.HighlightMode.Ignore, user_flip=None)
         except rawpy.LibRawError as err:
             raise InputError(path, f"cannot decode RAW file: {err}") from None
     high = _to_output(high, flip, img.shape) | np.any(img >= 65535, axis=-1)
     low = _to_output(low, flip, img.shape) | np.any(img == 0, axis=-1)
-    return img.astype(np.float32) / np.float32(65535), ~(high | low), high & ~low
+    rgb = img.astype(np.float32) * np.float32(headroom / 65535)
+    return rgb, ~(high | low), high & ~low
+
+
+def _white_balance_spread(raw):
+    """max / min of the white-balance multipliers LibRaw applies (the camera's as-shot ones, or
+    its daylight ones when the file has none; a missing second green is the first's)."""
+    for multipliers in (raw.camera_whitebalance, raw.daylight_whitebalance):
+        wb = np.asarray(multipliers, dtype=np.float64)
+        if wb.size == 4 and wb[3] <= 0:
+            wb[3] = wb[1]
+        if np.all(np.isfinite(wb)) and np.all(wb > 0):
+            return float(wb.max() / wb.min())
+    return 1.0
 
 
 def _to_output(sensel_mask, flip, shape):

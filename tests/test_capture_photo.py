@@ -289,6 +289,29 @@ def test_colorchart_dng_grey_patches_neutral():
     assert 2.0 < means["white"].mean() / means["n6.5"].mean() < 3.0
 
 
+def test_colorchart_dng_red_is_not_clipped_before_its_sensels_saturate():
+    """The as-shot white balance multiplies red by ~2.48 over green. No sensel of the file
+    reaches 78% of the sensor's range, so at SATURATION_FRACTION (98%) no pixel is clipped; a
+    16-bit decode that scales green's white level to 65535 clipped red at 1/2.48 = 40% of the
+    range instead (0.15% of the pixels flagged, red capped at 1). The level is unchanged: where
+    that decode did not clip, the two agree (median ratio within 0.2%: codes over 2000 carry
+    16-bit rounding under 0.1%)."""
+    import rawpy
+    from flashbrdf.capture.photo import SATURATION_FRACTION
+    from flashbrdf.capture.raw import load_raw
+    path = shared_path("data", "real", "raw", "colorchart.dng")
+    rgb, usable, clipped = load_raw(path, SATURATION_FRACTION)
+    assert not clipped.any()
+    assert rgb[..., 0].max() > 1.2   # above the old cap of 1.0
+    with rawpy.imread(str(path)) as raw:
+        capped = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=True,
+                                 output_bps=16, output_color=rawpy.ColorSpace.sRGB,
+                                 user_flip=None)
+    inside = (capped < 65535).all(-1) & (capped > 2000).all(-1)
+    ratio = np.median(rgb[inside] / (capped[inside] / 65535.0), axis=0)
+    assert np.abs(ratio - 1).max() < 0.002
+
+
 def test_diligent_png_loads_as_16_bit():
     path = shared_path("data", "real", "diligent-ball", "001.png")
     rgb, usable = capture.load_photo(path)
