@@ -1,5 +1,6 @@
-"""Camera RAW through rawpy (LibRaw): linear, no gamma, no auto-brightness, camera white balance,
-black and white levels honoured, output in linear sRGB primaries.
+"""Camera RAW through rawpy (LibRaw): linear, no gamma, no auto-brightness, camera white balance
+(daylight when the file has none), black and white levels honoured, output in linear sRGB
+primaries.
 
 Only this module imports rawpy, and only when a RAW file is loaded.
 
@@ -52,13 +53,17 @@ def load_raw(path, saturation_fraction):
             high = sensels >= black + saturation_fraction * (white - black)
             low = sensels <= black
             flip = raw.sizes.flip
-            headroom = _white_balance_spread(raw)
+            multipliers = white_balance(raw)
             # LibRaw's default (clip) scales the weakest white-balance channel to 65535 at the
             # white level, so a channel with a larger multiplier clips in 16 bits before its
             # sensels saturate (red x2.5 under a warm as-shot balance: at 40% of the sensor's
             # range). "Ignore" scales the strongest channel there instead; the headroom is
-            # multiplied back in float.
-            img = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=True,
+            # multiplied back in float. The multipliers are passed in, so the headroom is theirs:
+            # with use_camera_wb, a file without an as-shot balance gets LibRaw's grey-world
+            # one (LibRaw >= 0.20), whose spread is known only inside LibRaw.
+            headroom = float(multipliers.max() / multipliers.min())
+            img = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=False,
+                                  user_wb=[float(m) for m in multipliers],
                                   output_bps=16, output_color=rawpy.ColorSpace.sRGB,
                                   highlight_mode=rawpy.HighlightMode.Ignore, user_flip=None)
         except rawpy.LibRawError as err:
@@ -69,16 +74,23 @@ def load_raw(path, saturation_fraction):
     return rgb, ~(high | low), high & ~low
 
 
-def _white_balance_spread(raw):
-    """max / min of the white-balance multipliers LibRaw applies (the camera's as-shot ones, or
-    its daylight ones when the file has none; a missing second green is the first's)."""
-    for multipliers in (raw.camera_whitebalance, raw.daylight_whitebalance):
-        wb = np.asarray(multipliers, dtype=np.float64)
-        if wb.size == 4 and wb[3] <= 0:
-            wb[3] = wb[1]
-        if np.all(np.isfinite(wb)) and np.all(wb > 0):
-            return float(wb.max() / wb.min())
-    return 1.0
+def white_balance(raw):
+    """The 4 white-balance multipliers (R, G, B, second G) (4,) float64 a decode applies, as
+    LibRaw's scale_colors picks them for use_camera_wb: the camera's as-shot ones when its red
+    and blue are set, else the daylight ones (LibRaw's fallback would be a grey-world balance
+    of the photo, which takes the object's own colour out); a missing green is 1, a missing
+    fourth is the green (a 4-colour sensor's: 1); all 1 when the file has neither."""
+    camera = np.asarray(raw.camera_whitebalance, dtype=np.float64)
+    daylight = np.asarray(raw.daylight_whitebalance, dtype=np.float64)
+    wb = camera if camera[0] > 1e-5 and camera[2] > 1e-5 else daylight
+    wb = wb.copy()
+    if wb[1] == 0:
+        wb[1] = 1.0
+    if wb[3] == 0:
+        wb[3] = wb[1] if raw.num_colors < 4 else 1.0
+    if not (np.all(np.isfinite(wb)) and np.all(wb > 1e-5)):
+        return np.ones(4)
+    return wb
 
 
 def _to_output(sensel_mask, flip, shape):

@@ -312,6 +312,67 @@ def test_colorchart_dng_red_is_not_clipped_before_its_sensels_saturate():
     assert np.abs(ratio - 1).max() < 0.002
 
 
+def _without_as_shot_balance(dng, out):
+    """A copy of the DNG whose AsShotNeutral tag (50728) is renamed to an unknown one: a RAW
+    file with no camera white balance (LibRaw then reads camera_whitebalance as [0, 1, 0, 0])."""
+    import struct
+    data = bytearray(Path(dng).read_bytes())
+    order = "<" if data[:2] == b"II" else ">"
+    offset = struct.unpack(order + "I", data[4:8])[0]
+    while offset:
+        count = struct.unpack(order + "H", data[offset:offset + 2])[0]
+        for entry in range(offset + 2, offset + 2 + 12 * count, 12):
+            if struct.unpack(order + "H", data[entry:entry + 2])[0] == 50728:
+                struct.pack_into(order + "H", data, entry, 65000)
+        after = offset + 2 + 12 * count
+        offset = struct.unpack(order + "I", data[after:after + 4])[0]
+    Path(out).write_bytes(bytes(data))
+    return out
+
+
+def test_raw_without_as_shot_balance_is_daylight_balanced_at_its_level(tmp_path):
+    """A RAW with no as-shot white balance: LibRaw (>= 0.20) would balance it grey-world, whose
+    multipliers the headroom did not know (colorchart.dng so stripped came out 1.222x too
+    bright in every channel, and tinted by the scene). It is decoded with the daylight
+    multipliers, at the level of a 16-bit decode with them where that one does not clip
+    (median ratio within 0.2%, as in the test above)."""
+    import rawpy
+    from flashbrdf.capture.photo import SATURATION_FRACTION
+    from flashbrdf.capture.raw import load_raw, white_balance
+    path = _without_as_shot_balance(shared_path("data", "real", "raw", "colorchart.dng"),
+                                    tmp_path / "no_wb.dng")
+    rgb, usable, clipped = load_raw(path, SATURATION_FRACTION)
+    with rawpy.imread(str(path)) as raw:
+        assert raw.camera_whitebalance[0] == 0  # the file has no camera balance
+        daylight = list(raw.daylight_whitebalance[:3]) + [raw.daylight_whitebalance[1]]
+        assert np.allclose(white_balance(raw), daylight)
+        capped = raw.postprocess(gamma=(1, 1), no_auto_bright=True, use_camera_wb=False,
+                                 user_wb=daylight, output_bps=16,
+                                 output_color=rawpy.ColorSpace.sRGB, user_flip=None)
+    inside = (capped < 65535).all(-1) & (capped > 2000).all(-1)
+    ratio = np.median(rgb[inside] / (capped[inside] / 65535.0), axis=0)
+    assert np.abs(ratio - 1).max() < 0.002
+
+
+@pytest.mark.parametrize("camera, daylight, colours, expected", [
+    ([2.0, 1.0, 1.5, 1.1], [9, 9, 9, 9], 3, [2.0, 1.0, 1.5, 1.1]),  # 4 distinct: all 4 count
+    ([2.0, 1.0, 1.5, 0.0], [9, 9, 9, 9], 3, [2.0, 1.0, 1.5, 1.0]),  # no 2nd green: the green
+    ([2.0, 0.0, 1.5, 0.0], [9, 9, 9, 9], 3, [2.0, 1.0, 1.5, 1.0]),  # no green: 1 (LibRaw's)
+    ([2.0, 0.5, 1.5, 0.0], [9, 9, 9, 9], 4, [2.0, 0.5, 1.5, 1.0]),  # 4-colour sensor: 1
+    ([0.0, 1.0, 0.0, 0.0], [2.4, 0.9, 1.3, 0.0], 3, [2.4, 0.9, 1.3, 0.9]),  # none: daylight
+    ([-1.0, 1.0, 1.0, 0.0], [2.4, 0.9, 1.3, 0.0], 3, [2.4, 0.9, 1.3, 0.9]),  # "auto": daylight
+    ([0.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0], 3, [1.0, 1.0, 1.0, 1.0]),  # neither: 1
+])
+def test_white_balance_picks_libraw_multipliers(camera, daylight, colours, expected):
+    """The multipliers passed to LibRaw (user_wb) and whose max / min is the headroom: LibRaw's
+    scale_colors rules for a missing green or fourth channel, daylight without a camera one."""
+    from types import SimpleNamespace
+    from flashbrdf.capture.raw import white_balance
+    raw = SimpleNamespace(camera_whitebalance=camera, daylight_whitebalance=daylight,
+                          num_colors=colours)
+    assert white_balance(raw).tolist() == expected
+
+
 def test_diligent_png_loads_as_16_bit():
     path = shared_path("data", "real", "diligent-ball", "001.png")
     rgb, usable = capture.load_photo(path)
