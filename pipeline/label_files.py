@@ -16,7 +16,7 @@ from flashbrdf.capture import load_mesh, scene_intersector, surface_sample
 from flashbrdf.capture.photo import imread_unchanged
 from flashbrdf.files.atomic import atomic_path
 from flashbrdf.files.errors import DECODE_ERRORS, InputError
-from flashbrdf.slice_extract.segment import check_labels
+from flashbrdf.slice_extract.segment import check_labels, face_label_agreement
 
 FACES_AGREE = 0.5  # share of labelled pixels whose face carries their label, at least
 FACES_SAMPLE = 20_000  # pixels traced to measure it (the whole flash view at 24 MP: seconds)
@@ -188,13 +188,10 @@ def faces_agree(npy, faces, labels, scene, png_name, intersector=None):
     camera = flash_photo_camera(scene, "--labels")
     # a share that close to 0 or 1 needs no more than a sample of the view
     surface = surface_sample(intersector or scene_intersector(scene), camera, FACES_SAMPLE)
-    mine = labels[surface.rows, surface.cols]
-    on = mine > 0
-    seen = int(np.count_nonzero(on))
-    agree = int(np.count_nonzero(faces[surface.face[on]] == mine[on]))
-    if seen and agree < FACES_AGREE * seen:
+    share = face_label_agreement(labels[surface.rows, surface.cols], surface.face, faces)
+    if share is not None and share < FACES_AGREE:
         raise InputError(npy, f"disagrees with {png_name} on "
-                              f"{1 - agree / seen:.0%} of the object's labelled pixels in the "
+                              f"{1 - share:.0%} of the object's labelled pixels in the "
                               "flash view: it belongs to another label image (write both with "
                               "`segment`, or delete it to label only the flash view)")
 

@@ -66,13 +66,13 @@ from flashbrdf.slice_extract.segment.interreflection import (interreflection_gap
                                                              nonconvex_mask, normal_noise)
 from flashbrdf.slice_extract.segment.labels import (BORDER_MIN_BIN, align_bin_labels,
                                                     border_width_px, check_labels,
-                                                    clean_label_image, face_labels,
-                                                    material_interior)
+                                                    clean_label_image, face_label_agreement,
+                                                    face_labels, material_interior)
 from flashbrdf.slice_extract.segment.segmentation import (coarse_faces_warning, segment_samples,
                                                           segment_scene)
 
 __all__ = ["BORDER_MIN_BIN", "Segmentation", "SegmentOptions", "align_bin_labels",
            "border_width_px", "check_labels", "clean_label_image", "cluster_samples",
-           "face_labels", "interreflection_gaps", "material_features", "material_interior",
-           "nonconvex_mask", "normal_noise", "resolution_floor", "segment_samples",
-           "segment_scene", "coarse_faces_warning"]
+           "coarse_faces_warning", "face_label_agreement", "face_labels", "interreflection_gaps",
+           "material_features", "material_interior", "nonconvex_mask", "normal_noise",
+           "resolution_floor", "segment_samples", "segment_scene"]

@@ -240,7 +240,8 @@ def check_labels(labels, shape, where, count=None):
 
 def face_label_agreement(labels, face_image, faces):
     """The share (0..1) of the labelled pixels of labels (H, W) that hit a face (face_image
-    (H, W), -1 none) whose label in faces (F,) is theirs; None when none hits a face. A face
+    (H, W), -1 none) whose label in faces (F,) is theirs; None when none hits a face. Any
+    matching shapes do: a sample of pixels (N,) and the faces they hit. A face
     takes its pixels' majority label, so a mesh coarser than the materials' patches (a card
     of several inks as two triangles) leaves most pixels of the minority materials off."""
     seen = (face_image >= 0) & (labels > 0)

@@ -16,11 +16,11 @@ from flashbrdf.slice_extract.segment.features import (
 )
 from flashbrdf.slice_extract.segment.labels import (align_bin_labels, clean_label_image,
                                                     face_label_agreement, face_labels)
+from flashbrdf.slice_extract.segment.slices import assign_all, refine_labels
 
 # share of the flash view's labelled pixels whose face carries their label, at least (faces
 # straddling a border between materials cost a few percent)
 FACES_CARRY = 0.9
-from flashbrdf.slice_extract.segment.slices import assign_all, refine_labels
 
 
 def segment_samples(samples, materials="auto", options=None, empty_ok=False):
