@@ -79,9 +79,10 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
     whole = stages.run("extract", bin_samples, samples, photo_levels=False)
     write_extraction(out / "slice.csv", settings.scene_dir, whole, ExtractOptions(),
                      final_path=settings.final_out / "slice.csv")
+    # warnings of every material: the flash too far from the lens, a mesh too coarse for them
     coarse = coarse_faces_warning(segmentation, faces, scene)
     for w in whole.report.get("warnings", []) + ([coarse] if coarse else []):
-        print(f"warning: {w}", file=sys.stderr)  # the flash too far from the lens: every material
+        print(f"warning: {w}", file=sys.stderr)
         warnings.insert(0, w)
     for k, result in slices.items():
         if result is None:
