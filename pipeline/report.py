@@ -4,7 +4,8 @@ Built from plain inputs, so any caller can use it:
 - stages: {name: seconds}, in run order.
 - observed: {"rho": (90,3) 1/sr NaN where empty, "n": (90,) int, "spread": (90,3) 1/sr or None}.
 - predictions: {method: {"table": (90,90,3) or (90,90,180,3) 1/sr, "variance": (90,90[,3]) or None,
-  "variance_label": str, "file": path}} (a bare table is accepted as the value too).
+  "variance_label": str, optional "interval_offset" (report_data.variance_description), "file":
+  path}} (a bare table is accepted as the value too).
 - references: [{"photo", "method", "delta_e_log_mean", "rel_rmse", optional "delta_e_log_median",
   "pixels", "render", "reference", "delta_e_map", "mask" (arrays or image paths), and any extra
   JSON scalars such as "light_angle_deg", or "level_ratio_rgb" (3,) (render.compare.level_ratio):

@@ -20,6 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from flashbrdf.brdf.colour import FEATURE_OFFSET
 from flashbrdf.brdf.views import table_2d_view, table_in_plane, variance_2d_view
 from flashbrdf.files.errors import InputError
 from flashbrdf.render import images
@@ -206,11 +207,27 @@ def uniform_value(values):
     return None
 
 
-def brdf_entry(table, variance=None, variance_label="uncertainty", variance_note=None):
+def variance_description(method):
+    """{"variance_label", "interval_offset"} of a fitted method's predictive variance, for the
+    report's figures and page. interval_offset: ε in 1/sr when the variance is per channel of
+    ln(1 + ρ/ε) (brdf.colour's log-RGB features, the shipped model's), so that the page can show
+    the central 90% interval (ρ + ε)·exp(±1.645 σ) − ε in 1/sr; None for other feature spaces
+    (CIELAB mixes the channels: no per-channel interval follows from its variance)."""
+    return {"variance_label": "predictive variance ("
+                              + getattr(method, "feature_label", "features") + ")",
+            "interval_offset": (FEATURE_OFFSET if getattr(method, "feature_space", None) == "rgb"
+                                else None)}
+
+
+def brdf_entry(table, variance=None, variance_label="uncertainty", variance_note=None,
+               interval_offset=None):
     """One method's BRDF for the page: the 2D table (a 3D one's phi_d mean) and, for a 3D
     table, its plane of incidence (the polar plot's); its uncertainty as a map, as one number
-    (every bin alike: one isotropic GP per view), or absent (variance_note: why)."""
+    (every bin alike: one isotropic GP per view), or absent (variance_note: why);
+    interval_offset: see variance_description."""
     entry = {"table": float32_b64(table_2d_view(table)), "variance_label": variance_label}
+    if interval_offset is not None:
+        entry["interval_offset"] = float(interval_offset)
     if np.ndim(table) == 4:
         entry["in_plane"] = float32_b64(table_in_plane(table))
     if variance_note:

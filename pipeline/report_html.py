@@ -38,7 +38,7 @@ def write_report_html(out_dir, report, references=(), observed=None, predictions
 
     report: the dict write_report wrote to report.json; references: its reference rows with
     arrays (or image paths) "render", "reference", "delta_e_map", "mask"; observed: {"rho",
-    "n", "spread"} or None; predictions: {method: {"table", "variance", "variance_label"}} or
+    "n", "spread"} or None; predictions: {method: {"table", "variance", "variance_label", "interval_offset"}} or
     None; materials: with several materials, {"labels": (H, W) int label image, "each": {k:
     {"observed": like observed, "predictions": like predictions}}} (what `run` has in memory:
     nothing is read back from OUT_DIR); level_note, how_to_read: report.md's texts
@@ -135,7 +135,8 @@ def _brdf_datasets(observed, predictions, materials=None):
     the whole object's and, with several materials, each material's."""
     def entries(predictions):
         return {str(method): data.brdf_entry(p["table"], p.get("variance"),
-                                             p.get("variance_label", "uncertainty"))
+                                             p.get("variance_label", "uncertainty"),
+                                             interval_offset=p.get("interval_offset"))
                 for method, p in (predictions or {}).items()}
     datasets = [{"name": "the whole object", "material": None,
                  "observed": _observed_entry(observed), "methods": entries(predictions)}]

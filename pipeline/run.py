@@ -27,6 +27,7 @@ from flashbrdf.pipeline.options import (fewer_materials_warning, materials_optio
                                         model_path, samples_per_pixel)
 from flashbrdf.pipeline.previews import previews_under_envmap
 from flashbrdf.pipeline.report import write_report
+from flashbrdf.pipeline.report_data import variance_description
 from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
 from flashbrdf.pipeline.run_materials import (label_section, material_entries, run_albedo_map,
                                               run_materials)
@@ -141,8 +142,7 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
             ood_warnings.append(prediction.warning.removeprefix("warning: "))
         predictions[name] = {"table": prediction.table, "variance": prediction.variance,
                              "file": f"{name}/brdf.binary",
-                             "variance_label": "predictive variance (" + getattr(
-                                 fitted[name], "feature_label", "features") + ")"}
+                             **variance_description(fitted[name])}
         if prediction.view == "2d":
             two_d.append(name)
 

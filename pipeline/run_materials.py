@@ -21,6 +21,7 @@ from flashbrdf.pipeline.albedo_files import albedo_for_scene, write_albedo
 from flashbrdf.pipeline.label_files import write_labels
 from flashbrdf.pipeline.previews import previews_under_envmap
 from flashbrdf.pipeline.report import coverage, write_report
+from flashbrdf.pipeline.report_data import variance_description
 from flashbrdf.pipeline.run_export import export_for_report, export_method, scene_envmap
 from flashbrdf.pipeline.run_steps import drop_scratch, infer_method, render_and_compare
 from flashbrdf.render import DiffuseAlbedoMap, MaterialMap
@@ -153,11 +154,10 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
         page["each"][k] = {"observed": observed, "predictions": {}}
         for m in settings.methods:
             prediction = tables[m][k]
-            label = "predictive variance (" + getattr(fitted[m], "feature_label",
-                                                      "features") + ")"
+            described = variance_description(fitted[m])
+            label = described["variance_label"]
             page["each"][k]["predictions"][m] = {"table": prediction.table,
-                                                 "variance": prediction.variance,
-                                                 "variance_label": label}
+                                                 "variance": prediction.variance, **described}
             name = f"material_{k}_brdf_{m}.png"
             figs.brdf_images(fig_dir / name, f"{m}, material {k}", table_2d_view(prediction.table),
                              variance_2d_view(prediction.variance), label)

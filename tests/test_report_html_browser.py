@@ -371,6 +371,16 @@ def test_every_brdf_plot_reads_out_from_the_keyboard(page):
     assert text.startswith(f"{method}: θh 0.07°, θd 10.5° → ρ (")
     shown = [float(v) for v in text.split("(")[1].split(")")[0].split()]
     assert np.allclose(shown, want, rtol=5e-4)             # 4 significant digits of float32
+    # the shipped model's variance is per channel of ln(1 + rho/1e-3): its 90% interval in 1/sr
+    var = np.array(page.page.evaluate(f"""() => {{ const v = dataset(0).methods["{method}"].variance;
+        const o = 3 * (90 * 2 + 10); return [v[o], v[o + 1], v[o + 2]]; }}"""))
+    half = 1.6448536269514722 * np.sqrt(var)
+    lo, hi = [np.maximum((np.array(want) + 1e-3) * np.exp(s * half) - 1e-3, 0) for s in (-1, 1)]
+    bounds = text.split("90% interval (")[1]
+    shown_lo = [float(v) for v in bounds.split(")")[0].split()]
+    shown_hi = [float(v) for v in bounds.split("to (")[1].split(")")[0].split()]
+    assert np.allclose(shown_lo, lo, rtol=5e-4) and np.allclose(shown_hi, hi, rtol=5e-4)
+    assert (np.array(shown_lo) < want).all() and (np.array(shown_hi) > want).all()
     page.page.locator("#polar-plot").focus()
     page.page.keyboard.press("ArrowLeft")
     assert page.page.inner_text("#polar-readout").startswith("θo 0.0°")

@@ -296,3 +296,19 @@ def test_the_page_keeps_its_image_budget_when_the_first_photo_deflates_better(tm
     # ~0.01: a 1 MB budget needs a factor of at least 2
     info = write_report_html(tmp_path, {"title": "budget"}, rows, budget=1 << 20)
     assert info["image_bytes"] <= 1 << 20 and info["image_factor"] >= 2
+
+
+def test_a_per_channel_log_variance_carries_its_interval_offset_and_cielab_does_not():
+    """The page turns a variance per channel of ln(1 + rho/eps) into a 90% interval in 1/sr; a
+    CIELAB variance mixes the channels, so no offset is given for it (and none is shown)."""
+    from types import SimpleNamespace
+    from flashbrdf.brdf.colour import FEATURE_OFFSET
+    from flashbrdf.pipeline.report_data import brdf_entry, variance_description
+    rgb = variance_description(SimpleNamespace(feature_space="rgb", feature_label="RGB of x"))
+    lab = variance_description(SimpleNamespace(feature_space="lab", feature_label="CIELAB of x"))
+    assert rgb == {"variance_label": "predictive variance (RGB of x)",
+                   "interval_offset": FEATURE_OFFSET}
+    assert lab["interval_offset"] is None and variance_description(object())["interval_offset"] is None
+    table = np.full((90, 90, 3), 0.5)
+    assert brdf_entry(table, None, **rgb)["interval_offset"] == FEATURE_OFFSET
+    assert "interval_offset" not in brdf_entry(table, None, **lab)

@@ -4,6 +4,7 @@
 "use strict";
 
 const HALF_PI = Math.PI / 2;
+const Z90 = 1.6448536269514722;   // half-width of a unit normal's central 90% interval
 const THETA_H_DEG = Array.from({length: 90}, (_, i) => 90 * ((i + 0.5) / 90) ** 2);
 const B = {dataset: 0, channel: 3, hidden: new Set(), decoded: new Map()};
 
@@ -19,7 +20,7 @@ function dataset(index) {  // META.brdf[index] with its base64 arrays decoded, o
     out.methods[m] = {table: float32s(e.table), inPlane: e.in_plane ? float32s(e.in_plane) : null,
                       variance: e.variance ? float32s(e.variance) : null,
                       constant: e.variance_constant ?? null, label: e.variance_label,
-                      note: e.variance_note ?? null};
+                      note: e.variance_note ?? null, offset: e.interval_offset ?? null};
   }
   B.decoded.set(index, out);
   return out;
@@ -352,6 +353,12 @@ function heatmaps() {
       let text = readoutPrefix() + `${m}: θh ${THETA_H_DEG[i].toFixed(2)}°, θd ${(j + 0.5).toFixed(1)}° → ρ ` +
         `(${fmtRGB([t[o], t[o + 1], t[o + 2]]).trim()}) 1/sr`;
       if (e.variance) text += ` · ${e.label} (${fmtRGB([e.variance[o], e.variance[o + 1], e.variance[o + 2]]).trim()})`;
+      if (e.variance && e.offset !== null) {
+        // per channel of ln(1 + ρ/ε): the central 90% interval is (ρ + ε)·exp(±1.645 σ) − ε
+        const bound = (sign) => [0, 1, 2].map((c) => Math.max(
+          (t[o + c] + e.offset) * Math.exp(sign * Z90 * Math.sqrt(Math.max(e.variance[o + c], 0))) - e.offset, 0));
+        text += ` · 90% interval (${fmtRGB(bound(-1)).trim()}) to (${fmtRGB(bound(1)).trim()}) 1/sr`;
+      }
       readout.textContent = text;
     };
     const row = el("div", {class: "heatcard"});
