@@ -41,9 +41,10 @@ def write_batch_index(out_dir, rows, methods=(), header_lines=()):
                      "not of these inputs or options)")
         values = [(r.get("delta_e_log") or {}).get(m) for m in methods]
         best = min((v for v in values if v is not None), default=None)
-        # an ok capture with no ΔE compared nothing (no reference photo): said, not a blank
-        # cell that reads as a lost value
-        missing = ("<td title='nothing compared: the capture has no reference photo'>–</td>"
+        # an ok capture with no ΔE compared nothing (no reference photo, or no compared
+        # pixel): said, not a blank cell that reads as a lost value
+        missing = ("<td title='nothing compared: no reference photo, or none that sees the "
+                   "object'>–</td>"
                    if ok and best is None else "<td title='not compared'>–</td>" if ok else
                    "<td></td>")
         cells = "".join(missing if v is None else
@@ -66,7 +67,7 @@ def write_batch_index(out_dir, rows, methods=(), header_lines=()):
             f"<h2>{len(rows)} capture(s)</h2><ul>{notes}</ul>"
             "<p class=hint>Each capture's name opens its report.html (renders, BRDF, "
             "materials). ΔE log: the mean over its reference photos; the best per capture in "
-            "bold; –: nothing compared (no reference photo).</p>"
+            "bold; –: nothing compared (no reference photo, or none that sees the object).</p>"
             f"<table><thead><tr><th>capture</th><th>status</th>{head}<th>seconds</th>"
             f"<th>reason</th></tr></thead><tbody>{''.join(body)}</tbody></table>"
             "</section></main></body></html>\n")

@@ -268,7 +268,7 @@ def test_batch_index_links_each_report_and_is_known_to_the_next_batch(tmp_path):
     assert "<td class=best>1.250</td>" in page and "pca/ref_1" not in page
     # an ok capture with no reference photo: a dash that says why, not a blank
     row = page.split("no photo</a></td>")[1].split("</tr>")[0]
-    assert row.count("<td title='nothing compared: the capture has no reference photo'>–</td>") == 2
+    assert row.count("<td title='nothing compared: no reference photo, or none that sees the object'>–</td>") == 2
     # (test_batch.py's summary test checks that a second batch accepts the index: write_summary
     # writes it, and the folder check knows it by INDEX_HEAD)
 
