@@ -9,7 +9,9 @@ iterative undistortPoints), so photos are never resampled: a photo's pixel (v, u
 (v, u) describe the same scene point, and the render stage can produce images on the same grid.
 """
 
+import collections
 import functools
+import threading
 
 import cv2
 import numpy as np
@@ -50,12 +52,37 @@ def pixel_rays(camera, rows, cols):
     return origins, directions
 
 
-@functools.lru_cache(maxsize=1)
+# Lens maps kept at once, in bytes (the most recently used first; the newest is always kept).
+# A capture's views often alternate between a few lenses (sample_data/colmap: two): one kept map
+# was rebuilt at every change of lens, half of a 12-view 1.5 MP extraction.
+LENS_GRID_CACHE_BYTES = 256 << 20
+_lens_grids = collections.OrderedDict()
+_lens_grids_lock = threading.Lock()
+
+
 def _undistorted_grid(width, height, intrinsics, distortion):
     """(2, H, W) float32 normalised (x, y) of every distorted pixel centre, for one set of
-    intrinsics (bytes keys). A photogrammetry capture shares one lens over its views, and the
+    intrinsics (bytes keys). A photogrammetry capture shares its lenses over its views, and the
     iterative undistortion was a third of a 24-MP view's extraction; float32 keeps 3e-8 (4e-4 px
-    at f = 7200), as fine as the float32 rays it feeds. One grid is kept (96 MB at 12 MP)."""
+    at f = 7200), as fine as the float32 rays it feeds. Maps are kept up to
+    LENS_GRID_CACHE_BYTES (one 24 MP map is 192 MB: then one is kept)."""
+    key = (width, height, intrinsics, distortion)
+    with _lens_grids_lock:
+        grid = _lens_grids.get(key)
+        if grid is not None:
+            _lens_grids.move_to_end(key)
+            return grid
+    grid = _compute_undistorted_grid(width, height, intrinsics, distortion)
+    with _lens_grids_lock:
+        _lens_grids[key] = grid
+        while len(_lens_grids) > 1 and (sum(g.nbytes for g in _lens_grids.values())
+                                        > LENS_GRID_CACHE_BYTES):
+            _lens_grids.popitem(last=False)
+    return grid
+
+
+def _compute_undistorted_grid(width, height, intrinsics, distortion):
+    """_undistorted_grid's map, computed (OpenCV's iterative undistortion of every pixel)."""
     k = np.frombuffer(intrinsics).reshape(3, 3)
     d = np.frombuffer(distortion)
     grid = np.empty((2, height, width), np.float32)
@@ -316,7 +343,7 @@ def _block_footprints(camera, cell_px):
                                np.asarray(camera.distortion, np.float64).tobytes(), cell_px)
 
 
-@functools.lru_cache(maxsize=1)
+@functools.lru_cache(maxsize=4)  # small (1/64 of a map): one per lens of a capture
 def _lens_block_extents(width, height, intrinsics, distortion, cell_px):
     """_block_footprints through a lens: min and max of the lens grid over each block, in
     undistorted pixel coordinates, once per lens (one pass over the cached grid)."""

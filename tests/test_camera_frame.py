@@ -100,3 +100,29 @@ def test_the_pixel_box_of_a_distorted_lens_holds_every_hit_and_little_else():
     assert hits.cols.min() >= c0 and hits.cols.max() < c1
     hit_area = (np.ptp(hits.rows) + 1) * (np.ptp(hits.cols) + 1)
     assert hit_area <= (r1 - r0) * (c1 - c0) <= 2.0 * hit_area < 0.25 * camera.width * camera.height
+
+
+def test_views_alternating_between_two_lenses_undistort_each_lens_once(monkeypatch):
+    """Views that alternate between two lenses (sample_data/colmap: two COLMAP cameras) kept one
+    undistortion map and rebuilt it at every change of lens: 12 maps for 12 views, half of a
+    1.5 MP extraction. Each lens's map is now built once (both fit the cache)."""
+    import collections
+
+    import flashbrdf.capture.camera as camera_module
+    monkeypatch.setattr(camera_module, "_lens_grids", collections.OrderedDict(), raising=False)
+    undistorted = []
+    real = camera_module.cv2.undistortPoints
+
+    def counted(points, *args, **kwargs):
+        undistorted.append(len(points))
+        return real(points, *args, **kwargs)
+
+    monkeypatch.setattr(camera_module.cv2, "undistortPoints", counted)
+    pose = _camera().world_from_camera
+    lenses = [Camera("pinhole", 40, 30, pose, fx=50.0, fy=50.0, cx=19.5, cy=14.5,
+                     distortion=np.array([k1, 0.0, 0.0, 0.0, 0.0])) for k1 in (-0.11, 0.07)]
+    rows, cols = (a.ravel() for a in np.indices(lenses[0].shape))
+    for view in range(6):
+        embree_rays(lenses[view % 2], rows, cols, np.zeros(3))
+    # one map per lens, each of its 40 x 30 pixels undistorted once (one batch: 1200 < 2^20)
+    assert undistorted == [40 * 30, 40 * 30]
