@@ -105,6 +105,25 @@ def test_noll_recovers_a_nonnegative_mixture_of_training_materials(mixed_set):
     np.testing.assert_allclose(table3[ih, jd, kd], mixture.valid_3d[0], rtol=1e-6)
 
 
+def test_noll_takes_a_training_table_darker_than_float32_holds(mixed_set):
+    """A training table at 1e-300 x a material (1e-303 1/sr: stored as 0 in MODEL.npz's float32
+    2D tables) beside ordinary ones. Its slice needed a weight past 1e300 to fit a bright slice:
+    the NNLS start overflowed and least_squares raised (a traceback from `infer` and from the
+    default, whose consensus runs noll). Noll reads such a slice as the stored tables hold it, 0.
+    The prediction passes through the slice as test_noll_passes_through_observed_samples says
+    (correction exact up to delta = 1e-9 1/sr, relative 1e-15 at 1e6 1/sr)."""
+    slices = mixed_set.slices.copy()
+    slices[3] *= 1e-300
+    tables = mixed_set.tables_2d.copy()
+    tables[3] = np.asarray(tables[3] * 1e-300, np.float32)
+    dark = TrainingSet(mixed_set.names, slices, tables)
+    for s in (np.full((90, 3), 1e6), mixed_set.slices[5].copy()):
+        table, _ = Noll().fit(dark).predict(s, "2d")
+        valid = np.isfinite(mixed_set.tables_2d[0]).all(-1)
+        assert np.isfinite(table[valid]).all() and (table[valid] >= 0).all()
+        np.testing.assert_allclose(table[:, 0], s, rtol=1e-6, atol=2e-9)
+
+
 def test_chandraker_recovers_a_theta_d_invariant_material():
     """Chandraker's assumption holds exactly: ρ depends on θh alone (a Blinn-like lobe over a
     diffuse floor). The 2D and 3D predictions from its slice equal the truth on every valid bin

@@ -41,7 +41,11 @@ class Noll(InferenceMethod):
 
     def fit(self, training):
         self.training_ = training
-        self.slices_ = np.asarray(training.slices, float)                 # (N, 90, 3)
+        slices = np.asarray(training.slices, float)                       # (N, 90, 3)
+        # a slice value the stored 2D tables (float32) hold as 0 is 0 here too: a table of
+        # ~1e-300 1/sr needs a weight past 1e300 to fit any slice, which overflowed the fit
+        with np.errstate(over="ignore"):  # past float32's range is inf, not 0: kept
+            self.slices_ = np.where(slices.astype(np.float32) == 0, 0.0, slices)
         return self
 
     def weights(self, rho):
