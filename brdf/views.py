@@ -48,7 +48,8 @@ def flash_slice(merl_table):
 def check_flash_slice(rho, where):
     """InputError naming `where` when the flash slice rho (90, 3) (flash_slice) holds no bin
     with all three channels: the table has no data at theta_d = 0, where every method starts (a
-    slice.csv row needs R, G and B)."""
+    slice.csv row needs R, G and B); or a value above MAX_SLICE_VALUE, which read_slice_csv
+    refuses (merl-slice wrote such a slice with exit 0)."""
     if not np.isfinite(rho).any():
         raise InputError(where, "has no value at theta_d = 0 (every bin of its first theta_d row "
                                 "is negative: no data): its flash slice is empty")
@@ -56,6 +57,11 @@ def check_flash_slice(rho, where):
         raise InputError(where, "has no theta_d = 0 bin with data in all three channels (a "
                                 "channel is negative, no data, throughout): its flash slice is "
                                 "empty")
+    top = np.nanmax(rho)
+    if top > MAX_SLICE_VALUE:  # a slice.csv holding it is refused by every reader
+        raise InputError(where, f"its flash slice reaches {top:.3g} 1/sr, above the "
+                                f"{MAX_SLICE_VALUE:g} a slice holds: not a BRDF (check the "
+                                "table's units)")
 
 
 def table_2d(merl_table):

@@ -228,6 +228,15 @@ SWEEP_CASES = [
     ("merl-slice", "no data at theta_d = 0 (an empty slice, exit 0)", lambda w, t: [
         "merl-slice", str(write(t, "m.binary", merl_body(w, no_theta_d_0))), "--out",
         out_path(t, "s.csv")], "m.binary"),
+    # stored 1e27 is ~7e23 1/sr: under MERL's 1e30 stored, past the 1e20 1/sr slice readers take
+    ("merl-slice", "values of 7e23 1/sr (a slice infer refuses, exit 0)", lambda w, t: [
+        "merl-slice", str(write(t, "m.binary", merl_body(
+            w, lambda body: np.where(body >= 0, 1e27, body)))), "--out", out_path(t, "s.csv")],
+     "m.binary"),
+    ("train", "a table of 7e23 1/sr (its slice is no BRDF infer reads)", lambda w, t: [
+        "train", "--merl-dir", str(w.merl_dir), "--merl-dir", str(write(empty(t), "m.binary",
+        merl_body(w, lambda body: np.where(body >= 0, 1e27, body))).parent), "--out",
+        out_path(t, "m.npz")], "m.binary"),
     # compare over no pixel (every metric null, exit 0)
     ("compare", "both images black", lambda w, t: [
         "compare", str(rgb_exr(t, value=0.0)), str(rgb_exr(t, "r.exr", value=0.0)), "--out",
