@@ -102,11 +102,19 @@ def sparse_tail_record(ignored, n):
             "n": [int(n[i]) for i in ignored]}
 
 
+MAX_COUNTS_LISTED = 6  # sparse_tail_note lists the counts of at most this many bins
+
+
 def sparse_tail_note(ignored, n):
     """One line for the terminal and the report about the bins without_sparse_tail emptied."""
     centres = np.degrees(theta_h_centres())
     where = (f"{centres[ignored[0]]:.1f} deg" if len(ignored) == 1 else
              f"{centres[ignored[0]]:.1f}-{centres[ignored[-1]]:.1f} deg")
+    counts = [int(n[i]) for i in ignored]
+    # a handful of counts, each; more, their range (89 of them made a 500-character line)
+    told = (", ".join(map(str, counts)) + " samples" if len(counts) <= MAX_COUNTS_LISTED else
+            f"{counts[0]} samples each" if min(counts) == max(counts) else
+            f"{min(counts)} to {max(counts)} samples")
     return (f"note: {len(ignored)} theta_h bin(s) past the last one of >= {tail_threshold(n):g} "
-            f"samples ({where}, {', '.join(str(int(n[i])) for i in ignored)} samples) lie on "
-            "the photo's periphery; inference treats them as missing")
+            f"samples ({where}, {told}) lie on the photo's periphery; inference treats them as "
+            "missing")
