@@ -23,15 +23,15 @@ def robust_cholesky(matrix, max_tries=10):
     if not np.all(np.isfinite(matrix)):
         raise np.linalg.LinAlgError("matrix has non-finite entries")
     scale = float(np.mean(np.abs(np.diag(matrix)))) or 1.0
-    jitter = 0.0
-    for attempt in range(max_tries):
+    jitters = [0.0] + [scale * 1e-10 * 10.0 ** k for k in range(max_tries - 1)]
+    for jitter in jitters:
         try:
             factor = linalg.cholesky(matrix + jitter * np.eye(len(matrix)), lower=True,
                                      check_finite=False)
             return factor, jitter
         except linalg.LinAlgError:
-            jitter = scale * 1e-10 * 10.0 ** attempt
-    raise np.linalg.LinAlgError(f"not positive definite even with jitter {jitter:g}")
+            pass
+    raise np.linalg.LinAlgError(f"not positive definite even with jitter {jitters[-1]:g}")
 
 
 def squared_distances(a, b=None):

@@ -7,6 +7,7 @@ posterior variance lies between the noise and the prior variance. RuntimeWarning
 """
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -101,3 +102,10 @@ def test_dsgplvm_fits_and_predicts_finite_from_near_duplicate_rows(seed, gap, co
     # the view mean is folded in: each row of weights sums to 1 (rounding of 7 terms)
     np.testing.assert_allclose(weights.sum(axis=1), 1.0, atol=1e-9)
     assert np.isfinite(model.novelty(probe)).all()
+
+
+def test_a_matrix_no_jitter_mends_names_the_largest_jitter_tried():
+    """[[1, 0], [0, -1]] stays indefinite under every jitter tried (1e-10 to 1e-2 of its mean
+    |diagonal|, 1): the error names 0.01, the last one tried, not a tenfold one never tried."""
+    with pytest.raises(np.linalg.LinAlgError, match=r"jitter 0\.01$"):
+        robust_cholesky(np.diag([1.0, -1.0]))
