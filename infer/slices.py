@@ -113,7 +113,7 @@ def sparse_tail_note(ignored, n):
     counts = [int(n[i]) for i in ignored]
     # a handful of counts, each; more, their range (89 of them made a 500-character line)
     told = (", ".join(map(str, counts)) + " samples" if len(counts) <= MAX_COUNTS_LISTED else
-            f"{counts[0]} samples each" if min(counts) == max(counts) else
+            f"{counts[0]} sample{'s' * (counts[0] != 1)} each" if min(counts) == max(counts) else
             f"{min(counts)} to {max(counts)} samples")
     return (f"note: {len(ignored)} theta_h bin(s) past the last one of >= {tail_threshold(n):g} "
             f"samples ({where}, {told}) lie on the photo's periphery; inference treats them as "

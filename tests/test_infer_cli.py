@@ -279,7 +279,7 @@ def test_sparse_tail_record_tells_the_threshold_used(tmp_path, capsys):
         assert record["min_samples"] == 2.0 and record["n"] == [1] * 10
         err = capsys.readouterr().err
         # ten bins of one sample: said once, not ten counts
-        assert "past the last one of >= 2 samples (" in err and "deg, 1 samples each)" in err
+        assert "past the last one of >= 2 samples (" in err and "deg, 1 sample each)" in err
         reports.append(record)
     assert reports[0] == reports[1]
 
