@@ -20,6 +20,7 @@ DELTA_E_PNG = "delta_e.png"
 
 
 COMPARE_CHUNK = 1 << 20   # pixels per block of the ΔE computation
+_FONTS_PARSED = []        # non-empty once the first ΔE figure has been drawn and collected
 
 
 def comparison_mask(pred, ref, mask=None):
@@ -82,7 +83,7 @@ def level_ratio(pred, ref, mask=None):
                         np.nan)
 
 
-def write_delta_e_png(path, delta_e, title="log-CIELAB $\\Delta E^*_{ab}$", vmax=None):
+def write_delta_e_png(path, delta_e, title="log-CIELAB ΔE*ab", vmax=None):
     """False-colour Delta E map with a colour bar, cropped to the compared pixels (plus a
     4-pixel margin); NaN (not compared) pixels are grey."""
     # matplotlib.pyplot costs 1.2 s to import (python -X importtime): only this figure needs it
@@ -105,14 +106,18 @@ def write_delta_e_png(path, delta_e, title="log-CIELAB $\\Delta E^*_{ab}$", vmax
                    interpolation="nearest")
     ax.set_axis_off()
     ax.set_title(title)
-    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="$\\Delta E^*_{ab}$")
+    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="ΔE*ab")
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", bbox_inches="tight")
     plt.close(fig)
-    # mathtext's parser (pyparsing) leaves a caught exception in a reference cycle whose
-    # traceback keeps this call's frames, and through f_back the callers' (the render, the
-    # full-size delta_e map, the masks: ~0.6 GB a photo at 24 MP) until a full collection
-    gc.collect()
+    if not _FONTS_PARSED:
+        # matplotlib's first figure parses its font patterns with pyparsing, whose caught
+        # exceptions keep their tracebacks, and through them this call's frames and the callers'
+        # (the render, the full-size delta_e map, the masks: ~0.6 GB a photo at 24 MP), in a
+        # reference cycle: collected once here. Later figures make none (plain-text labels: a
+        # mathtext label makes such a cycle at every figure).
+        gc.collect()
+        _FONTS_PARSED.append(True)
 
 
 def write_comparison(out_dir, pred, ref, mask=None, json_name=COMPARE_JSON,
