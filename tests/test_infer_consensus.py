@@ -16,7 +16,8 @@ from flashbrdf.infer.anchoring import AnchoredSpace
 from flashbrdf.infer.consensus import (CONSENSUS_WEIGHTS, consensus_table,
                                        member_spread, weights_per_bin)
 from flashbrdf.infer.estimator import LinearSpace
-from flashbrdf.infer.warning import DISAGREEMENT_WARN_DE, disagreement, prediction_warning
+from flashbrdf.infer.warning import (DISAGREEMENT_WARN_DE, LEVEL_ADVICE, MAX_FLASH_ALBEDO,
+                                     disagreement, prediction_warning)
 from tests.test_infer_baselines import SIX_AP_SPECS, coloured_ap_set
 
 THETA_D = np.degrees(merl.theta_d_centres())
@@ -196,3 +197,27 @@ def test_the_default_predicts_the_consensus_of_its_members_and_widens_its_varian
     want = (table + 1e-3) / (own + 1e-3)
     both = np.isfinite(ratio) & np.isfinite(want) & (own > 0.01)
     assert np.median(np.abs(np.log(ratio[both] / want[both]))) < 0.02
+
+
+def test_a_slice_brighter_than_any_surface_warns_to_fix_its_level():
+    """A Lambertian slice ρ = a/π reads flash_albedo a exactly (the median of equal bins); past
+    MAX_FLASH_ALBEDO the level is named as the cause, for the default and a baseline alike."""
+    quiet = _FakeMethod(np.zeros((90, 90, 3)), np.zeros((90, 90, 3)))   # members agree
+    noll = type("Noll", (), {"name": "noll", "novelty": lambda self, rho: None})()
+    lambertian = lambda a: np.full((90, 3), a / np.pi)                      # noqa: E731
+    record, line = prediction_warning(quiet, lambertian(MAX_FLASH_ALBEDO * 0.99), "s.csv")
+    assert line is None and record["flash_albedo"] == pytest.approx(MAX_FLASH_ALBEDO * 0.99)
+    for method in (quiet, noll):
+        record, line = prediction_warning(method, lambertian(MAX_FLASH_ALBEDO * 1.01), "s.csv")
+        assert record["out_of_distribution"] and record["advice"] == LEVEL_ADVICE
+        assert line.startswith("warning: s.csv: the slice's level is off (its diffuse level reads "
+                               "albedo pi*rho = 1.52")
+        assert "grey card" in line
+    # only the diffuse body counts: a bright highlight below 40 deg is a material, not a level
+    glossy = lambertian(0.5)
+    glossy[:20] = 1e3
+    assert prediction_warning(quiet, glossy)[0]["flash_albedo"] == pytest.approx(0.5)
+    # no body bin observed: no level read, nothing claimed
+    high = np.full((90, 3), np.nan)
+    high[:30] = 10.0
+    assert prediction_warning(quiet, high)[0]["flash_albedo"] is None
