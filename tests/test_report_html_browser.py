@@ -381,6 +381,10 @@ def test_every_brdf_plot_reads_out_from_the_keyboard(page):
     shown_hi = [float(v) for v in bounds.split("to (")[1].split(")")[0].split()]
     assert np.allclose(shown_lo, lo, rtol=5e-4) and np.allclose(shown_hi, hi, rtol=5e-4)
     assert (np.array(shown_lo) < want).all() and (np.array(shown_hi) > want).all()
+    assert "not measured" not in text                      # κ's coverage was measured at θd > 0
+    for key in ["ArrowLeft"] * 10:                         # θd bin 0: the flash slice's column
+        page.page.keyboard.press(key)
+    assert page.page.inner_text("#heat-readout").endswith("its coverage was not measured)")
     page.page.locator("#polar-plot").focus()
     page.page.keyboard.press("ArrowLeft")
     assert page.page.inner_text("#polar-readout").startswith("θo 0.0°")

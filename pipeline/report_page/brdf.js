@@ -358,6 +358,8 @@ function heatmaps() {
         const bound = (sign) => [0, 1, 2].map((c) => Math.max(
           (t[o + c] + e.offset) * Math.exp(sign * Z90 * Math.sqrt(Math.max(e.variance[o + c], 0))) - e.offset, 0));
         text += ` · 90% interval (${fmtRGB(bound(-1)).trim()}) to (${fmtRGB(bound(1)).trim()}) 1/sr`;
+        // the intervals' scale κ was measured on θd > 0 bins; the first column is the flash slice's
+        if (j === 0) text += " (θd bin 0, the flash slice's: its coverage was not measured)";
       }
       readout.textContent = text;
     };
