@@ -43,7 +43,7 @@ def train(merl_dirs, out, views_text="1d,2d", feature_space="auto", seed=0):
     """`flashbrdf train`: the DS-GPLVM on every MERL table of every folder (infer.training), with
     what the baselines need too."""
     from flashbrdf.infer import TrainingSet
-    from flashbrdf.infer.model_selection import check_training_size
+    from flashbrdf.infer.model_selection import check_training_size, small_training_note
     from flashbrdf.infer.training import train_model
     folders = merl_dirs_list(merl_dirs)
     if not 0 <= seed < 2 ** 32:  # scikit-learn's random_state is a uint32: a traceback later
@@ -59,6 +59,9 @@ def train(merl_dirs, out, views_text="1d,2d", feature_space="auto", seed=0):
               "filled from their neighbours for training")
     print(f"trained on {len(training)} materials from {len(folders)} folder(s) in "
           f"{params['train_seconds']:.1f} s -> {out}")
+    note = small_training_note(len(training))
+    if note:
+        print(note, file=sys.stderr)
 
 
 def infer(model, slice_path, out, method_name="dsgplvm", merl_dirs=None, anchor=True,

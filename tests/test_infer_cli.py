@@ -9,6 +9,7 @@ import pytest
 
 from flashbrdf.brdf import merl, views
 from flashbrdf.cli.main import main
+from flashbrdf.infer.model_selection import small_training_note
 
 TRAIN = ["gold-metallic-paint", "blue-acrylic", "white-fabric", "red-plastic", "nickel"]
 TEST = "green-plastic"
@@ -325,8 +326,11 @@ def test_train_fills_a_training_table_s_no_data_bins(merl_proxy, tmp_path, capsy
     capsys.readouterr()
     model = tmp_path / "model.npz"
     assert main(["train", "--merl-dir", str(folder), "--out", str(model)]) == 0
-    out = capsys.readouterr().out
+    out, err = capsys.readouterr()
     assert "holed.binary: 1 (θh, θd) bin(s) hold no data" in out
+    # 5 tables: fewer than any measured model (60: the note names both), and nothing at 60
+    assert "note: 5 materials are fewer than any model we measured (60 or more)" in err
+    assert small_training_note(60) is None and small_training_note(59).startswith("note: 59 ")
     from flashbrdf.infer.training_set import TrainingSet
     training = TrainingSet.from_merl_dir(folder)
     filled = training.tables_2d[training.names.index("holed")]
