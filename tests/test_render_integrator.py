@@ -1,5 +1,6 @@
 """The integrator against answers known analytically: white furnace, energy (directional albedo),
-mirror orientation, directional lights and shadows, determinism, HDR maps without fireflies."""
+mirror orientation, directional lights and shadows, determinism, HDR maps without fireflies;
+several models in one render, each as rendered alone."""
 
 import numpy as np
 import pytest
@@ -9,7 +10,8 @@ from flashbrdf.brdf.lookup import evaluate_table
 from flashbrdf.brdf.merl import read_merl
 from flashbrdf.brdf.models import GGX, Lambert, TabulatedBRDF
 from flashbrdf.render.envmap import EnvMap, envmap_direction
-from flashbrdf.render.integrator import render_directional_light, render_envmap
+from flashbrdf.render.integrator import (render_directional_light, render_envmap,
+                                        render_point_light)
 from flashbrdf.render.scene_render import render_sphere, sphere_view
 
 
@@ -166,3 +168,63 @@ def test_hdr_sun_without_fireflies():
     mis64, mis256 = spread(64), spread(256)
     assert mis64 < 0.15 and mis256 < 0.5 * mis64
     assert spread(64, strategies=("brdf",)) > 5 * mis64
+
+
+def _several_models():
+    """Models whose envmap-strategy directions differ in what they light: a 2D table that is
+    0 past theta_h 20 deg keeps only some of the directions the others keep."""
+    table = np.zeros((90, 90, 3))
+    table[:20] = [0.9, 0.5, 0.2]
+    return [GGX(0.2, specular=[0.5] * 3, diffuse=[0.3] * 3), Lambert([0.5, 0.2, 0.1]),
+            TabulatedBRDF(table), GGX(0.05, specular=[0.8, 0.6, 0.4], diffuse=[0.0] * 3)]
+
+
+@pytest.mark.parametrize("strategies", [("envmap", "brdf"), ("envmap",), ("brdf",)])
+def test_several_models_render_each_as_alone(monkeypatch, strategies):
+    """One render with several models gives each model its render alone, to the bit: the same
+    seed gives every model the same pattern and per-pixel shifts (chunks start at the same
+    points), and the envmap strategy's directions, pdfs, radiance and shadow rays, computed once
+    for the directions any model lights, are element by element the numbers each model's own
+    call computes; each model's sums run over the same terms in the same order. So the
+    tolerance is 0. The shared shadow rays are fewer than the separate calls cast."""
+    import flashbrdf.render.integrator as integrator
+    monkeypatch.setattr(integrator, "SAMPLES_PER_CHUNK", 1 << 10)  # many chunks, two threads
+    mask, normals, view = sphere_view(20)
+    rng = np.random.default_rng(3)
+    c, s = np.cos(0.7), np.sin(0.7)
+    env = EnvMap(rng.random((16, 32, 3)) * 5, [[c, 0, s], [0, 1, 0], [-s, 0, c]], 1.5)
+    rays = []
+
+    def occluded(points, dirs, far):   # a blocker over x > 0.4, counting the rays cast
+        rays.append(len(dirs))
+        return dirs[:, 0] > 0.4
+    models = _several_models()
+    kw = dict(spp=8, seed=5, occluded=occluded, strategies=strategies, threads=2)
+    alone = [render_envmap(normals, normals, view, model, env, **kw) for model in models]
+    separate_rays, rays[:] = sum(rays), []
+    together = render_envmap(normals, normals, view, models, env, **kw)
+    assert len(together) == len(models)
+    for one, shared in zip(alone, together):
+        assert one.any() and np.array_equal(one, shared)
+    if "envmap" in strategies:
+        assert sum(rays) < separate_rays
+    else:
+        assert sum(rays) == separate_rays
+
+
+def test_several_models_under_direct_lights_render_each_as_alone():
+    """Point and directional lights: one shadow ray a point for all models, the same values
+    (tolerance 0: each model's value is the same elementwise product, zeroed where its own
+    lit points are blocked)."""
+    mask, normals, view = sphere_view(16)
+    models = _several_models()
+
+    def occluded(points, dirs, far):
+        return points[:, 0] > 0.3
+    for render, light in ((render_point_light, ([0.5, 0.5, 2.0], [1.0, 2.0, 3.0])),
+                          (render_directional_light, ([0.3, 0.5, 0.8], [1.0, 2.0, 3.0]))):
+        alone = [render(normals, normals, view, model, *light, occluded=occluded)
+                 for model in models]
+        together = render(normals, normals, view, models, *light, occluded=occluded)
+        for one, shared in zip(alone, together):
+            assert one.any() and np.array_equal(one, shared)
