@@ -12,10 +12,13 @@ Public API (plain numpy arrays; WORLD frame; directions unit (..., 3)):
   render_point_light(points, normals, view, brdf, light_position, intensity_rgb, occluded=None)
   render_directional_light(points, normals, view, brdf, direction, irradiance_rgb, occluded=None)
   render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=None, ...) -> (P, 3)
+  (the three renderers take a list of models too: one output each, equal to its render alone,
+  the BRDF-independent work done once)
   DiffuseAlbedoMap(base, albedo (H, W, 3), floors (K, 3), camera, faces=None): a per-point
       diffuse albedo on a model or MaterialMap (rho = T_k + A/pi - f_k), for render_scene
   render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geometry=None)
-      -> iterator of (photo, image (H, W, 3) float32 in photo units, mask (H, W))
+      -> iterator of (photo, image (H, W, 3) float32 in photo units, mask (H, W)); brdf a list:
+      a list of images, one per BRDF, each photo rendered once for all
   render_sphere(table, envmap_path, size=128, spp=64, seed=0, ...) -> (size, size, 3) float32
   compare_images(pred, ref, mask=None) -> (metrics dict, delta_e (H, W))
   write_comparison(out_dir, pred, ref, mask=None, ...) -> metrics (compare.json + delta_e.png)

@@ -58,11 +58,17 @@ class DiffuseAlbedoMap:
         known = np.any(albedo > 0, axis=1)
         return np.where(known[:, None], albedo / np.pi - floors, 0.0)
 
-    def render(self, surface, camera, render_with):
-        """Values (N, 3) of the points: render_with(model) renders the surface with a model."""
-        values = render_with(self.base)
-        delta = self.point_delta(surface, camera)
-        if not np.any(delta):
-            return values
-        unit = render_with(Lambert(np.pi))   # rho = 1 / sr
-        return np.maximum(values + unit * delta, 0.0)
+
+def render_albedo_maps(maps, surface, camera, render_with):
+    """[values (N, 3) float64 of the points under each DiffuseAlbedoMap of `maps`].
+
+    render_with(models) -> [(N, 3) per model] renders the surface with a list of models (or
+    MaterialMaps): the bases go in one render, and the render of the constant 1/sr BRDF is made
+    once for all the maps whose delta is not 0."""
+    values = render_with([m.base for m in maps])
+    deltas = [m.point_delta(surface, camera) for m in maps]
+    if not any(np.any(delta) for delta in deltas):
+        return values
+    unit = render_with([Lambert(np.pi)])[0]   # rho = 1 / sr
+    return [np.maximum(value + unit * delta, 0.0) if np.any(delta) else value
+            for value, delta in zip(values, deltas)]

@@ -8,7 +8,7 @@ every lighting seen from that camera. Shadow rays go through Embree only for non
 import numpy as np
 
 from flashbrdf.files.errors import InputError
-from flashbrdf.render.albedo_map import DiffuseAlbedoMap
+from flashbrdf.render.albedo_map import DiffuseAlbedoMap, render_albedo_maps
 from flashbrdf.capture.scene import camera_key
 from flashbrdf.render.material_map import MaterialMap
 from flashbrdf.brdf.models import TabulatedBRDF
@@ -85,72 +85,129 @@ def _part(surface, keep):
     return Surface(*pick)
 
 
-def render_surface(surface, camera, light, brdf, spp=64, seed=0, occluded=None, envmaps=None,
-                   progress=None, where="light"):
-    """Pixel-model values (N, 3) of a capture.Surface under one capture.Light (unscaled).
+def render_surface(surface, camera, light, brdfs, emit, spp=64, seed=0, occluded=None,
+                   envmaps=None, progress=None, where="light"):
+    """Pixel-model values (unscaled) of a capture.Surface under one capture.Light, for each of
+    `brdfs` at once: emit(rows, m, values) takes values (n, 3) float64 of brdfs[m] at the
+    points `rows` (a slice or an index array) as they are made. Each brdf's values equal its
+    render alone; what does not depend on the BRDF is computed once (render.integrator).
 
-    brdf: a brdf.models model, or a MaterialMap (each material rendered with its own),
-    or a render.albedo_map.DiffuseAlbedoMap (either, with a per-point diffuse albedo)."""
-    if isinstance(brdf, DiffuseAlbedoMap):
-        return brdf.render(surface, camera, lambda model: render_surface(
-            surface, camera, light, model, spp, seed, occluded, envmaps, progress, where))
-    if isinstance(brdf, MaterialMap):
+    brdfs: a list of brdf.models models, MaterialMaps (each material rendered with its own)
+    or render.albedo_map.DiffuseAlbedoMaps (either, with a per-point diffuse albedo)."""
+    def render(items, sink, points=surface):
+        render_surface(points, camera, light, items, sink, spp, seed, occluded, envmaps,
+                       progress, where)
+    groups = {}  # models, material maps (by labels), albedo maps: each kind rendered together
+    for m, brdf in enumerate(brdfs):
+        kind = (DiffuseAlbedoMap if isinstance(brdf, DiffuseAlbedoMap)
+                else MaterialMap if isinstance(brdf, MaterialMap) else None)
+        groups.setdefault(kind, []).append(m)
+    for kind, members in groups.items():
+        if kind is DiffuseAlbedoMap:
+            values = render_albedo_maps([brdfs[m] for m in members], surface, camera,
+                                        lambda items: _collected(render, items, len(surface.normals)))
+            for m, value in zip(members, values):
+                emit(slice(None), m, value)
+        elif kind is MaterialMap:
+            _render_materials(surface, camera, [brdfs[m] for m in members], render,
+                              lambda rows, i, value, members=members:
+                              emit(rows, members[i], value))
+        else:
+            _render_models(surface, camera, light, [brdfs[m] for m in members],
+                           lambda rows, i, value, members=members:
+                           emit(rows, members[i], value),
+                           spp, seed, occluded, envmaps, progress, where)
+
+
+def _collected(render, items, n):
+    """[(n, 3) float64 per item]: render(items, sink) gathered into whole arrays."""
+    out = [np.zeros((n, 3)) for _ in items]
+
+    def sink(rows, m, value):
+        out[m][rows] = value
+    render(items, sink)
+    return out
+
+
+def _render_materials(surface, camera, maps, render, emit):
+    """MaterialMaps, each point rendered with its material's BRDF; maps with the same labels
+    are rendered together, material by material. render(items, sink, part) renders a part of
+    the surface (see render_surface)."""
+    labelled = []  # (labels, [map index]) per distinct labelling of the points
+    for i, brdf in enumerate(maps):
         labels = brdf.point_labels(surface, camera)
-        values = np.zeros((len(labels), 3))
-        for k, model in enumerate(brdf.brdfs, start=1):
+        same = next((group for group in labelled if np.array_equal(group[0], labels)), None)
+        if same is None:
+            labelled.append((labels, [i]))
+        else:
+            same[1].append(i)
+    for labels, members in labelled:
+        for k in range(1, max(len(maps[i].brdfs) for i in members) + 1):
             mine = labels == k
-            if mine.any():
-                values[mine] = render_surface(_part(surface, mine), camera, light, model, spp,
-                                              seed, occluded, envmaps, progress, where)
-        return values
+            which = [i for i in members if k <= len(maps[i].brdfs)]
+            if not mine.any() or not which:
+                continue
+            where_mine = np.nonzero(mine)[0]
+            render([maps[i].brdfs[k - 1] for i in which],
+                   lambda rows, j, value, which=which, where_mine=where_mine:
+                   emit(where_mine[rows], which[j], value), _part(surface, mine))
+
+
+def _render_models(surface, camera, light, models, emit, spp, seed, occluded, envmaps, progress,
+                   where):
+    """brdf.models models under one light (see render_surface)."""
     points = surface.points
     if light.type == "point":
         if points is None:
             raise InputError(where, "a point light needs mesh geometry (a normal map has no depth)")
         position = camera.to_world(light.position)
         return _in_chunks(lambda p, n, v: render_point_light(
-            p, n, v, brdf, position, light.intensity_rgb, occluded), points, surface)
+            p, n, v, models, position, light.intensity_rgb, occluded), points, surface, emit)
     if points is None:
         points = np.zeros_like(surface.normals)
     if light.type == "directional":
         return _in_chunks(lambda p, n, v: render_directional_light(
-            p, n, v, brdf, light.direction, light.irradiance_rgb, occluded), points, surface)
+            p, n, v, models, light.direction, light.irradiance_rgb, occluded), points, surface,
+            emit)
     if light.type == "envmap":
         key = (str(light.file), np.asarray(light.world_from_envmap).tobytes(), light.scale)
         envmaps = {} if envmaps is None else envmaps
         if key not in envmaps:
             envmaps[key] = EnvMap.from_file(light.file, light.world_from_envmap, light.scale)
-        return render_envmap(points, surface.normals, surface.view_dirs, brdf, envmaps[key],
-                             spp=spp, seed=seed, occluded=occluded, progress=progress)
+        return render_envmap(points, surface.normals, surface.view_dirs, models, envmaps[key],
+                             spp=spp, seed=seed, occluded=occluded, progress=progress, emit=emit)
     raise InputError(where, f"unknown light type {light.type!r}")
 
 
 DIRECT_CHUNK = 1 << 20  # points shaded at once under a point or directional light
 
 
-def _in_chunks(shade, points, surface):
-    """(N, 3) values of shade(points, normals, view) over the surface, a million points at a
-    time: a 24 MP view at once made a dozen (N, 3) float64 temporaries, 0.6 GB each."""
+def _in_chunks(shade, points, surface, emit):
+    """emit(rows, m, values) of shade(points, normals, view) -> [values per model] over the
+    surface, a million points at a time: a 24 MP view at once made a dozen (N, 3) float64
+    temporaries, 0.6 GB each."""
     n = len(surface.normals)
-    if n <= DIRECT_CHUNK:
-        return shade(points, surface.normals, surface.view_dirs)
-    out = np.empty((n, 3))
     for s in range(0, n, DIRECT_CHUNK):
         part = slice(s, s + DIRECT_CHUNK)
-        out[part] = shade(points[part], surface.normals[part], surface.view_dirs[part])
-    return out
+        for m, value in enumerate(shade(points[part], surface.normals[part],
+                                        surface.view_dirs[part])):
+            emit(part, m, value)
 
 
 def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geometry=None):
     """Render every `reference` photo's lighting (or the given photos) from its camera.
 
-    scene: capture.Scene; brdf: a brdf.models model. Yields (photo, image, mask) per photo:
-    image (H, W, 3) float32 in the photo's own pixel units (the pixel model times the photo's
-    `scale`), 0 where the pixel misses the geometry; mask (H, W) bool of the pixels that see it.
+    scene: capture.Scene; brdf: a brdf.models model, MaterialMap or DiffuseAlbedoMap, or a list
+    of them. Yields (photo, image, mask) per photo: image (H, W, 3) float32 in the photo's own
+    pixel units (the pixel model times the photo's `scale`), 0 where the pixel misses the
+    geometry, or a list of images, one per BRDF of the list (each equal to its render alone,
+    the BRDF-independent work done once); mask (H, W) bool of the pixels that see it.
     geometry: a SceneGeometry of this scene to reuse (its primary hits are cached per camera).
     Every light is checked (and every envmap loaded), and every camera must see the object,
     before the first render.
     """
+    several = isinstance(brdf, (list, tuple))
+    brdfs = list(brdf) if several else [brdf]
     photos = scene.photos_with_role("reference") if photos is None else photos
     envmaps = {}
     for photo in photos:                       # check every light before any rendering
@@ -176,14 +233,18 @@ def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geomet
     for photo in photos:
         camera = photo.camera
         surface = geometry.surface(camera)
-        values = render_surface(surface, camera, photo.light, brdf, spp, seed, occluded, envmaps,
-                                progress=f"render {photo.stem}" if progress else None,
-                                where=f"{photo.where}.light")
-        image = np.zeros(camera.shape + (3,), dtype=np.float32)
-        image[surface.rows, surface.cols] = values * photo.scale
+        # written chunk by chunk into float32 pixels: no (N, 3) float64 array per BRDF is held
+        images = [np.zeros(camera.shape + (3,), dtype=np.float32) for _ in brdfs]
+
+        def to_pixels(rows, m, values, surface=surface, scale=photo.scale):
+            images[m][surface.rows[rows], surface.cols[rows]] = values * scale
+        render_surface(surface, camera, photo.light, brdfs, to_pixels, spp, seed, occluded,
+                       envmaps, progress=f"render {photo.stem}" if progress else None,
+                       where=f"{photo.where}.light")
         mask = np.zeros(camera.shape, dtype=bool)
         mask[surface.rows, surface.cols] = True
-        yield photo, image, mask
+        yield photo, (images if several else images[0]), mask
+        del images
 
 
 def sphere_view(size):

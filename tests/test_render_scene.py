@@ -1,5 +1,5 @@
 """The render command on synthetic capture folders: point, directional and envmap references,
-mesh and normal-map geometry, outputs and bad input."""
+mesh and normal-map geometry, outputs and bad input; several BRDFs rendered at once."""
 
 import json
 
@@ -297,3 +297,85 @@ def test_point_and_directional_lights_shade_in_chunks_as_at_once(tmp_path, monke
     monkeypatch.setattr(scene_render, "DIRECT_CHUNK", 97)
     chunked = images()
     assert all(w.any() and np.array_equal(w, c) for w, c in zip(whole, chunked))
+
+
+def _several_brdfs_scene(tmp_path, size):
+    """A torus (it shadows itself: Embree shadow rays) seen by a size x size pinhole camera,
+    with an envmap reference (a rotated random map, scale 2) and a point-light reference."""
+    from flashbrdf import capture
+    from synthetic import ggx_lambert
+    folder = write_synthetic_scene(tmp_path / "scene", torus_mesh(),
+                                   ggx_lambert(), pinhole_camera(size, size, 3.2 * size),
+                                   [point_light([0.02, 0, 0])])
+    write_exr(folder / "sky.exr", np.random.default_rng(4).random((16, 32, 3)) * 4)
+    doc = json.loads((folder / "scene.json").read_text())
+    c, s = np.cos(0.6), np.sin(0.6)
+    doc["photos"] += [
+        {"file": "env.exr", "role": "reference", "scale": 1.5,
+         "light": {"type": "envmap", "file": "sky.exr", "scale": 2.0,
+                   "world_from_envmap": [[c, 0, s], [0, 1, 0], [-s, 0, c]]}},
+        {"file": "point.exr", "role": "reference", "light": point_light([0.05, -0.03, 0.1])}]
+    (folder / "scene.json").write_text(json.dumps(doc))
+    return capture.load_scene(folder)
+
+
+def test_several_brdfs_render_each_photo_once_each_as_alone(tmp_path):
+    """render_scene with a list of BRDFs (models, material maps, albedo maps) yields for every
+    photo one image per BRDF, each equal to its render alone to the bit (tolerance 0: the
+    integrator gives every model its own samples and sums, tests/test_render_integrator.py,
+    and the pixels are the same float64 values times the photo's scale, cast to float32)."""
+    from flashbrdf.brdf.models import GGX, Lambert
+    from flashbrdf.render import DiffuseAlbedoMap, MaterialMap, render_scene
+    scene = _several_brdfs_scene(tmp_path, 40)
+    camera = scene.photos_with_role("flash")[0].camera
+    labels = np.ones(camera.shape, np.int64)
+    labels[:, 20:] = 2
+    albedo = np.random.default_rng(5).random(camera.shape + (3,)) * 0.6
+    albedo[:, :8] = 0                                     # off the map: the base BRDF alone
+    two = [GGX(0.3, specular=[0.3] * 3, diffuse=[0.2, 0.4, 0.1]), Lambert([0.2, 0.3, 0.6])]
+    brdfs = [GGX(0.2), Lambert([0.5, 0.4, 0.3]), MaterialMap(two, labels, camera),
+             DiffuseAlbedoMap(GGX(0.1), albedo, [[0.05, 0.04, 0.03]], camera),
+             DiffuseAlbedoMap(MaterialMap(two[::-1], labels, camera), albedo,
+                              [[0.05] * 3, [0.1] * 3], camera),
+             MaterialMap([Lambert([0.1] * 3)], np.where(labels == 1, 1, 0), camera)]
+    references = scene.photos_with_role("reference")
+    alone = [[image for _, image, _ in render_scene(scene, brdf, spp=8, photos=references,
+                                                    progress=False)] for brdf in brdfs]
+    together = list(render_scene(scene, brdfs, spp=8, photos=references, progress=False))
+    assert [photo.stem for photo, _, _ in together] == ["env", "point"]
+    for p, (_, images, mask) in enumerate(together):
+        assert len(images) == len(brdfs) and mask.sum() > 400
+        for b, image in enumerate(images):
+            assert image.dtype == np.float32 and image[mask].any(), (p, b)
+            assert np.array_equal(image, alone[b][p]), (p, b)
+
+
+def test_several_brdfs_hold_their_images_not_float64_values(tmp_path, monkeypatch):
+    """A photo rendered for M BRDFs at once holds the M float32 images (12 bytes a pixel each)
+    and per-chunk buffers, not an (N, 3) float64 array (24 bytes a point) per BRDF. The traced
+    peak stays under the images + the mask + 1.5 MB: at 1 << 10 samples a chunk and spp 2, a
+    chunk is 256 points x 2 strategies x 2 samples, and its ~40 temporaries of at most 512 x 3
+    float64 (12 kB) make < 0.5 MB a thread, 1 MB for two; the rest is slack. M float64 arrays
+    would add M x 24 N bytes (2.9 MB here)."""
+    import tracemalloc
+    import flashbrdf.render.integrator as integrator
+    from flashbrdf.brdf.models import GGX, Lambert
+    from flashbrdf.render import SceneGeometry, render_scene
+    scene = _several_brdfs_scene(tmp_path, 300)
+    photo = [p for p in scene.photos_with_role("reference") if p.light.type == "envmap"]
+    geometry = SceneGeometry(scene)
+    n = len(geometry.surface(photo[0].camera).rows)     # primary hits cast before tracing
+    brdfs = [GGX(0.2), Lambert([0.5] * 3), GGX(0.05), Lambert([0.2] * 3)]
+    monkeypatch.setattr(integrator, "SAMPLES_PER_CHUNK", 1 << 10)
+    tracemalloc.start()
+    try:
+        for _, images, mask in render_scene(scene, brdfs, spp=2, photos=photo,
+                                            geometry=geometry, progress=False):
+            assert all(image.any() for image in images)
+            del images, mask
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    pixels = 300 * 300
+    assert n > 20_000
+    assert peak < len(brdfs) * 12 * pixels + pixels + 1.5e6, (peak, n)
