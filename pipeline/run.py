@@ -98,7 +98,7 @@ def run_capture(scene_dir, out, *, model=None, methods="dsgplvm", spp=64, materi
 
 def _run_stages(settings, scene, references, loaded, out, read_methods):
     """The slow part of `run`, into the staged folder `out`: returns (stages, report dict)."""
-    stages = StageTimer(total=7 + 2 * len(settings.methods) + 2 * settings.export
+    stages = StageTimer(total=8 + 2 * len(settings.methods) + 2 * settings.export
                         + settings.albedo_map)
     notes = []
     spill_references(loaded, out)
@@ -164,17 +164,16 @@ def _run_stages(settings, scene, references, loaded, out, read_methods):
             notes.append("Normal-map geometry: no rays were cast.")
         elif geometry.convex:
             notes.append("Convex mesh: no shadow rays were cast.")
+        renders = []  # every method's table, and the export's fit: rendered together
         for name in settings.methods:
             brdf = predictions[name]["table"]
             if with_albedo is not None:
                 brdf = with_albedo(TabulatedBRDF(brdf))
-            rows += stages.run(f"render+compare {name}", render_and_compare, scene, geometry,
-                               name, brdf, settings.spp, out / name, references, loaded)
+            renders.append((name, brdf, True))
         if exported is not None:
-            label, table = exported[:2]
-            rows += stages.run(f"render+compare {label}", render_and_compare, scene, geometry,
-                               label, table, settings.spp, out / label, references, loaded,
-                               level=False)
+            renders.append((exported[0], exported[1], False))
+        rows = render_and_compare(scene, geometry, renders, settings.spp, out, references,
+                                  loaded, stages)
     observed = {"rho": rho, "n": result.n, "spread": result.spread}
     (out / "figures").mkdir(parents=True, exist_ok=True)
     sections = label_section(segmentation.labels, out / "figures", segmentation.criterion)

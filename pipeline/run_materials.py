@@ -117,19 +117,19 @@ def run_materials(settings, scene, out, stages, fitted, samples, segmentation, f
     if references:
         geometry = stages.run("ray cast", SceneGeometry, scene, samples.intersector)
         camera = scene.photos_with_role("flash")[0].camera
+        renders = []  # every method's materials, and the export's fits: rendered together
         for name in settings.methods:
             materials = MaterialMap([TabulatedBRDF(tables[name][k].table) for k in sorted(rhos)],
                                     labels, camera, faces)
             if with_albedo is not None:
                 materials = with_albedo(materials)
-            rows += stages.run(f"render+compare {name}", render_and_compare, scene, geometry,
-                               name, materials, settings.spp, out / name, references, loaded)
+            renders.append((name, materials, True))
         if exported:
             fits = MaterialMap([TabulatedBRDF(exported[k]) for k in sorted(rhos)], labels,
                                camera, faces)
-            rows += stages.run(f"render+compare {label}", render_and_compare, scene,
-                               geometry, label, fits, settings.spp, out / label, references,
-                               loaded, level=False)
+            renders.append((label, fits, False))
+        rows = render_and_compare(scene, geometry, renders, settings.spp, out, references,
+                                  loaded, stages)
     else:
         notes.append("The scene has no reference photo: nothing was compared.")
     fig_dir = out / "figures"

@@ -1,6 +1,6 @@
 """The steps `run` shares between one material and several (pipeline.run, pipeline.run_materials):
 the stage timer, the methods read from the model, one method's prediction written, the reference
-photos read before any slow work, and one method's renders compared with them."""
+photos read before any slow work, and the methods' renders (made together) compared with them."""
 
 import shutil
 import sys
@@ -31,14 +31,23 @@ class StageTimer:
         self.bar = tqdm(total=total, unit="stage", file=sys.stderr, disable=not sys.stderr.isatty())
 
     def run(self, name, fn, *args, **kwargs):
+        self.start(name)
+        start = time.perf_counter()
+        result = fn(*args, **kwargs)
+        self.add(name, time.perf_counter() - start, stages_done=1)
+        return result
+
+    def start(self, name):
+        """Show that stage `name` begins."""
         if self.bar.disable:  # on stdout: stderr is kept for the one error line of bad input
             print(f"[{name}] ...", flush=True)
         self.bar.set_description(name)
-        start = time.perf_counter()
-        result = fn(*args, **kwargs)
-        self.seconds[name] = self.seconds.get(name, 0.0) + time.perf_counter() - start
-        self.bar.update(1)
-        return result
+
+    def add(self, name, seconds, stages_done=0):
+        """Count `seconds` more to stage `name`, timed by the caller: stages that take turns,
+        as run's render and compares do photo by photo. stages_done advances the bar."""
+        self.seconds[name] = self.seconds.get(name, 0.0) + seconds
+        self.bar.update(stages_done)
 
     def table(self):
         width = max(len(k) for k in self.seconds) if self.seconds else 5
@@ -88,41 +97,72 @@ def check_references(references):
     return loaded
 
 
-def render_and_compare(scene, geometry, method_name, table, spp, out_dir, references, loaded,
-                       level=True):
-    """Render and compare every reference for one method: <stem>.exr/.png and the comparison files
-    in out_dir, and one report row per photo. table: a 2D/3D table, a MaterialMap or a
+def render_and_compare(scene, geometry, renders, spp, out, references, loaded, stages):
+    """Render every reference once for all of `renders`, [(name, table, level)], and compare
+    each render with the photo: out/<name>/<stem>.exr/.png and the comparison files, and one
+    report row per (name, photo), name by name. table: a 2D/3D table, a MaterialMap or a
     DiffuseAlbedoMap; `level=False` (an export's fit of a method's own table) leaves the row out
-    of the report's level check."""
-    rows = []
-    brdf = table if isinstance(table, (MaterialMap, DiffuseAlbedoMap)) else TabulatedBRDF(table)
-    for photo, image, mask in render_scene(scene, brdf, spp=spp, photos=references,
-                                           geometry=geometry):
-        write_exr(out_dir / f"{photo.stem}.exr", image)
-        write_preview(out_dir / f"{photo.stem}.png", image)
+    of the report's level check. What does not depend on the BRDF is rendered once for all
+    (render.render_scene); each render equals its render alone.
+
+    Stages (StageTimer `stages`): "render" for the renders of all names, "compare <name>" for
+    writing that name's render and comparing it."""
+    brdfs = [table if isinstance(table, (MaterialMap, DiffuseAlbedoMap)) else TabulatedBRDF(table)
+             for _, table, _ in renders]
+    rows = {name: [] for name, _, _ in renders}
+    stages.start("render and compare")
+    made = render_scene(scene, brdfs, spp=spp, photos=references, geometry=geometry)
+    while True:
+        start = time.perf_counter()
+        photo, images, mask = next(made, (None, None, None))
+        stages.add("render", time.perf_counter() - start)
+        if photo is None:
+            break
         # the row names files, not arrays: every (photo, method) row held its render, ΔE map
-        # and masks (0.5 GB at 24 MP) until the report, which reads them photo by photo
-        row = {"photo": photo.stem, "method": method_name, "render": out_dir / f"{photo.stem}.exr",
-               "mask": scratch_array(out_dir.parent, mask)}
+        # and masks (0.5 GB at 24 MP) until the report, which reads them photo by photo. The
+        # masks and the photo are the same for every name: saved and read once.
+        start = time.perf_counter()
+        mask_file, stored, reference, compare_file = scratch_array(out, mask), None, None, None
         if photo.index in loaded:
             stored, measured = loaded[photo.index]
             # spilled (spill_references): its file, read for this photo only
             reference = np.load(stored) if isinstance(stored, Path) else stored
-            metrics, delta_e = write_comparison(out_dir, image, reference, mask & measured,
-                                                json_name=f"{photo.stem}_compare.json",
-                                                png_name=f"{photo.stem}_delta_e.png",
-                                                return_map=True)
-            row.update(metrics, reference=stored,
-                       delta_e_map=scratch_array(out_dir.parent, delta_e.astype(np.float32)),
-                       compare_mask=scratch_array(out_dir.parent, mask & measured))
-            if level:
-                row["level_ratio_rgb"] = level_ratio(image, reference, mask & measured).tolist()
-            del delta_e, reference
-        else:
-            row.update(delta_e_log_mean=None, rel_rmse=None)
-        rows.append(row)
-        del image, mask
-    return rows
+            mask = mask & measured
+            compare_file = scratch_array(out, mask)
+        stages.add(f"compare {renders[0][0]}", time.perf_counter() - start)
+        for i, (name, _, level) in enumerate(renders):
+            start = time.perf_counter()
+            image, images[i] = images[i], None  # each render freed once it is compared
+            rows[name].append(_write_and_compare(photo, name, image, mask_file, out / name,
+                                                 (stored, reference, mask, compare_file), level))
+            del image
+            stages.add(f"compare {name}", time.perf_counter() - start)
+        del images, mask, reference
+    stages.add("render", 0.0, stages_done=1 + len(renders))
+    return [row for name in rows for row in rows[name]]
+
+
+def _write_and_compare(photo, name, image, mask_file, out_dir, photo_data, level):
+    """Write one render (<stem>.exr, .png) and, where the photo exists, its comparison files;
+    returns the report row. photo_data: (stored photo or None, its pixels, the compared
+    pixels' mask, that mask's file), the same for every name."""
+    write_exr(out_dir / f"{photo.stem}.exr", image)
+    write_preview(out_dir / f"{photo.stem}.png", image)
+    row = {"photo": photo.stem, "method": name, "render": out_dir / f"{photo.stem}.exr",
+           "mask": mask_file}
+    stored, reference, compare_mask, compare_file = photo_data
+    if reference is None:
+        row.update(delta_e_log_mean=None, rel_rmse=None)
+        return row
+    metrics, delta_e = write_comparison(out_dir, image, reference, compare_mask,
+                                        json_name=f"{photo.stem}_compare.json",
+                                        png_name=f"{photo.stem}_delta_e.png", return_map=True)
+    row.update(metrics, reference=stored,
+               delta_e_map=scratch_array(out_dir.parent, delta_e.astype(np.float32)),
+               compare_mask=compare_file)
+    if level:
+        row["level_ratio_rgb"] = level_ratio(image, reference, compare_mask).tolist()
+    return row
 
 
 SCRATCH = ".report_scratch"  # beside the methods' folders in run's output; gone before it is

@@ -314,7 +314,8 @@ class KillMidRun(WorkerPlugin):
         def render_or_die(*args, **kwargs):
             staged = [a for a in args if isinstance(a, Path) and marker in str(a)]
             if staged:
-                folder = next(p for p in staged[0].parents if p.name.startswith(marker))
+                folder = next(p for p in (staged[0], *staged[0].parents)
+                              if p.name.startswith(marker))
                 files = sorted(p.name for p in folder.rglob("*") if p.is_file())
                 print(f"test: killing the worker mid-run; staged files: {' '.join(files)}",
                       flush=True)
