@@ -20,7 +20,8 @@ class SceneGeometry:
     """A scene's geometry with cached per-camera primary hits (capture.Surface).
 
     The cache holds at most CACHED_HITS hits (the oldest cameras go first): a run renders every
-    reference once per method, so hits are reused, but 30 views of 24 MP would fill the memory.
+    reference once (for all methods) and its previews from the flash camera, so hits are
+    reused, but 30 views of 24 MP would fill the memory.
     """
 
     CACHED_HITS = 40_000_000
@@ -104,8 +105,9 @@ def render_surface(surface, camera, light, brdfs, emit, spp=64, seed=0, occluded
         groups.setdefault(kind, []).append(m)
     for kind, members in groups.items():
         if kind is DiffuseAlbedoMap:
+            n = len(surface.normals)
             values = render_albedo_maps([brdfs[m] for m in members], surface, camera,
-                                        lambda items: _collected(render, items, len(surface.normals)))
+                                        lambda items: _collected(render, items, n))
             for m, value in zip(members, values):
                 emit(slice(None), m, value)
         elif kind is MaterialMap:
@@ -221,7 +223,7 @@ def render_scene(scene, brdf, spp=64, seed=0, photos=None, progress=True, geomet
             key = (str(light.file), np.asarray(light.world_from_envmap).tobytes(), light.scale)
             if key not in envmaps:
                 envmaps[key] = EnvMap.from_file(light.file, light.world_from_envmap, light.scale)
-    # A SceneGeometry passed in keeps its primary hits across calls (e.g. one render per method).
+    # A SceneGeometry passed in keeps its primary hits across calls (run's renders, previews).
     geometry = SceneGeometry(scene) if geometry is None else geometry
     for photo in photos:                       # and every camera: a view of nothing is no render
         if not geometry.sees_object(photo.camera):
