@@ -72,6 +72,11 @@ def check_output_kind(path, folder):
         raise InputError(path, "exists and is not a folder (--out names an output folder here)")
     if not folder and os.path.isdir(path):
         raise InputError(path, "is a folder (--out names an output file here)")
+    # files are renamed into place (files.atomic): that would replace a device, pipe or socket
+    # (`--out /dev/stdout` run as root replaced the container's /dev/stdout with a regular file)
+    if not folder and os.path.exists(path) and not os.path.isfile(path):
+        raise InputError(path, "exists and is not a regular file (a device, pipe or socket); "
+                               "--out names a file to write")
 
 
 def check_outputs(inputs, outputs, folders=()):

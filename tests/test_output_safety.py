@@ -6,6 +6,7 @@ import json
 import os
 import shutil
 import signal
+import stat
 import subprocess
 import sys
 import time
@@ -266,3 +267,16 @@ def test_files_fingerprint_sees_one_file_through_links_and_a_missing_one(tmp_pat
     assert by_link[os.path.realpath(tmp_path / "gone.exr")] is None
     os.utime(real, ns=(0, 10 ** 9))
     assert files_fingerprint([real, tmp_path / "gone.exr"]) != by_link
+
+
+def test_an_out_file_that_is_a_pipe_or_device_is_bad_input(world, tmp_path, capsys):  # noqa: F811
+    """Files are renamed into place, so `--out /dev/stdout` (or a named pipe) was replaced by a
+    regular file, exit 0: as root that swapped the container's /dev/stdout for a file."""
+    pipe = tmp_path / "pipe.csv"
+    os.mkfifo(pipe)
+    capsys.readouterr()
+    assert main(["merl-slice", str(world.brdf), "--out", str(pipe)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "pipe.csv" in err[0] and "not a regular file" in err[0], err
+    assert stat.S_ISFIFO(os.lstat(pipe).st_mode)
+    assert sorted(os.listdir(tmp_path)) == ["pipe.csv"]  # no temporary file left beside it
