@@ -11,7 +11,7 @@ import numpy as np
 from flashbrdf.files.errors import DECODE_ERRORS, InputError
 from flashbrdf.capture.camera import pixel_rays
 from flashbrdf.capture.geometry import Surface
-from flashbrdf.capture.photo import imread_unchanged, read_float_image
+from flashbrdf.capture.photo import read_float_image, read_object_mask
 from flashbrdf.capture.scene import Scene
 
 
@@ -43,18 +43,14 @@ def load_normal_map(geometry, camera):
     mpath = Path(geometry.mask)
     if not mpath.is_file():
         raise InputError(mpath, "mask not found")
-    mask = imread_unchanged(mpath)
-    if mask is None:
-        raise InputError(mpath, "cannot read mask image")
-    if mask.ndim == 3:
-        mask = mask.max(axis=2)
+    mask = read_object_mask(mpath)
     if mask.shape != camera.shape:
         raise InputError(mpath, f"mask is {mask.shape[1]}x{mask.shape[0]} but the camera is "
                                 f"{camera.width}x{camera.height}")
     length = np.linalg.norm(normals, axis=-1)
     good = np.isfinite(length) & (length > 1e-6)
     normals = np.where(good[..., None], normals / np.where(good, length, 1)[..., None], 0)
-    return normals, (mask > 0) & good
+    return normals, mask & good
 
 
 def surface_from_normal_map(geometry, camera=None, pixel_mask=None):

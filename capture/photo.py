@@ -192,6 +192,26 @@ def imread_unchanged(path):
         raise InputError(path, f"image is over OpenCV's limit of {limit}") from None
 
 
+def object_mask(pixels):
+    """(H, W) bool of a mask image's pixels (H, W) or (H, W, C): nonzero in any colour channel
+    means object (the contract's masks). An alpha channel (the last of 2 or 4) is not colour: a
+    black-and-white mask saved with opaque alpha would otherwise mark every pixel as object."""
+    pixels = np.asarray(pixels)
+    if pixels.ndim == 2:
+        return pixels > 0
+    colour = pixels[..., :3] if pixels.shape[2] >= 3 else pixels[..., :1]
+    return np.any(colour > 0, axis=-1)
+
+
+def read_object_mask(path):
+    """object_mask of the image at `path` (PNG or any format OpenCV reads); InputError naming
+    the file when it cannot be read."""
+    pixels = imread_unchanged(path)
+    if pixels is None:
+        raise InputError(path, "cannot read mask image")
+    return object_mask(pixels)
+
+
 def _linear_from_cv(img, path, encoding, saturation):
     """An image as cv2.imread decoded it (BGR(A), 8/16-bit or float) -> (rgb, usable, clipped)
     as load_photo returns them; path only names the file in errors. Pure, so that brackets

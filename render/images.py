@@ -8,6 +8,7 @@ import os
 import numpy as np
 import OpenImageIO as oiio
 
+from flashbrdf.capture.photo import object_mask
 from flashbrdf.files.atomic import atomic_path
 from flashbrdf.brdf.colour import srgb_encode
 from flashbrdf.files.errors import InputError, library_error
@@ -131,8 +132,7 @@ def read_mask(path, shape=None):
     if pixels is None:
         raise InputError(path, "cannot decode mask")
     pixels = np.asarray(pixels).reshape(spec.height, spec.width, spec.nchannels)
-    channels = pixels[..., :3] if spec.nchannels >= 3 else pixels[..., :1]
-    mask = np.any(channels > 0, axis=-1)
+    mask = object_mask(pixels)
     if shape is not None and mask.shape != tuple(shape[:2]):
         raise InputError(path, f"mask is {mask.shape[1]}x{mask.shape[0]}, "
                                f"image is {shape[1]}x{shape[0]}")

@@ -428,3 +428,33 @@ def test_brackets_are_merged_one_at_a_time_in_float32(tmp_path):
     finally:
         tracemalloc.stop()
     assert rgb.dtype == np.float32 and peak < 7 * rgb.nbytes, peak / rgb.nbytes
+
+
+@pytest.mark.parametrize("channels", [2, 4])
+def test_a_mask_with_opaque_alpha_marks_only_its_coloured_pixels(tmp_path, channels):
+    """Nonzero means object in the mask's colour channels; its alpha is not colour. A black-and-
+    white mask saved with alpha 255 everywhere marked every pixel as object in the normal-map
+    geometry (and in import-diligent), while `compare --mask` read the same file right."""
+    from flashbrdf.capture.normal_map import load_normal_map
+    import OpenImageIO as oiio
+    from flashbrdf.render.images import read_mask
+    inside = np.zeros((4, 6), bool)
+    inside[1:3, 2:5] = True
+    grey = np.where(inside, 255, 0).astype(np.uint8)
+    pixels = (np.dstack([grey, np.full_like(grey, 255)]) if channels == 2 else
+              np.dstack([grey, grey, grey, np.full_like(grey, 255)]))
+    out = oiio.ImageOutput.create(str(tmp_path / "mask.png"))   # grey + alpha: OpenCV writes none
+    out.open(str(tmp_path / "mask.png"), oiio.ImageSpec(6, 4, channels, "uint8"))
+    out.write_image(pixels)
+    out.close()
+    np.save(tmp_path / "normals.npy", np.dstack([np.zeros((4, 6, 2)), np.ones((4, 6))]))
+    (tmp_path / "scene.json").write_text(json.dumps({
+        "camera": {"model": "orthographic", "width": 6, "height": 4, "pixel_size": 1.0,
+                   "world_from_camera": np.eye(4).tolist()},
+        "geometry": {"normal_map": "normals.npy", "mask": "mask.png"},
+        "photos": [{"file": "flash.exr", "role": "flash", "light": {
+            "type": "directional", "direction": [0, 0, -1], "irradiance_rgb": [1, 1, 1]}}]}))
+    scene = capture.load_scene(tmp_path)
+    _, mask = load_normal_map(scene.geometry, scene.camera)
+    np.testing.assert_array_equal(mask, inside)
+    np.testing.assert_array_equal(read_mask(tmp_path / "mask.png"), inside)

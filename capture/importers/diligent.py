@@ -136,14 +136,6 @@ def read_png_rgb(path):
     return np.ascontiguousarray(image[..., ::-1])
 
 
-def _read_mask(path):
-    from flashbrdf.capture.photo import imread_unchanged  # InputError over OpenCV's size limit
-    mask = imread_unchanged(path)
-    if mask is None:
-        raise InputError(path, "cannot be read as an image")
-    return mask.reshape(mask.shape[0], mask.shape[1], -1).max(axis=2) > 0
-
-
 def _read_normals(path):
     import scipy.io
     try:
@@ -184,7 +176,8 @@ def read_diligent(obj_dir):
                          f"intensity {odd[0]:g} is outside {MIN_INTENSITY:g}..{MAX_INTENSITY:g} "
                          "(intensities must be > 0; photos are stored as pixel / intensity in "
                          "32-bit floats)")
-    mask = _read_mask(mask_path)
+    from flashbrdf.capture.photo import read_object_mask  # InputError over OpenCV's limits
+    mask = read_object_mask(mask_path)
     normals = _read_normals(normals_path)
     if normals.shape[:2] != mask.shape:
         raise InputError(normals_path, f"size {normals.shape[1]}x{normals.shape[0]} differs from "
