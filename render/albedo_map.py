@@ -59,16 +59,20 @@ class DiffuseAlbedoMap:
         return np.where(known[:, None], albedo / np.pi - floors, 0.0)
 
 
-def render_albedo_maps(maps, surface, camera, render_with):
-    """[values (N, 3) float64 of the points under each DiffuseAlbedoMap of `maps`].
-
-    render_with(models) -> [(N, 3) per model] renders the surface with a list of models (or
-    MaterialMaps): the bases go in one render, and the render of the constant 1/sr BRDF is made
-    once for all the maps whose delta is not 0."""
-    values = render_with([m.base for m in maps])
-    deltas = [m.point_delta(surface, camera) for m in maps]
-    if not any(np.any(delta) for delta in deltas):
-        return values
-    unit = render_with([Lambert(np.pi)])[0]   # rho = 1 / sr
-    return [np.maximum(value + unit * delta, 0.0) if np.any(delta) else value
-            for value, delta in zip(values, deltas)]
+def render_albedo_maps(maps, surface, camera, render_with, emit):
+    """emit(i, values (N, 3) float64) of the points under each DiffuseAlbedoMap maps[i], one map
+    at a time: render_with(models) -> [(N, 3) per model] renders the surface with a list of
+    models (or MaterialMaps). The constant 1/sr BRDF's render is made once, for the first map
+    whose delta is not 0, and kept for the others. The maps' bases are not rendered together:
+    each map holds its base's values, its delta and their sum (N × 3 float64 each, 0.6 GB at
+    24 MP), and several maps' at once would hold that many times more."""
+    unit = None
+    for i, albedo_map in enumerate(maps):
+        values = render_with([albedo_map.base])[0]
+        delta = albedo_map.point_delta(surface, camera)
+        if np.any(delta):
+            if unit is None:
+                unit = render_with([Lambert(np.pi)])[0]   # rho = 1 / sr
+            values = np.maximum(values + unit * delta, 0.0)
+        emit(i, values)
+        del values, delta

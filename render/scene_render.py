@@ -106,10 +106,10 @@ def render_surface(surface, camera, light, brdfs, emit, spp=64, seed=0, occluded
     for kind, members in groups.items():
         if kind is DiffuseAlbedoMap:
             n = len(surface.normals)
-            values = render_albedo_maps([brdfs[m] for m in members], surface, camera,
-                                        lambda items: _collected(render, items, n))
-            for m, value in zip(members, values):
-                emit(slice(None), m, value)
+            render_albedo_maps([brdfs[m] for m in members], surface, camera,
+                               lambda items: _collected(render, items, n),
+                               lambda i, value, members=members:
+                               emit(slice(None), members[i], value))
         elif kind is MaterialMap:
             _render_materials(surface, camera, [brdfs[m] for m in members], render,
                               lambda rows, i, value, members=members:

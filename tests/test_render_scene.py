@@ -379,3 +379,36 @@ def test_several_brdfs_hold_their_images_not_float64_values(tmp_path, monkeypatc
     pixels = 300 * 300
     assert n > 20_000
     assert peak < len(brdfs) * 12 * pixels + pixels + 1.5e6, (peak, n)
+
+
+def test_albedo_maps_render_one_at_a_time(tmp_path, monkeypatch):
+    """Several DiffuseAlbedoMaps hold one map's float64 arrays at a time (its base's values, its
+    delta, their sum and the kept render of the 1/sr BRDF), not every map's at once. The traced
+    peak stays under the images + the mask + 8 arrays of N × 3 float64 (24 N bytes each: at most
+    ~7 live while point_delta builds the albedo, floors and delta beside the base's values and
+    the unit render) + 1.5 MB of chunk buffers (the test above); every map's at once would hold
+    6 values + 6 deltas + the unit, 13 arrays."""
+    import tracemalloc
+    import flashbrdf.render.integrator as integrator
+    from flashbrdf.brdf.models import GGX
+    from flashbrdf.render import DiffuseAlbedoMap, SceneGeometry, render_scene
+    scene = _several_brdfs_scene(tmp_path, 300)
+    photo = [p for p in scene.photos_with_role("reference") if p.light.type == "envmap"]
+    camera = scene.photos_with_role("flash")[0].camera
+    geometry = SceneGeometry(scene)
+    n = len(geometry.surface(photo[0].camera).rows)
+    albedo = np.full(camera.shape + (3,), 0.5, np.float32)
+    maps = [DiffuseAlbedoMap(GGX(0.05 * (k + 1)), albedo, [[0.02] * 3], camera) for k in range(6)]
+    monkeypatch.setattr(integrator, "SAMPLES_PER_CHUNK", 1 << 10)
+    tracemalloc.start()
+    try:
+        for _, images, mask in render_scene(scene, maps, spp=1, photos=photo, geometry=geometry,
+                                            progress=False):
+            assert all(image.any() for image in images)
+            del images, mask
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    pixels = 300 * 300
+    assert n > 20_000
+    assert peak < len(maps) * 12 * pixels + pixels + 8 * 24 * n + 1.5e6, (peak, n)
