@@ -3,8 +3,8 @@
 Per material k: its slice (OUT_DIR/materials/material_<k>.csv, coverage.json), one prediction
 per method (OUT_DIR/<method>/material_<k>/brdf.binary), and a render per method and
 reference photo (each photo rendered once for all methods) with every material's table on its
-own pixels (render.MaterialMap; other cameras through LABELS.faces.npy). OUT_DIR/labels.png is the label map; OUT_DIR/slice.csv
-the whole object's slice, as a single-material run writes it.
+own pixels (render.MaterialMap; other cameras through LABELS.faces.npy). OUT_DIR/labels.png is
+the label map; OUT_DIR/slice.csv the whole object's slice, as a single-material run writes it.
 A material with no usable sample at all (every pixel rejected) borrows the whole object's
 slice, and the report says so; a sparse one is inferred with its missing bins imputed.
 """
