@@ -30,6 +30,7 @@ from flashbrdf.infer import METHODS, TrainingSet, make_method
 from flashbrdf.experiments.evaluate import PAPER, warm_up, build_method
 from flashbrdf.infer.model_file import load_methods
 from flashbrdf.infer.model_selection import check_training_size
+from flashbrdf.infer.training_set import check_unseen
 from flashbrdf.experiments.table1_report import summarise_errors
 from flashbrdf.infer.training import train_model
 
@@ -146,13 +147,15 @@ def run_test_set(merl_dirs, test_dir, out_dir, seed=0, label=None, command=None)
     """`flashbrdf evaluate --merl-dir ... --test-dir DIR`: train on every table of `merl_dirs`,
     score every method on the tables of `test_dir`; write out_dir/test_set.json and test_set.md.
     label: how the test data is named in the report (default: the test folder's name). Material
-    names must be unique across all folders, the test folder's included (InputError naming both
-    files): a test table is never also a training table."""
+    names must be unique across all folders, the test folder's included, and no test table may
+    hold a training table's values under another name (InputError naming both files): a test
+    table is never also a training table."""
     merl.list_merl_dirs(list(merl_dirs) + [test_dir], "the --merl-dir and --test-dir folders",
                         ": a test table is never also a training table")
     train = TrainingSet.from_merl_dirs(merl_dirs)
     check_training_size(len(train), "--merl-dir")
     test = TrainingSet.from_merl_dir(test_dir, fill=False)  # scored only: holes stay holes
+    check_unseen(test, train)
     start = time.perf_counter()
     result = score_methods(train, test, seed=seed)
     label = label or os.path.basename(os.path.normpath(test_dir))

@@ -80,6 +80,25 @@ def fill_missing_3d(rows, table_2d):
 MIN_TRAINING_TABLES = 4
 
 
+def table_key(table_2d):
+    """A table's identity as `train` fits it: the sha256 of its (filled) 2D view in float32, as
+    MODEL.npz stores it (tables 1e-9 apart are one)."""
+    return hashlib.sha256(np.ascontiguousarray(table_2d, np.float32).tobytes()).hexdigest()
+
+
+def check_unseen(test, training):
+    """InputError naming a table of the TrainingSet `test` that holds the same table as one of
+    `training` (under another name: names are checked by brdf.merl.list_merl_dirs), and both
+    files: a score on it would be a score on training data. test may be unfilled (fill=False):
+    its tables are compared as training fills them."""
+    trained = {table_key(t): p for p, t in zip(training.paths, training.tables_2d)}
+    for path, table in zip(test.paths, test.tables_2d):
+        original = trained.get(table_key(fill_missing_2d(table)[0] if not test.fill else table))
+        if original is not None:
+            raise InputError(path, f"holds the same table as the training table {original}: a "
+                                   "test table is never also a training table")
+
+
 def check_distinct(paths, tables_2d):
     """InputError when fewer than MIN_TRAINING_TABLES of the training tables differ (2D view, bit
     for bit in float32, as MODEL.npz stores and train fits them: tables 1e-9 apart are one),
@@ -91,7 +110,7 @@ def check_distinct(paths, tables_2d):
         return  # too few in any case: check_training_size names the folder
     seen, first_copy = {}, None
     for path, table in zip(paths, tables_2d):
-        key = hashlib.sha256(np.ascontiguousarray(table, np.float32).tobytes()).hexdigest()
+        key = table_key(table)
         if key in seen and first_copy is None:
             first_copy = (path, seen[key])
         seen.setdefault(key, path)

@@ -71,6 +71,15 @@ def test_train_refuses_duplicate_names_and_empty_folders(folders, tmp_path, caps
                  "--out", str(eval_out)]) == 2
     err = capsys.readouterr().err.strip().splitlines()   # it names the test folder as one
     assert len(err) == 1 and "across the --merl-dir and --test-dir folders" in err[0]
+    # and so is one under another name: a copy of a training table scored as unseen
+    renamed = _folder(tmp_path, "renamed", [test / f"{TEST[0]}.binary"])
+    shutil.copy(b / f"{FOLDER_B[1]}.binary", renamed / "my-metal.binary")
+    assert main(["evaluate", "--merl-dir", str(a), "--merl-dir", str(b), "--test-dir",
+                 str(renamed), "--out", str(eval_out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"flashbrdf evaluate: error: {renamed}")
+    assert "my-metal.binary: holds the same table as the training table" in err[0]
+    assert str(b / f"{FOLDER_B[1]}.binary") in err[0]
     assert not out.exists() and not eval_out.exists()
     assert not list(tmp_path.glob(".*"))                      # no staged leftovers
 
