@@ -34,7 +34,10 @@ CAMERA_FROM_DILIGENT = np.diag([1.0, -1.0, -1.0])
 WORLD_FROM_CAMERA = np.diag([1.0, -1.0, -1.0, 1.0])  # world = DiLiGenT frame
 PNG16_MAX = 65535
 EIGHT_BIT_NOTE = ("8-bit photos, read as linear (value / 255): 256 levels instead of 65536, so "
-                  "dark pixels are coarse and precision is reduced")
+                  "dark pixels are coarse and precision is reduced: rounding alone puts the true "
+                  "light ΔE-log {floor:.2f} from the reference photos (mean over their object "
+                  "pixels), so renders within about that of them are as close as the photos "
+                  "can tell")
 _NOT_PHOTOS = {"mask.png", "normal_gt.png"}
 # light intensities whose photos (pixel / intensity, float32) stay finite and not all zero
 MIN_INTENSITY, MAX_INTENSITY = 1e-30, 1e30
@@ -190,6 +193,20 @@ def read_diligent(obj_dir):
     return DiligentObject(folder, photos, directions / norm[:, None], intensities, mask, normals)
 
 
+def rounding_delta_e(raw, linear, mask, top, intensity, seed=0):
+    """(sum, count) over a photo's measured object pixels of the ΔE-log (brdf.metrics) between
+    its stored values `linear` and the light that rounded to the same codes `raw`: code + u,
+    u uniform in ±½ per channel (seeded), / top / intensity. Its mean is the error a render of
+    the exact light would show from rounding alone."""
+    from flashbrdf.brdf.metrics import delta_e_log
+    seen = mask & np.isfinite(linear).all(axis=2)
+    if not seen.any():
+        return 0.0, 0
+    codes = raw[seen].astype(np.float64)
+    light = (codes + np.random.default_rng(seed).uniform(-0.5, 0.5, codes.shape)) / top
+    return float(delta_e_log(light / intensity, linear[seen]).sum()), int(seen.sum())
+
+
 def normals_to_camera(normals_diligent):
     """(..., 3) DiLiGenT-frame normals -> (..., 3) contract camera-frame normals (x, -y, -z)."""
     return np.asarray(normals_diligent) @ CAMERA_FROM_DILIGENT.T
@@ -245,6 +262,7 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
     with staged_output_dir(out_dir, force=force, command="import-diligent") as staged:
         tmp = Path(staged)
         photos, depths = [], set()
+        rounding = []  # per reference photo: (sum, count) of its pixels' ΔE-log from rounding
         for k in loop:
             src = obj.photo_paths[k]
             raw = read_png_rgb(src)
@@ -274,6 +292,9 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
                 linear[clipped | black] = np.nan
             unseen = np.zeros_like(clipped) if is_flash else facing_away
             linear[unseen] = np.nan
+            if not is_flash:
+                rounding.append(rounding_delta_e(raw, linear, obj.mask, top,
+                                                 obj.light_intensities[k], seed=k))
             name = src.stem + ".exr"
             write_exr(tmp / name, linear)
             photos.append({
@@ -314,9 +335,13 @@ def import_diligent(obj_dir, flash_index, out_dir, progress=None, force=False, n
                         "Uncalibrated Photometric Stereo, CVPR 2016 (research use only)",
             },
         }
+        total, count = np.sum(rounding, axis=0) if rounding else (0.0, 0)
+        floor = total / count if count else None
+        scene["provenance"]["rounding_delta_e_log"] = floor
         if 8 in depths:
-            scene["provenance"]["precision_note"] = EIGHT_BIT_NOTE
+            note = EIGHT_BIT_NOTE.format(floor=floor if floor is not None else float("nan"))
+            scene["provenance"]["precision_note"] = note
             if notify is not None:
-                notify(f"note: {obj.folder.name}: {EIGHT_BIT_NOTE}")
+                notify(f"note: {obj.folder.name}: {note}")
         (tmp / "scene.json").write_text(dumps_scene(scene), encoding="utf-8")
     return scene
