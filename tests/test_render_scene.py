@@ -350,6 +350,31 @@ def test_several_brdfs_render_each_photo_once_each_as_alone(tmp_path):
             assert np.array_equal(image, alone[b][p]), (p, b)
 
 
+def _traced_render_peak(tmp_path, monkeypatch, brdfs_for, spp):
+    """(traced peak bytes, primary hits N) of render_scene over a 300² envmap reference with the
+    BRDFs brdfs_for(flash camera) gives, at 1 << 10 samples a chunk."""
+    import tracemalloc
+    import flashbrdf.render.integrator as integrator
+    from flashbrdf.render import SceneGeometry, render_scene
+    scene = _several_brdfs_scene(tmp_path, 300)
+    photo = [p for p in scene.photos_with_role("reference") if p.light.type == "envmap"]
+    brdfs = brdfs_for(scene.photos_with_role("flash")[0].camera)
+    geometry = SceneGeometry(scene)
+    n = len(geometry.surface(photo[0].camera).rows)     # primary hits cast before tracing
+    monkeypatch.setattr(integrator, "SAMPLES_PER_CHUNK", 1 << 10)
+    tracemalloc.start()
+    try:
+        for _, images, mask in render_scene(scene, brdfs, spp=spp, photos=photo,
+                                            geometry=geometry, progress=False):
+            assert len(images) == len(brdfs) and all(image.any() for image in images)
+            del images, mask
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert n > 20_000
+    return peak, n
+
+
 def test_several_brdfs_hold_their_images_not_float64_values(tmp_path, monkeypatch):
     """A photo rendered for M BRDFs at once holds the M float32 images (12 bytes a pixel each)
     and per-chunk buffers, not an (N, 3) float64 array (24 bytes a point) per BRDF. The traced
@@ -357,27 +382,10 @@ def test_several_brdfs_hold_their_images_not_float64_values(tmp_path, monkeypatc
     chunk is 256 points x 2 strategies x 2 samples, and its ~40 temporaries of at most 512 x 3
     float64 (12 kB) make < 0.5 MB a thread, 1 MB for two; the rest is slack. M float64 arrays
     would add M x 24 N bytes (2.9 MB here)."""
-    import tracemalloc
-    import flashbrdf.render.integrator as integrator
     from flashbrdf.brdf.models import GGX, Lambert
-    from flashbrdf.render import SceneGeometry, render_scene
-    scene = _several_brdfs_scene(tmp_path, 300)
-    photo = [p for p in scene.photos_with_role("reference") if p.light.type == "envmap"]
-    geometry = SceneGeometry(scene)
-    n = len(geometry.surface(photo[0].camera).rows)     # primary hits cast before tracing
     brdfs = [GGX(0.2), Lambert([0.5] * 3), GGX(0.05), Lambert([0.2] * 3)]
-    monkeypatch.setattr(integrator, "SAMPLES_PER_CHUNK", 1 << 10)
-    tracemalloc.start()
-    try:
-        for _, images, mask in render_scene(scene, brdfs, spp=2, photos=photo,
-                                            geometry=geometry, progress=False):
-            assert all(image.any() for image in images)
-            del images, mask
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
+    peak, n = _traced_render_peak(tmp_path, monkeypatch, lambda camera: brdfs, spp=2)
     pixels = 300 * 300
-    assert n > 20_000
     assert peak < len(brdfs) * 12 * pixels + pixels + 1.5e6, (peak, n)
 
 
@@ -388,27 +396,13 @@ def test_albedo_maps_render_one_at_a_time(tmp_path, monkeypatch):
     ~7 live while point_delta builds the albedo, floors and delta beside the base's values and
     the unit render) + 1.5 MB of chunk buffers (the test above); every map's at once would hold
     6 values + 6 deltas + the unit, 13 arrays."""
-    import tracemalloc
-    import flashbrdf.render.integrator as integrator
     from flashbrdf.brdf.models import GGX
-    from flashbrdf.render import DiffuseAlbedoMap, SceneGeometry, render_scene
-    scene = _several_brdfs_scene(tmp_path, 300)
-    photo = [p for p in scene.photos_with_role("reference") if p.light.type == "envmap"]
-    camera = scene.photos_with_role("flash")[0].camera
-    geometry = SceneGeometry(scene)
-    n = len(geometry.surface(photo[0].camera).rows)
-    albedo = np.full(camera.shape + (3,), 0.5, np.float32)
-    maps = [DiffuseAlbedoMap(GGX(0.05 * (k + 1)), albedo, [[0.02] * 3], camera) for k in range(6)]
-    monkeypatch.setattr(integrator, "SAMPLES_PER_CHUNK", 1 << 10)
-    tracemalloc.start()
-    try:
-        for _, images, mask in render_scene(scene, maps, spp=1, photos=photo, geometry=geometry,
-                                            progress=False):
-            assert all(image.any() for image in images)
-            del images, mask
-        peak = tracemalloc.get_traced_memory()[1]
-    finally:
-        tracemalloc.stop()
+    from flashbrdf.render import DiffuseAlbedoMap
+
+    def maps(camera):
+        albedo = np.full(camera.shape + (3,), 0.5, np.float32)
+        return [DiffuseAlbedoMap(GGX(0.05 * (k + 1)), albedo, [[0.02] * 3], camera)
+                for k in range(6)]
+    peak, n = _traced_render_peak(tmp_path, monkeypatch, maps, spp=1)
     pixels = 300 * 300
-    assert n > 20_000
-    assert peak < len(maps) * 12 * pixels + pixels + 8 * 24 * n + 1.5e6, (peak, n)
+    assert peak < 6 * 12 * pixels + pixels + 8 * 24 * n + 1.5e6, (peak, n)
