@@ -71,16 +71,18 @@ def render_previews(scene, geometry, brdfs, sphere_tables, envmap_path, out, spp
                   world_from_envmap=camera_facing_envmap(camera), scale=1.0)
     view = Photo(index=-1, role="preview", camera=camera, where="run --envmap",
                  file=Path("preview_object"), light=light)
-    found = {}
-    for method, brdf in brdfs.items():
+    found = {method: {"object": None, "spheres": {}} for method in brdfs}
+    for method in brdfs:
+        (Path(out) / method).mkdir(parents=True, exist_ok=True)
+    # the object once for all methods (what does not depend on the BRDF rendered once)
+    for _, images, _ in render_scene(scene, list(brdfs.values()), spp=spp, photos=[view],
+                                     progress=False, geometry=geometry):
+        for method, image in zip(brdfs, images):
+            write_exr(Path(out) / method / "preview_object.exr", image)
+            write_preview(Path(out) / method / "preview_object.png", image)
+            found[method]["object"] = f"{method}/preview_object.png"
+    for method, entry in found.items():
         folder = Path(out) / method
-        folder.mkdir(parents=True, exist_ok=True)
-        entry = {"object": None, "spheres": {}}
-        for _, image, _ in render_scene(scene, brdf, spp=spp, photos=[view], progress=False,
-                                        geometry=geometry):
-            write_exr(folder / "preview_object.exr", image)
-            write_preview(folder / "preview_object.png", image)
-            entry["object"] = f"{method}/preview_object.png"
         tables = sphere_tables[method]
         for k, table in tables.items():
             name = "preview_sphere" if len(tables) == 1 else f"preview_sphere_material_{k}"
@@ -88,7 +90,6 @@ def render_previews(scene, geometry, brdfs, sphere_tables, envmap_path, out, spp
             write_exr(folder / f"{name}.exr", image)
             write_preview(folder / f"{name}.png", image)
             entry["spheres"][k] = f"{method}/{name}.png"
-        found[method] = entry
     return found
 
 
