@@ -1,8 +1,9 @@
 """Label files: LABELS.png (16-bit, the first flash photo's pixel grid, 0 = background or unused,
 1..K the material), LABELS.faces.npy beside it (int32 per mesh face; unseen faces take the nearest
-seen face's label) and LABELS.json (K and why). Written together through temporary files and
-renamed, so a failure leaves none of them; read back with every check `render --labels` and
-`extract --labels` need (a lossy format is refused: its compression changes labels at borders).
+seen face's label, of their own connected part when it has one) and LABELS.json (K and why).
+Written together through temporary files and renamed, so a failure leaves none of them; read back
+with every check `render --labels` and `extract --labels` need (a lossy format is refused: its
+compression changes labels at borders).
 """
 
 import contextlib

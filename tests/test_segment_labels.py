@@ -224,3 +224,38 @@ def test_face_labels_vote_per_face_and_unseen_faces_take_the_nearest_seen_ones()
                                                                 axis=1))]
         assert got[f] == got[nearest]
     assert np.array_equal(face_labels(np.minimum(labels, 1), faces, centroids), np.ones(60))
+
+
+def test_unseen_faces_take_the_label_of_their_own_part():
+    """A sphere (material 2) inside an untilted torus (material 1), seen from +z: the torus's
+    upper half and only the sphere's cap (z > 0.04) are seen. The sphere's hidden equator lies
+    within 1 cm of the torus's inner ring and 4.7 cm of the cap, so the nearest seen face
+    overall is the torus's: each unseen face must take its own part's label instead. A third
+    part nobody sees (a small sphere beside the torus's +x side) keeps the rule of nearest seen
+    face overall. Exact labels: a geometric rule, no tolerance. With flat-shaded files (every
+    face its own three vertices) the parts are the same, found by vertex position."""
+    import trimesh
+    from flashbrdf.slice_extract.segment.labels import face_labels, face_parts
+    from synthetic import combine, sphere_mesh, torus_mesh
+    torus = torus_mesh(centre=(0, 0, 0), tilt_deg=0.0, sections=(64, 32))
+    inner = sphere_mesh(radius=0.045, centre=(0, 0, 0), subdivisions=3)
+    beside = sphere_mesh(radius=0.01, centre=(0.16, 0, 0), subdivisions=1)
+    mesh = combine(torus, inner, beside)
+    truth = np.repeat([1, 2, 2], [len(torus.faces), len(inner.faces), len(beside.faces)])
+    centroids = mesh.triangles_center
+    z = centroids[:, 2]
+    part = np.repeat([0, 1, 2], [len(torus.faces), len(inner.faces), len(beside.faces)])
+    seen = np.flatnonzero(((part == 0) & (z > 0)) | ((part == 1) & (z > 0.04)))
+    labels, face_image = truth[seen].astype(np.uint16), seen  # one pixel per seen face
+    parts = face_parts(mesh.vertices, mesh.faces)
+    assert len(np.unique(parts)) == 3 and all(len(np.unique(parts[part == p])) == 1
+                                             for p in range(3))
+    got = face_labels(labels, face_image, centroids, parts)
+    assert np.array_equal(got[part < 2], truth[part < 2]), np.bincount(got[part == 1])
+    # the unseen part: the torus's outer ring is its nearest seen face
+    assert (got[part == 2] == 1).all()
+    # without parts, the old rule: the sphere's hidden equator takes the torus's label
+    assert (face_labels(labels, face_image, centroids)[part == 1] == 1).any()
+    flat = trimesh.Trimesh(mesh.vertices[mesh.faces].reshape(-1, 3),
+                           np.arange(3 * len(mesh.faces)).reshape(-1, 3), process=False)
+    assert np.array_equal(face_parts(flat.vertices, flat.faces), parts)

@@ -251,10 +251,28 @@ def face_label_agreement(labels, face_image, faces):
     return int(np.count_nonzero(np.asarray(faces)[face_image[seen]] == labels[seen])) / count
 
 
-def face_labels(labels, face_image, faces_centroids):
+def face_parts(vertices, faces):
+    """(F,) int: the connected part of the mesh each face belongs to (faces sharing a vertex
+    position are connected; positions, not indices, since meshes are read unprocessed and a
+    flat-shaded file repeats its vertices per face)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+    _, position = np.unique(vertices.view(np.dtype((np.void, 24))).ravel(), return_inverse=True)
+    n_faces, n_positions = len(faces), int(position.max()) + 1
+    corners = position[np.asarray(faces)].ravel()
+    graph = coo_matrix((np.ones(len(corners), np.int8),
+                        (np.repeat(np.arange(n_faces), 3), n_faces + corners)),
+                       shape=(n_faces + n_positions,) * 2)
+    return connected_components(graph, directed=False)[1][:n_faces]
+
+
+def face_labels(labels, face_image, faces_centroids, parts=None):
     """Label per mesh face (F,) int32 from a label image (H, W) and the face each pixel hits
     (H, W) int (-1 none); faces_centroids (F, 3). A seen face takes its pixels' majority label;
-    an unseen face the label of the nearest seen face (by centroid)."""
+    an unseen face the label of the nearest seen face (by centroid) of its own connected part
+    (parts (F,) int, face_parts) when that part has one, else of any part: a part hidden
+    behind another (a sphere inside a torus) is not given the label of what hides it."""
     n_faces = len(faces_centroids)
     k = int(labels.max())
     if k <= 1:  # one material: every face is it (the nearest-face search cost 20 s at 600k)
@@ -268,7 +286,22 @@ def face_labels(labels, face_image, faces_centroids):
     if not has.any():
         return np.ones(n_faces, np.int32)
     if not has.all():
-        tree = cKDTree(faces_centroids[has])
-        _, nearest = tree.query(faces_centroids[~has], workers=thread_budget(2))
-        out[~has] = out[has][nearest]
+        centroids = np.asarray(faces_centroids, np.float64)
+        unseen = np.flatnonzero(~has)
+        if parts is not None:
+            parts = np.asarray(parts)
+            in_seen_part = np.isin(parts[unseen], parts[has])
+            # one search for all parts: a 4th coordinate part x (more than the mesh's size)
+            # puts every other part farther than any face of the same part
+            apart = 2 * float(np.ptp(centroids, axis=0).max()) + 1
+            lifted = np.column_stack([centroids, parts * apart])
+            own = unseen[in_seen_part]
+            if len(own):
+                _, nearest = cKDTree(lifted[has]).query(lifted[own], workers=thread_budget(2))
+                out[own] = out[has][nearest]
+            unseen = unseen[~in_seen_part]
+        if len(unseen):
+            tree = cKDTree(centroids[has])
+            _, nearest = tree.query(centroids[unseen], workers=thread_budget(2))
+            out[unseen] = out[has][nearest]
     return out

@@ -15,7 +15,8 @@ from flashbrdf.slice_extract.segment.features import (
     theta_h_bins,
 )
 from flashbrdf.slice_extract.segment.labels import (align_bin_labels, clean_label_image,
-                                                    face_label_agreement, face_labels)
+                                                    face_label_agreement, face_labels,
+                                                    face_parts)
 from flashbrdf.slice_extract.segment.slices import assign_all, refine_labels
 
 # share of the flash view's labelled pixels whose face carries their label, at least (faces
@@ -100,7 +101,9 @@ def segment_scene(samples, materials="auto", options=None, empty_ok=False):
     if samples.face_image is not None:
         mesh = samples.mesh if samples.mesh is not None else \
             load_mesh(samples.scene.geometry.mesh)[0]
-        faces = face_labels(segmentation.labels, samples.face_image, mesh.triangles_center)
+        parts = face_parts(mesh.vertices, mesh.faces) if segmentation.k > 1 else None
+        faces = face_labels(segmentation.labels, samples.face_image, mesh.triangles_center,
+                            parts)
         if segmentation.k > 1:
             share = face_label_agreement(segmentation.labels, samples.face_image, faces)
             if share is not None:
