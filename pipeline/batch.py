@@ -10,7 +10,8 @@ size of every file run wrote) last, and renames the folder into place. A capture
 OUT_DIR/<subfolder>/ holds a readable marker whose files are all there at those sizes; a second
 call skips complete captures unless --force. Staging folders left by a killed worker are removed
 by the client when the batch ends on its own cluster (a remote scheduler's workers may still be
-writing), and at the start of the next batch.
+writing), and at the start of the next batch. One batch at a time writes into an OUT_DIR: it
+holds a lock on the folder (files.folder_lock), and a second one is refused (exit 2).
 
 A task that raises is retried once by Dask (retries=1), and a task whose worker dies is retried
 once on another worker (dask_engine.ALLOWED_FAILURES); then the capture is recorded as failed. Bad
@@ -30,7 +31,6 @@ capture. Exit 0 when all succeeded, 1 when any failed, 2 when CAPTURES_DIR holds
 """
 
 import contextlib
-import io
 import json
 import os
 import shutil
@@ -43,8 +43,10 @@ import uuid
 from pathlib import Path
 
 from flashbrdf.files.atomic import write_text
+from flashbrdf.files.folder_lock import sole_writer
 from flashbrdf.files.errors import InputError
 from flashbrdf.pipeline import dask_engine
+from flashbrdf.pipeline.batch_logs import output_to
 from flashbrdf.pipeline.batch_summary import (SUMMARY_HEADS, failed_row, row_from_report,
                                               write_summary)
 from flashbrdf.pipeline.options import inputs_fingerprint
@@ -144,43 +146,6 @@ def cached_load_methods(names, model_path, anchor):
         return _MODELS[key]
 
 
-class _ThreadOutput(io.TextIOBase):
-    """A stand-in for sys.stdout / sys.stderr that sends each thread's text to that thread's log
-    file, if it has one (a worker may run several tasks on threads at once)."""
-
-    def __init__(self, fallback):
-        self.fallback, self.local = fallback, threading.local()
-
-    def write(self, text):
-        target = getattr(self.local, "file", None) or self.fallback
-        return target.write(text)
-
-    def flush(self):
-        (getattr(self.local, "file", None) or self.fallback).flush()
-
-    def isatty(self):
-        return False
-
-
-_ROUTING_LOCK = threading.Lock()
-
-
-@contextlib.contextmanager
-def _output_to(log_file):
-    """Send this thread's stdout and stderr to `log_file` (appended) inside the block."""
-    with _ROUTING_LOCK:
-        for stream in ("stdout", "stderr"):
-            if not isinstance(getattr(sys, stream), _ThreadOutput):
-                setattr(sys, stream, _ThreadOutput(getattr(sys, stream)))
-    Path(log_file).parent.mkdir(parents=True, exist_ok=True)
-    with open(log_file, "a", encoding="utf-8", buffering=1) as f:
-        sys.stdout.local.file = sys.stderr.local.file = f
-        try:
-            yield f
-        finally:
-            sys.stdout.local.file = sys.stderr.local.file = None
-
-
 def check_run_options(options, as_text=False):
     """`run`'s checks of the run options (RUN_OPTIONS dict): method names, the model file (the
     default one when none is given and a method needs it; whole and of our format), --spp,
@@ -220,7 +185,7 @@ def run_capture(scene_dir, out_dir, options):
     worker = f"{socket.gethostname()}:{os.getpid()}"
     staging = out_dir / f".{name}.partial-{uuid.uuid4().hex[:8]}"
     start, cpu_start = time.perf_counter(), time.process_time()
-    with _output_to(out_dir / LOG_DIR / f"{name}.log") as log, \
+    with output_to(out_dir / LOG_DIR / f"{name}.log") as log, \
             dask_engine.worker_threads() as threads:
         print(f"--- {time.strftime('%Y-%m-%d %H:%M:%S')} {name}: started on {worker}, "
               f"{threads} thread(s)", file=log)
@@ -407,12 +372,19 @@ def _check_options_on(client, options):
     return checked
 
 
-def _prepare(out, captures):
-    """Make OUT_DIR, and remove what a batch killed earlier left there for these captures."""
+def _prepare(out, captures, held):
+    """Make OUT_DIR, hold it for this batch (held: a contextlib.ExitStack that keeps it until
+    the batch ends), and remove what a batch killed earlier left there for these captures."""
     out.mkdir(parents=True, exist_ok=True)
+    # Two batches in one OUT_DIR at once took each other's staging folders for a killed
+    # batch's leftovers and removed them under each other (here and at the end)
+    held.enter_context(sole_writer(out, "another flashbrdf batch is writing into it; let it "
+                                        "finish (a rerun then skips what it completed) or give "
+                                        "another --out"))
     for c in captures:
         for leftover in _leftovers(out, c.name):
             shutil.rmtree(leftover, ignore_errors=True)
+    return True
 
 
 def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model=None,
@@ -447,10 +419,11 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
     if in_process or not todo:
         options = check_run_options(options)
     start = time.perf_counter()
-    n_workers, every_task_ended = 0, False
+    n_workers, every_task_ended, prepared = 0, False, False
+    held = contextlib.ExitStack()  # OUT_DIR's lock (_prepare), until the summary is written
     try:
         if in_process:
-            _prepare(out, captures)
+            prepared = _prepare(out, captures, held)
             n_workers = 1
             rows |= _run_here(todo[0], out, options | {"requested": requested})
         elif todo:
@@ -461,7 +434,7 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
                 # run's option checks import every stage (seconds); a worker imports them for
                 # its first capture anyway, so they run there, before any output is written.
                 options = _check_options_on(client, options)
-                _prepare(out, captures)
+                prepared = _prepare(out, captures, held)
                 n_workers = len(client.scheduler_info().get("workers", {}))
                 rows |= _run_tasks(client, todo, out, options | {"requested": requested})
         every_task_ended = True
@@ -470,9 +443,12 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
         # (closed now) or every task has ended; after an interrupt a remote scheduler's workers
         # may still be writing theirs, so those are left to the next batch (_prepare). The
         # markers' file lists guard against what a race would still leave.
-        for c in todo if every_task_ended or not scheduler else ():
+        # (only while this batch holds OUT_DIR: else they are another batch's, still running)
+        for c in todo if prepared and (every_task_ended or not scheduler) else ():
             for leftover in _leftovers(out, c.name):
                 shutil.rmtree(leftover, ignore_errors=True)
+        if not every_task_ended:
+            held.close()  # an interrupt: no summary follows
     ordered = [rows[c.name] for c in captures]
     failed = [r for r in ordered if r["status"] != "ok"]
     engine = scheduler or (
@@ -489,6 +465,7 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
         f"- Per-capture logs: `{LOG_DIR}/<capture>.log`. ΔE-log is `delta_e_log_mean` of each "
         "method's renders against the reference photos (mean over photos, then per photo)."],
         methods=dict.fromkeys(m.strip() for m in methods.split(",") if m.strip()))
+    held.close()
     for r in failed:
         print(f"flashbrdf batch: {r['capture']} failed: {r['reason']}", file=sys.stderr)
     print(f"summary: {(out / 'summary.md').resolve()}")

@@ -407,6 +407,32 @@ def test_out_dir_that_cannot_be_written_is_bad_input(captures, tmp_path, capsys,
     assert os.listdir(out) == []
 
 
+def test_a_second_batch_into_a_busy_out_dir_is_refused(captures, tmp_path, capsys):
+    """Another batch writing into OUT_DIR (it holds the folder's lock, here taken by hand) and
+    mid-capture (its staging folder): a second batch into the same OUT_DIR exits 2 with one line
+    naming it and leaves the other's staging folder alone. Two batches at once each removed the
+    other's staging folders as a killed batch's leftovers, failing its captures mid-run."""
+    import fcntl
+    one = tmp_path / "one"
+    one.mkdir()
+    (one / "a").symlink_to(captures / "a")  # one capture: the batch runs in its own process
+    out = tmp_path / "out"
+    staging = out / ".a.partial-0123abcd"
+    staging.mkdir(parents=True)
+    fd = os.open(out, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert main(["batch", str(one), "--out", str(out), *RUN_OPTIONS]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and str(out) in err[0] and "another flashbrdf batch" in err[0], err
+        assert staging.is_dir() and sorted(os.listdir(out)) == [staging.name]
+    finally:
+        os.close(fd)
+    # the lock gone (that batch ended or was killed): this one runs, and removes the leftover
+    assert main(["batch", str(one), "--out", str(out), *RUN_OPTIONS]) == 0
+    assert not staging.exists() and (out / "a" / MARKER).is_file()
+
+
 def test_scheduler_with_nothing_listening_fails_at_once(captures, tmp_path, capsys):
     """Nothing listens at --scheduler: one line naming it, exit 2, long before Dask's 20 s connect
     timeout (a refused TCP probe takes milliseconds; 5 s leaves room for a loaded machine)."""
