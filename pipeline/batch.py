@@ -50,12 +50,11 @@ from flashbrdf.pipeline.batch_logs import output_to
 from flashbrdf.pipeline.batch_summary import (SUMMARY_HEADS, failed_row, row_from_report,
                                               write_summary)
 from flashbrdf.pipeline.options import inputs_fingerprint
-from flashbrdf.pipeline.report_index import INDEX_NAME
+from flashbrdf.pipeline.report_index import INDEX_NAME, LOG_DIR
 from flashbrdf.files.outputs import MARKER as RUN_MARKER, folder_inventory
 from flashbrdf.files.outputs import check_writable_folder
 
 MARKER = ".batch_complete.json"
-LOG_DIR = "logs"
 RUN_OPTIONS = ("model", "methods", "spp", "no_anchor", "materials", "albedo_map", "export",
                "envmap", "refine_poses")
 OWN_NAMES = (LOG_DIR, "summary.csv", "summary.md", INDEX_NAME)  # what a batch writes in OUT_DIR

@@ -12,6 +12,7 @@ from flashbrdf.files.atomic import write_text
 from flashbrdf.pipeline.report_text import PAGE_DIR, PAGE_NAME, inline_markdown
 
 INDEX_NAME = "index.html"
+LOG_DIR = "logs"  # OUT_DIR/logs/<capture>.log: what `run` printed for each capture
 # How the index starts: a later batch knows the file as its own by it (batch._check_batch_folder)
 INDEX_HEAD = "<!doctype html>\n<!-- flashbrdf batch index -->\n"
 
@@ -39,6 +40,9 @@ def write_batch_index(out_dir, rows, methods=(), header_lines=()):
         elif page.is_file():  # a rerun failed: its folder still holds an earlier run's report
             link += (f' (<a href="{quote(name)}/{PAGE_NAME}">an earlier run\'s report</a>, '
                      "not of these inputs or options)")
+        reason = html.escape(str(r.get("reason") or ""))
+        if not ok and (out_dir / LOG_DIR / f"{name}.log").is_file():  # the traceback is there
+            reason += f' (<a href="{LOG_DIR}/{quote(name)}.log">log</a>)'
         values = [(r.get("delta_e_log") or {}).get(m) for m in methods]
         best = min((v for v in values if v is not None), default=None)
         # an ok capture with no ΔE compared nothing (no reference photo, or no compared
@@ -53,7 +57,7 @@ def write_batch_index(out_dir, rows, methods=(), header_lines=()):
         body.append(f"<tr><td>{link}</td><td class={'ok' if ok else 'failed'}>"
                     f"{html.escape(str(r.get('status', '')))}</td>{cells}"
                     f"<td>{_number(r.get('seconds'), 1)}</td>"
-                    f"<td class=reason>{html.escape(str(r.get('reason') or ''))}</td></tr>")
+                    f"<td class=reason>{reason}</td></tr>")
     notes = "".join(f"<li>{inline_markdown(line[2:] if line.startswith('- ') else line)}</li>"
                     for line in header_lines if line.strip())
     css = (PAGE_DIR / "report.css").read_text(encoding="utf-8")

@@ -257,8 +257,13 @@ def test_batch_index_links_each_report_and_is_known_to_the_next_batch(tmp_path):
     (tmp_path / "no photo" / "report.html").write_text("<!doctype html>")
     (tmp_path / "rerun").mkdir()  # a capture whose rerun failed keeps its earlier run's folder
     (tmp_path / "rerun" / "report.html").write_text("<!doctype html>")
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "logs" / "rerun.log").write_text("Traceback ...")
     write_batch_index(tmp_path, rows, ["dsgplvm", "pca"], ["- 2 capture(s)"])
     page = (tmp_path / "index.html").read_text()
+    # a failed capture's reason links its log (the traceback); one without a log links nothing
+    assert '<td class=reason>InputError: y (<a href="logs/rerun.log">log</a>)</td>' in page
+    assert '<td class=reason>InputError: x</td>' in page
     assert page.startswith(INDEX_HEAD)
     assert '<a href="cap%20a/report.html">cap a</a>' in page
     assert "b&lt;c&gt;" in page and "b<c>" not in page        # no report: no link, escaped
