@@ -137,7 +137,8 @@ def _figure(path, shown, methods, mask, env_name):
         for ax in axes[2 * r].tolist() + axes[2 * r + 1].tolist():
             ax.set_axis_off()
     if im is not None:
-        fig.colorbar(im, ax=axes[:, -1].tolist(), fraction=0.05, label="$\\Delta E^*_{ab}$ (log)")
+        # from every column alike: taken from the last alone, it drew that method smaller
+        fig.colorbar(im, ax=axes.ravel().tolist(), fraction=0.05, label="$\\Delta E^*_{ab}$ (log)")
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", dpi=100)
     plt.close(fig)

@@ -3,6 +3,7 @@
 import json
 
 import numpy as np
+import pytest
 
 from flashbrdf.brdf.merl import read_merl
 from flashbrdf.experiments.table2 import table2
@@ -33,6 +34,21 @@ def test_table2_scores_truth_zero_and_errors_positive(tmp_path, merl_proxy):
     assert saved["summary"] == summary
     assert set(saved["per_material"]["pca"]["sky"]) == set(names)
     assert (out / "table2.md").read_text().count("|") > 10 and (out / "table2.png").is_file()
+
+
+def test_table2_figure_draws_every_method_the_same_size(tmp_path, merl_proxy, monkeypatch):
+    """The ΔE colour bar takes its room from every column alike: taken from the last column
+    alone, it drew the last method's images ~0.7x as wide as the others'."""
+    import matplotlib.pyplot as plt
+    figures = []
+    monkeypatch.setattr(plt, "close", figures.append)
+    path = merl_proxy("blue-acrylic")
+    truth = read_merl(path)
+    table2(path.parent, tmp_path / "out", lambda name, m: truth * 2.0, names=[path.stem],
+           methods=("pca", "noll"), size=8, spp=1, progress=False)
+    axes = figures[0].axes[:-1]                                 # the last one is the colour bar
+    widths = [ax.get_position().width for ax in axes]
+    assert len(axes) == 6 and max(widths) == pytest.approx(min(widths), rel=1e-6)
 
 
 def test_table2_without_envmaps_renders_the_maps_made_in_code(tmp_path, merl_proxy):
