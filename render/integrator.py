@@ -72,6 +72,8 @@ def render_directional_light(points, normals, view, brdf, direction, irradiance_
 
 def _direct(points, normals, view, brdf, wi, irradiance, distance, occluded):
     models, several = _models(brdf)
+    if not models:
+        return []
     frame = Frame.from_normal(normals)
     wi_l, wo_l = frame.to_local(wi), frame.to_local(view)
     cos_i = np.maximum(wi_l[:, 2], 0.0)
@@ -139,7 +141,7 @@ def render_envmap(points, normals, view, brdf, envmap, spp=64, seed=0, occluded=
 
         def emit(rows, m, values):
             outs[m][rows] = values
-    if n_points == 0:
+    if n_points == 0 or not models:
         return None if outs is None else (outs if several else outs[0])
     strategies = tuple(strategies)
     if strategies == ("envmap",) and getattr(envmap, "compensate", False):

@@ -228,3 +228,18 @@ def test_several_models_under_direct_lights_render_each_as_alone():
         together = render(normals, normals, view, models, *light, occluded=occluded)
         for one, shared in zip(alone, together):
             assert one.any() and np.array_equal(one, shared)
+
+
+def test_an_empty_list_of_models_renders_no_image():
+    """A list of models gives one output per model, so an empty list gives an empty list (it
+    raised IndexError / ValueError from the shared shadow-ray and radiance code)."""
+    mask, normals, view = sphere_view(8)
+    env = EnvMap(np.random.default_rng(0).random((8, 16, 3)), np.eye(3), 1.0)
+
+    def occluded(points, dirs, far):
+        return dirs[:, 0] > 0.3
+    assert render_envmap(normals, normals, view, [], env, spp=2, occluded=occluded) == []
+    assert render_point_light(normals, normals, view, [], [0, 0, 3], [1, 1, 1],
+                              occluded=occluded) == []
+    assert render_directional_light(normals, normals, view, (), [0, 0, 1], [1, 1, 1],
+                                    occluded=occluded) == []
