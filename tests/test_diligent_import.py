@@ -424,3 +424,19 @@ def test_a_flash_too_far_off_the_view_is_warned_of_at_import(tmp_path, capsys):
     capsys.readouterr()
     assert main(["import-diligent", str(small), "--flash", "2", "--out", str(tmp_path / "s")]) == 0
     assert "warning: light 2 is 11.0° off the view" in capsys.readouterr().err
+
+
+
+def test_the_rounding_figure_draws_no_negative_light(monkeypatch):
+    """A channel at code 0 held light in [0, ½) of a code: the rounding figure's light is never
+    negative (drawn in ±½ it went below 0 for half of such channels)."""
+    import flashbrdf.brdf.metrics as metrics
+    from flashbrdf.capture.importers.diligent import rounding_delta_e
+    drawn = []
+    monkeypatch.setattr(metrics, "delta_e_log", lambda light, stored: drawn.append(light)
+                        or np.zeros(len(light)))
+    raw = np.zeros((20, 20, 3), np.uint8)
+    raw[..., 1:] = 7                                          # red at code 0, the rest lit
+    linear = raw / 255.0
+    assert rounding_delta_e(raw, linear, np.ones((20, 20), bool), 255, 1.0) == (0.0, 400)
+    assert drawn[0][:, 0].min() >= 0 and drawn[0][:, 0].max() < 0.5 / 255

@@ -259,3 +259,14 @@ def test_unseen_faces_take_the_label_of_their_own_part():
     flat = trimesh.Trimesh(mesh.vertices[mesh.faces].reshape(-1, 3),
                            np.arange(3 * len(mesh.faces)).reshape(-1, 3), process=False)
     assert np.array_equal(face_parts(flat.vertices, flat.faces), parts)
+
+
+def test_a_vertex_at_minus_zero_joins_its_part():
+    """face_parts matches vertex positions: a flat-shaded file repeating a vertex as -0.0 in
+    one face and 0.0 in the next is one position, so two triangles sharing that vertex are one
+    part (by bytes, -0.0 and 0.0 differ and split it)."""
+    from flashbrdf.slice_extract.segment.labels import face_parts
+    vertices = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0],       # triangle 1
+                         [-0.0, 0, 0], [0, -1, 0], [-1, 0, 0]])   # triangle 2: the origin shared
+    assert np.signbit(vertices[3, 0])
+    assert face_parts(vertices, np.array([[0, 1, 2], [3, 4, 5]])).tolist() == [0, 0]

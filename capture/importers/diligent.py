@@ -196,14 +196,16 @@ def read_diligent(obj_dir):
 def rounding_delta_e(raw, linear, mask, top, intensity, seed=0):
     """(sum, count) over a photo's measured object pixels of the ΔE-log (brdf.metrics) between
     its stored values `linear` and the light that rounded to the same codes `raw`: code + u,
-    u uniform in ±½ per channel (seeded), / top / intensity. Its mean is the error a render of
-    the exact light would show from rounding alone."""
+    u uniform in ±½ per channel (seeded; in [0, ½) at code 0), / top / intensity. Its mean is
+    the error a render of the exact light would show from rounding alone."""
     from flashbrdf.brdf.metrics import delta_e_log
     seen = mask & np.isfinite(linear).all(axis=2)
     if not seen.any():
         return 0.0, 0
     codes = raw[seen].astype(np.float64)
-    light = (codes + np.random.default_rng(seed).uniform(-0.5, 0.5, codes.shape)) / top
+    u = np.random.default_rng(seed).uniform(-0.5, 0.5, codes.shape)
+    # a channel at code 0 held light in [0, ½) of a code: no negative light
+    light = (codes + np.where(codes == 0, np.abs(u), u)) / top
     return float(delta_e_log(light / intensity, linear[seen]).sum()), int(seen.sum())
 
 

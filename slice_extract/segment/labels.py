@@ -257,7 +257,7 @@ def face_parts(vertices, faces):
     flat-shaded file repeats its vertices per face)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
-    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64) + 0.0   # -0.0 is 0.0's position
     _, position = np.unique(vertices.view(np.dtype((np.void, 24))).ravel(), return_inverse=True)
     n_faces, n_positions = len(faces), int(position.max()) + 1
     corners = position[np.asarray(faces)].ravel()
