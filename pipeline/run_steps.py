@@ -105,8 +105,9 @@ def render_and_compare(scene, geometry, renders, spp, out, references, loaded, s
     of the report's level check. What does not depend on the BRDF is rendered once for all
     (render.render_scene); each render equals its render alone.
 
-    Stages (StageTimer `stages`): "render" for the renders of all names, "compare <name>" for
-    writing that name's render and comparing it."""
+    Stages (StageTimer `stages`): "render" for the renders of all names and what they share
+    (reading each photo, saving its masks), "compare <name>" for writing that name's render and
+    comparing it."""
     brdfs = [table if isinstance(table, (MaterialMap, DiffuseAlbedoMap)) else TabulatedBRDF(table)
              for _, table, _ in renders]
     rows = {name: [] for name, _, _ in renders}
@@ -129,7 +130,7 @@ def render_and_compare(scene, geometry, renders, spp, out, references, loaded, s
             reference = np.load(stored) if isinstance(stored, Path) else stored
             mask = mask & measured
             compare_file = scratch_array(out, mask)
-        stages.add(f"compare {renders[0][0]}", time.perf_counter() - start)
+        stages.add("render", time.perf_counter() - start)   # shared by every name's compare
         for i, (name, _, level) in enumerate(renders):
             start = time.perf_counter()
             image, images[i] = images[i], None  # each render freed once it is compared
