@@ -421,8 +421,9 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
     n_workers, every_task_ended, prepared = 0, False, False
     held = contextlib.ExitStack()  # OUT_DIR's lock (_prepare), until the summary is written
     try:
-        if in_process:
+        if in_process or not todo:  # nothing to run: the summary is still this batch's
             prepared = _prepare(out, captures, held)
+        if in_process:
             n_workers = 1
             rows |= _run_here(todo[0], out, options | {"requested": requested})
         elif todo:
@@ -453,18 +454,19 @@ def batch(captures_dir, out, *, workers=None, scheduler=None, force=False, model
     engine = scheduler or (
         "the batch's own process (one capture to run: no cluster)" if in_process
         else f"a local cluster of {n_workers} worker process(es)")
-    write_summary(out, ordered, [
-        f"- {len(ordered)} capture(s) in `{captures_dir}`: {len(ordered) - len(failed)} ok "
-        f"({len(captures) - len(todo)} skipped as complete), {len(failed)} failed.",
-        f"- Ran on {engine if todo else 'nothing (all complete)'}; "
-        f"wall time {time.perf_counter() - start:.1f} s.",
-        f"- Run options: methods {methods}, spp {spp}, model "
-        f"{options['model'] or '(none)'}{', no anchor' if not anchor else ''}"
-        f"{', export' if options['export'] else ''}.",
-        f"- Per-capture logs: `{LOG_DIR}/<capture>.log`. ΔE-log is `delta_e_log_mean` of each "
-        "method's renders against the reference photos (mean over photos, then per photo)."],
-        methods=dict.fromkeys(m.strip() for m in methods.split(",") if m.strip()))
-    held.close()
+    with held:  # OUT_DIR's lock, released once the summary is written (or fails to be)
+        write_summary(out, ordered, [
+            f"- {len(ordered)} capture(s) in `{captures_dir}`: {len(ordered) - len(failed)} ok "
+            f"({len(captures) - len(todo)} skipped as complete), {len(failed)} failed.",
+            f"- Ran on {engine if todo else 'nothing (all complete)'}; "
+            f"wall time {time.perf_counter() - start:.1f} s.",
+            f"- Run options: methods {methods}, spp {spp}, model "
+            f"{options['model'] or '(none)'}{', no anchor' if not anchor else ''}"
+            f"{', export' if options['export'] else ''}.",
+            f"- Per-capture logs: `{LOG_DIR}/<capture>.log`. ΔE-log is `delta_e_log_mean` of "
+            "each method's renders against the reference photos (mean over photos, then per "
+            "photo)."],
+            methods=dict.fromkeys(m.strip() for m in methods.split(",") if m.strip()))
     for r in failed:
         print(f"flashbrdf batch: {r['capture']} failed: {r['reason']}", file=sys.stderr)
     print(f"summary: {(out / 'summary.md').resolve()}")

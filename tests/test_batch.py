@@ -431,6 +431,15 @@ def test_a_second_batch_into_a_busy_out_dir_is_refused(captures, tmp_path, capsy
     # the lock gone (that batch ended or was killed): this one runs, and removes the leftover
     assert main(["batch", str(one), "--out", str(out), *RUN_OPTIONS]) == 0
     assert not staging.exists() and (out / "a" / MARKER).is_file()
+    # with nothing left to run, the summary is still written under the lock
+    written = (out / "summary.md").stat().st_mtime_ns
+    fd = os.open(out, os.O_RDONLY)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        assert main(["batch", str(one), "--out", str(out), *RUN_OPTIONS]) == 2
+        assert (out / "summary.md").stat().st_mtime_ns == written
+    finally:
+        os.close(fd)
 
 
 def test_scheduler_with_nothing_listening_fails_at_once(captures, tmp_path, capsys):
