@@ -4,7 +4,8 @@ T_k is the BRDF of the point's material k (a model, or a MaterialMap's k-th), f_
 diffuse floor and A(x) (3,) the point's diffuse albedo (slice_extract.albedo). The renderer is
 linear in the BRDF, so the textured render is the BRDF's render plus the render of a constant
 BRDF of 1/sr (Lambert with albedo pi) times delta(x) = A(x)/pi - f_k per point: one extra render
-whatever the number of materials, and the BRDF's own importance sampling is kept.
+whatever the number of materials and of maps (render_albedo_maps renders all the maps' bases
+together), and the BRDF's own importance sampling is kept.
 """
 
 import numpy as np
@@ -43,36 +44,73 @@ class DiffuseAlbedoMap:
         self.faces = None if faces is None else np.asarray(faces, float)
         self.where = where
 
-    def point_delta(self, surface, camera):
-        """(N, 3) delta = A/pi - f_k at the points of a capture.Surface seen from `camera`."""
-        if camera_key(camera) == camera_key(self.camera):
-            albedo = self.albedo[surface.rows, surface.cols].astype(float)
-        elif self.faces is not None and surface.face is not None:
-            albedo = self.faces[surface.face]
-        else:
-            raise InputError(self.where, "a reference photo from another camera needs an albedo "
-                                         "per face (ALBEDO.faces.npy, written for mesh geometry)")
-        labels = (self.base.point_labels(surface, camera) if isinstance(self.base, MaterialMap)
-                  else np.ones(len(albedo), np.int64))
-        floors = self.floors[np.clip(labels, 1, len(self.floors)) - 1]
+    def floor_index(self, surface, camera):
+        """(N,) row of `floors` of each point of a capture.Surface seen from `camera` (its
+        material's, through the MaterialMap base's labels), in the smallest integer type, or
+        None when the base is one model (floors[0] everywhere). Checks first that the albedo
+        can be looked up from `camera`."""
+        self._albedo_at(surface, camera, slice(0, 0))
+        if not isinstance(self.base, MaterialMap):
+            return None
+        labels = self.base.point_labels(surface, camera)
+        index = np.clip(labels, 1, len(self.floors)) - 1
+        return index.astype(np.min_scalar_type(len(self.floors) - 1))
+
+    def point_delta(self, surface, camera, rows=slice(None), floor_index=None):
+        """(n, 3) delta = A/pi - f_k at the points `rows` (a slice or an index array) of a
+        capture.Surface seen from `camera`; floor_index: its floor_index(surface, camera), made
+        once for many calls (else made here, for the whole surface)."""
+        albedo = self._albedo_at(surface, camera, rows)
+        if floor_index is None:
+            floor_index = self.floor_index(surface, camera)
+        floors = self.floors[0] if floor_index is None else self.floors[floor_index[rows]]
         known = np.any(albedo > 0, axis=1)
         return np.where(known[:, None], albedo / np.pi - floors, 0.0)
 
+    def _albedo_at(self, surface, camera, rows):
+        """(n, 3) float64 albedo of the points `rows`: through the map for its own camera, else
+        through the face albedos."""
+        if camera_key(camera) == camera_key(self.camera):
+            return self.albedo[surface.rows[rows], surface.cols[rows]].astype(float)
+        if self.faces is not None and surface.face is not None:
+            return self.faces[surface.face[rows]]
+        raise InputError(self.where, "a reference photo from another camera needs an albedo "
+                                     "per face (ALBEDO.faces.npy, written for mesh geometry)")
 
-def render_albedo_maps(maps, surface, camera, render_with, emit):
-    """emit(i, values (N, 3) float64) of the points under each DiffuseAlbedoMap maps[i], one map
-    at a time: render_with(models) -> [(N, 3) per model] renders the surface with a list of
-    models (or MaterialMaps). The constant 1/sr BRDF's render is made once, for the first map
-    whose delta is not 0, and kept for the others. The maps' bases are not rendered together:
-    each map holds its base's values, its delta and their sum (N × 3 float64 each, 0.6 GB at
-    24 MP), and several maps' at once would hold that many times more."""
+
+DELTA_CHUNK = 1 << 14  # points whose delta is checked at once: ~2 MB of temporaries, any N
+
+
+def render_albedo_maps(maps, surface, camera, render, emit):
+    """emit(rows, i, values (n, 3) float64) of the points `rows` (a slice or an index array)
+    under each DiffuseAlbedoMap maps[i], as they are made. render(items, sink) renders the
+    surface with a list of models or MaterialMaps (render_surface: sink(rows, j, values) per
+    chunk of items[j]).
+
+    The constant 1/sr BRDF is rendered first, into one (N, 3) float64 array, when some map's
+    delta is not 0 somewhere; then every map's base in one render, so that what does not depend
+    on the BRDF (the envmap's samples, radiance and shadow rays) is computed once for all. Each
+    chunk of a base's values becomes max(values + unit * delta, 0) as it comes, its delta made
+    for its rows only: no (N, 3) array per map is held, only the unit render and, per map with
+    a MaterialMap base, one small integer per point (its floor). A map whose delta is 0
+    everywhere emits its base's values unchanged."""
+    n = len(surface.normals)
+    floor_index = [albedo_map.floor_index(surface, camera) for albedo_map in maps]
+    textured = [any(np.any(albedo_map.point_delta(surface, camera, slice(s, s + DELTA_CHUNK),
+                                                  index))
+                    for s in range(0, n, DELTA_CHUNK))
+                for albedo_map, index in zip(maps, floor_index)]
     unit = None
-    for i, albedo_map in enumerate(maps):
-        values = render_with([albedo_map.base])[0]
-        delta = albedo_map.point_delta(surface, camera)
-        if np.any(delta):
-            if unit is None:
-                unit = render_with([Lambert(np.pi)])[0]   # rho = 1 / sr
-            values = np.maximum(values + unit * delta, 0.0)
-        emit(i, values)
-        del values, delta
+    if any(textured):
+        unit = np.zeros((n, 3))
+
+        def keep(rows, _, values):
+            unit[rows] = values
+        render([Lambert(np.pi)], keep)                     # rho = 1 / sr
+
+    def textured_sink(rows, i, values):
+        if textured[i]:
+            delta = maps[i].point_delta(surface, camera, rows, floor_index[i])
+            values = np.maximum(values + unit[rows] * delta, 0.0)
+        emit(rows, i, values)
+    render([albedo_map.base for albedo_map in maps], textured_sink)

@@ -105,11 +105,9 @@ def render_surface(surface, camera, light, brdfs, emit, spp=64, seed=0, occluded
         groups.setdefault(kind, []).append(m)
     for kind, members in groups.items():
         if kind is DiffuseAlbedoMap:
-            n = len(surface.normals)
-            render_albedo_maps([brdfs[m] for m in members], surface, camera,
-                               lambda items: _collected(render, items, n),
-                               lambda i, value, members=members:
-                               emit(slice(None), members[i], value))
+            render_albedo_maps([brdfs[m] for m in members], surface, camera, render,
+                               lambda rows, i, value, members=members:
+                               emit(rows, members[i], value))
         elif kind is MaterialMap:
             _render_materials(surface, camera, [brdfs[m] for m in members], render,
                               lambda rows, i, value, members=members:
@@ -119,16 +117,6 @@ def render_surface(surface, camera, light, brdfs, emit, spp=64, seed=0, occluded
                            lambda rows, i, value, members=members:
                            emit(rows, members[i], value),
                            spp, seed, occluded, envmaps, progress, where)
-
-
-def _collected(render, items, n):
-    """[(n, 3) float64 per item]: render(items, sink) gathered into whole arrays."""
-    out = [np.zeros((n, 3)) for _ in items]
-
-    def sink(rows, m, value):
-        out[m][rows] = value
-    render(items, sink)
-    return out
 
 
 def _render_materials(surface, camera, maps, render, emit):
