@@ -104,19 +104,17 @@ def render_surface(surface, camera, light, brdfs, emit, spp=64, seed=0, occluded
                 else MaterialMap if isinstance(brdf, MaterialMap) else None)
         groups.setdefault(kind, []).append(m)
     for kind, members in groups.items():
+        items = [brdfs[m] for m in members]
+
+        def sink(rows, i, value, members=members):   # a group's i-th item is brdfs[members[i]]
+            emit(rows, members[i], value)
         if kind is DiffuseAlbedoMap:
-            render_albedo_maps([brdfs[m] for m in members], surface, camera, render,
-                               lambda rows, i, value, members=members:
-                               emit(rows, members[i], value))
+            render_albedo_maps(items, surface, camera, render, sink)
         elif kind is MaterialMap:
-            _render_materials(surface, camera, [brdfs[m] for m in members], render,
-                              lambda rows, i, value, members=members:
-                              emit(rows, members[i], value))
+            _render_materials(surface, camera, items, render, sink)
         else:
-            _render_models(surface, camera, light, [brdfs[m] for m in members],
-                           lambda rows, i, value, members=members:
-                           emit(rows, members[i], value),
-                           spp, seed, occluded, envmaps, progress, where)
+            _render_models(surface, camera, light, items, sink, spp, seed, occluded, envmaps,
+                           progress, where)
 
 
 def _render_materials(surface, camera, maps, render, emit):
